@@ -1,0 +1,88 @@
+#!/usr/bin/env bash
+# Installs every dependency of stipple from package registries on Debian 12 (bookworm),
+# idempotently and quietly, then configures and builds build/ (Release with debug info).
+#   scripts/setup.sh            install + build
+#   scripts/setup.sh --deps     install only
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+deps_only=0
+[[ "${1:-}" == "--deps" ]] && deps_only=1
+sudo_cmd=""
+[[ $(id -u) -ne 0 ]] && sudo_cmd="sudo"
+log() { printf '[setup] %s\n' "$*"; }
+
+# ---- Debian packages -------------------------------------------------------------------
+# Mesa 25 (lavapipe that Dawn accepts) comes from bookworm-backports; liblaszip-dev 3.5 from
+# trixie, pinned so that nothing else is taken from trixie.
+apt_pkgs=(build-essential cmake ninja-build ccache pkg-config git curl ca-certificates
+  python3 python3-pip unzip xz-utils
+  libglm-dev libglfw3-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
+  libcurl4-openssl-dev libpng-dev libproj-dev proj-data libdraco-dev libmeshoptimizer-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libimgui-dev xvfb xauth
+  libvulkan1 vulkan-tools clang-14 libclang-rt-14-dev clang-format nginx-light)
+need_apt=0
+for p in "${apt_pkgs[@]}" liblaszip-dev mesa-vulkan-drivers; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || { need_apt=1; break; }
+done
+mesa_ver=$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || true)
+[[ "$mesa_ver" == 25.* ]] || need_apt=1
+if [[ $need_apt -eq 1 ]]; then
+  log "installing Debian packages"
+  $sudo_cmd tee /etc/apt/sources.list.d/stipple.sources >/dev/null <<'SRC'
+Types: deb
+URIs: http://deb.debian.org/debian
+Suites: bookworm-backports trixie
+Components: main
+Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg
+SRC
+  $sudo_cmd tee /etc/apt/preferences.d/stipple >/dev/null <<'PIN'
+Package: *
+Pin: release n=trixie
+Pin-Priority: 1
+
+Package: liblaszip-dev liblaszip8
+Pin: release n=trixie
+Pin-Priority: 990
+PIN
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo_cmd apt-get update -qq
+  $sudo_cmd apt-get install -y -qq --no-install-recommends "${apt_pkgs[@]}" >/dev/null
+  $sudo_cmd apt-get install -y -qq --no-install-recommends -t bookworm-backports mesa-vulkan-drivers >/dev/null
+  $sudo_cmd apt-get install -y -qq --no-install-recommends liblaszip-dev >/dev/null
+fi
+
+# ---- WebGPU implementations (into .deps/, ignored by git) -------------------------------
+deps="$root/.deps"
+mkdir -p "$deps"
+wgpu_ver=0.32.0
+if [[ ! -f "$deps/wgpu/lib/libwgpu_native-release.so" ]]; then
+  log "fetching wgpu-native from the PyPI wheel wgpu==$wgpu_ver"
+  tmp=$(mktemp -d)
+  python3 -m pip download -q --no-deps --only-binary=:all: --platform manylinux_2_28_x86_64 \
+    --platform manylinux_2_17_x86_64 --platform manylinux2014_x86_64 \
+    --python-version 3.11 -d "$tmp" "wgpu==$wgpu_ver" >/dev/null
+  (cd "$tmp" && unzip -q -o ./*.whl 'wgpu/resources/*')
+  mkdir -p "$deps/wgpu/include/webgpu" "$deps/wgpu/lib"
+  cp "$tmp"/wgpu/resources/*.h "$deps/wgpu/include/webgpu/"
+  cp "$tmp"/wgpu/resources/libwgpu_native-release.so "$deps/wgpu/lib/"
+  rm -rf "$tmp"
+fi
+dawn_ver=0.1.7
+if [[ ! -f "$deps/dawn/lib/libwebgpu_wrapper.so" ]]; then
+  log "fetching Dawn from the npm package bun-webgpu-linux-x64@$dawn_ver"
+  tmp=$(mktemp -d)
+  (cd "$tmp" && npm pack -q "bun-webgpu-linux-x64@$dawn_ver" >/dev/null && tar xzf ./*.tgz)
+  mkdir -p "$deps/dawn/lib"
+  cp "$(find "$tmp/package" -name 'libwebgpu_wrapper.so' | head -n1)" "$deps/dawn/lib/"
+  rm -rf "$tmp"
+fi
+[[ $deps_only -eq 1 ]] && exit 0
+
+# ---- configure and build ---------------------------------------------------------------
+log "building build/ (Release with debug info)"
+cmake -S "$root" -B "$root/build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
+  -DSTIPPLE_WERROR="${CI:+ON}" >/dev/null
+cmake --build "$root/build" -- -k 0 | grep -vE '^\[[0-9]+/[0-9]+\] (Building|Linking)' || true
+test -x "$root/build/stipple"
+log "done: build/stipple"

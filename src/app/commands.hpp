@@ -1,0 +1,11 @@
+#pragma once
+// Each `stipple` subcommand registers its options on the CLI and runs from a callback.
+#include <CLI/CLI.hpp>
+
+namespace stipple::app {
+
+void add_render_command(CLI::App& cli);
+void add_info_command(CLI::App& cli);
+void add_generate_command(CLI::App& cli);
+
+}  // namespace stipple::app

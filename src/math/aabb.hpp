@@ -1,0 +1,31 @@
+#pragma once
+// Axis-aligned bounding box in double precision.
+#include <limits>
+
+#include <glm/common.hpp>
+#include <glm/vec3.hpp>
+
+namespace stipple {
+
+struct Aabb {
+  glm::dvec3 min{std::numeric_limits<double>::infinity()};
+  glm::dvec3 max{-std::numeric_limits<double>::infinity()};
+
+  bool empty() const { return min.x > max.x || min.y > max.y || min.z > max.z; }
+  void extend(const glm::dvec3& p) {
+    min = glm::min(min, p);
+    max = glm::max(max, p);
+  }
+  void extend(const Aabb& b) {
+    min = glm::min(min, b.min);
+    max = glm::max(max, b.max);
+  }
+  glm::dvec3 center() const { return (min + max) * 0.5; }
+  glm::dvec3 size() const { return max - min; }
+  bool contains(const glm::dvec3& p) const {
+    return p.x >= min.x && p.y >= min.y && p.z >= min.z && p.x <= max.x && p.y <= max.y &&
+           p.z <= max.z;
+  }
+};
+
+}  // namespace stipple

@@ -1,0 +1,154 @@
+#pragma once
+// A small RAII layer over webgpu.h: handles, the device context, buffer/texture/pipeline
+// helpers, synchronous readback and an offscreen target.
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include <webgpu/webgpu.h>
+
+namespace stipple::gpu {
+
+enum class Backend;
+
+// Unique ownership of one WebGPU object; releases it on destruction.
+template <typename T, void (*Release)(T)>
+class Handle {
+ public:
+  Handle() = default;
+  explicit Handle(T raw) : raw_(raw) {}
+  Handle(Handle&& other) noexcept : raw_(std::exchange(other.raw_, nullptr)) {}
+  Handle& operator=(Handle&& other) noexcept {
+    if (this != &other) {
+      reset();
+      raw_ = std::exchange(other.raw_, nullptr);
+    }
+    return *this;
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  ~Handle() { reset(); }
+  void reset() {
+    if (raw_) Release(raw_);
+    raw_ = nullptr;
+  }
+  T get() const { return raw_; }
+  explicit operator bool() const { return raw_ != nullptr; }
+
+ private:
+  T raw_ = nullptr;
+};
+
+using Instance = Handle<WGPUInstance, wgpuInstanceRelease>;
+using Adapter = Handle<WGPUAdapter, wgpuAdapterRelease>;
+using Device = Handle<WGPUDevice, wgpuDeviceRelease>;
+using Queue = Handle<WGPUQueue, wgpuQueueRelease>;
+using Buffer = Handle<WGPUBuffer, wgpuBufferRelease>;
+using Texture = Handle<WGPUTexture, wgpuTextureRelease>;
+using TextureView = Handle<WGPUTextureView, wgpuTextureViewRelease>;
+using Sampler = Handle<WGPUSampler, wgpuSamplerRelease>;
+using ShaderModule = Handle<WGPUShaderModule, wgpuShaderModuleRelease>;
+using BindGroupLayout = Handle<WGPUBindGroupLayout, wgpuBindGroupLayoutRelease>;
+using BindGroup = Handle<WGPUBindGroup, wgpuBindGroupRelease>;
+using PipelineLayout = Handle<WGPUPipelineLayout, wgpuPipelineLayoutRelease>;
+using RenderPipeline = Handle<WGPURenderPipeline, wgpuRenderPipelineRelease>;
+using ComputePipeline = Handle<WGPUComputePipeline, wgpuComputePipelineRelease>;
+using CommandEncoder = Handle<WGPUCommandEncoder, wgpuCommandEncoderRelease>;
+using CommandBuffer = Handle<WGPUCommandBuffer, wgpuCommandBufferRelease>;
+using RenderPassEncoder = Handle<WGPURenderPassEncoder, wgpuRenderPassEncoderRelease>;
+using ComputePassEncoder = Handle<WGPUComputePassEncoder, wgpuComputePassEncoderRelease>;
+using QuerySet = Handle<WGPUQuerySet, wgpuQuerySetRelease>;
+
+WGPUStringView to_view(std::string_view s);
+// Every texture format written into a descriptor goes through native(): implementations built
+// from different webgpu.h revisions number formats differently (see webgpu_loader.hpp).
+WGPUTextureFormat native(WGPUTextureFormat format);
+std::string to_string(WGPUStringView s);
+
+struct ContextOptions {
+  std::string backend;  // "dawn", "wgpu" or empty for the default (STIPPLE_BACKEND)
+  bool low_power = false;
+  // Features to enable when the adapter has them (missing ones are skipped, not an error).
+  std::vector<WGPUFeatureName> optional_features;
+};
+
+struct AdapterDescription {
+  std::string backend;  // the WebGPU implementation: "dawn" or "wgpu"
+  std::string vendor, architecture, device, description;
+  std::string graphics_api;  // "Vulkan", "Metal", ...
+  std::string adapter_type;  // "discrete GPU", "CPU", ...
+  uint32_t vendor_id = 0, device_id = 0;
+};
+
+// One device with its queue; limits are the adapter's own (WebGPU defaults are far too small
+// for point clouds: 128 MiB storage bindings).
+struct Context {
+  Instance instance;
+  Adapter adapter;
+  Device device;
+  Queue queue;
+  AdapterDescription description;
+  WGPULimits limits{};
+  std::vector<WGPUFeatureName> features;  // enabled on the device
+  std::vector<WGPUFeatureName> adapter_features;
+  uint64_t error_count = 0;  // uncaptured errors seen (validation, out of memory, internal)
+  std::string last_error;
+  bool lost = false;
+
+  Context() = default;
+  Context(const Context&) = delete;
+  Context& operator=(const Context&) = delete;
+  ~Context();
+  bool has_feature(WGPUFeatureName feature) const;
+  // Runs the implementation's event processing until done() returns true.
+  template <typename Predicate>
+  void wait_until(Predicate done) {
+    while (!done()) poll(true);
+  }
+  void poll(bool wait);
+  // Waits for all submitted work to finish.
+  void wait_idle();
+  // Throws stipple::Error when an uncaptured error happened since the last check.
+  void check(std::string_view what);
+};
+
+std::unique_ptr<Context> create_context(const ContextOptions& options = {});
+std::string feature_name(WGPUFeatureName feature);
+// Human-readable "name value" lines for every limit, in the header's order.
+std::vector<std::pair<std::string, uint64_t>> limit_list(const WGPULimits& limits);
+
+// ---- helpers ------------------------------------------------------------------------------
+Buffer create_buffer(Context& ctx, uint64_t size, WGPUBufferUsage usage, std::string_view label,
+                     const void* data = nullptr);
+Texture create_texture_2d(Context& ctx, uint32_t width, uint32_t height, WGPUTextureFormat format,
+                          WGPUTextureUsage usage, std::string_view label);
+TextureView create_view(const Texture& texture);
+// Compiles WGSL; throws stipple::Error with the compiler's messages (file:line:column) on failure.
+ShaderModule create_shader(Context& ctx, std::string_view wgsl, std::string_view label);
+
+// Copies a buffer range to the CPU, blocking until done.
+std::vector<uint8_t> read_buffer(Context& ctx, WGPUBuffer buffer, uint64_t offset, uint64_t size);
+
+struct Image {
+  uint32_t width = 0, height = 0;
+  std::vector<uint8_t> rgba;  // tightly packed RGBA8, top row first
+};
+// Reads a RGBA8/BGRA8 texture back as RGBA8, blocking until done.
+Image read_texture(Context& ctx, WGPUTexture texture, uint32_t width, uint32_t height,
+                   WGPUTextureFormat format);
+
+// An offscreen colour + depth target to render into without a window.
+struct OffscreenTarget {
+  uint32_t width = 0, height = 0;
+  WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
+  WGPUTextureFormat depth_format = WGPUTextureFormat_Depth32Float;
+  Texture color, depth;
+  TextureView color_view, depth_view;
+};
+OffscreenTarget create_offscreen_target(Context& ctx, uint32_t width, uint32_t height);
+
+}  // namespace stipple::gpu

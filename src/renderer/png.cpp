@@ -1,0 +1,45 @@
+#include "renderer/png.hpp"
+
+#include <png.h>
+
+#include <cstdio>
+#include <memory>
+
+#include "core/error.hpp"
+
+namespace stipple::gpu {
+
+void write_png(const std::filesystem::path& path, const Image& image) {
+  if (image.rgba.size() != size_t(image.width) * image.height * 4)
+    fail("{}: image data does not match its size", path.string());
+  std::filesystem::path tmp = path;
+  tmp += ".partial";
+  png_image png{};
+  png.version = PNG_IMAGE_VERSION;
+  png.width = image.width;
+  png.height = image.height;
+  png.format = PNG_FORMAT_RGBA;
+  if (!png_image_write_to_file(&png, tmp.c_str(), 0, image.rgba.data(), 0, nullptr)) {
+    std::string message = png.message;
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    fail("{}: cannot write PNG: {}", path.string(), message);
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) fail("{}: cannot write PNG: {}", path.string(), ec.message());
+}
+
+Image read_png(const std::filesystem::path& path) {
+  png_image png{};
+  png.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&png, path.c_str()))
+    fail("{}: cannot read PNG: {}", path.string(), png.message);
+  png.format = PNG_FORMAT_RGBA;
+  Image image{png.width, png.height, std::vector<uint8_t>(PNG_IMAGE_SIZE(png))};
+  if (!png_image_finish_read(&png, nullptr, image.rgba.data(), 0, nullptr))
+    fail("{}: cannot read PNG: {}", path.string(), png.message);
+  return image;
+}
+
+}  // namespace stipple::gpu

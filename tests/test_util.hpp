@@ -1,0 +1,63 @@
+#pragma once
+// Shared helpers for tests: where the real LiDAR data lives, image statistics.
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "renderer/gpu.hpp"
+
+namespace stipple::test {
+
+// ../shared/data beside the checkout, or STIPPLE_DATA_DIR; empty when absent.
+inline std::filesystem::path data_dir() {
+  if (const char* env = std::getenv("STIPPLE_DATA_DIR"); env && *env) return env;
+  std::filesystem::path p = std::filesystem::path(STIPPLE_SOURCE_DIR) / ".." / "shared" / "data";
+  return std::filesystem::exists(p) ? p : std::filesystem::path();
+}
+
+#define STIPPLE_REQUIRE_DATA(path_var, relative)                                          \
+  auto path_var = ::stipple::test::data_dir() / (relative);                               \
+  if (::stipple::test::data_dir().empty() || !std::filesystem::exists(path_var))          \
+  GTEST_SKIP() << "test data " << (relative) << " not found (../shared/data is absent)"
+
+struct CoverageStats {
+  double coverage = 0;   // fraction of pixels that differ from the background
+  double mean[3] = {0, 0, 0};  // mean RGB of covered pixels
+  size_t covered = 0;
+};
+
+inline CoverageStats coverage_stats(const gpu::Image& image, const uint8_t background[3],
+                                    int tolerance = 2) {
+  CoverageStats s;
+  size_t n = size_t(image.width) * image.height;
+  double sum[3] = {0, 0, 0};
+  for (size_t i = 0; i < n; ++i) {
+    const uint8_t* p = &image.rgba[i * 4];
+    bool bg = std::abs(p[0] - background[0]) <= tolerance &&
+              std::abs(p[1] - background[1]) <= tolerance &&
+              std::abs(p[2] - background[2]) <= tolerance;
+    if (bg) continue;
+    ++s.covered;
+    for (int c = 0; c < 3; ++c) sum[c] += p[c];
+  }
+  s.coverage = double(s.covered) / double(n);
+  for (int c = 0; c < 3; ++c) s.mean[c] = s.covered ? sum[c] / double(s.covered) : 0.0;
+  return s;
+}
+
+// Fraction of pixels whose channels differ by more than `tolerance` between two images.
+inline double differing_fraction(const gpu::Image& a, const gpu::Image& b, int tolerance) {
+  if (a.width != b.width || a.height != b.height) return 1.0;
+  size_t n = size_t(a.width) * a.height, diff = 0;
+  for (size_t i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c)
+      if (std::abs(a.rgba[i * 4 + c] - b.rgba[i * 4 + c]) > tolerance) {
+        ++diff;
+        break;
+      }
+  return double(diff) / double(n);
+}
+
+}  // namespace stipple::test
