@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Runs the whole test suite and prints ctest's summary:
+#   1. build/ (Release with debug info, the one setup.sh builds): unit, GPU (lavapipe, both
+#      WebGPU implementations) and command-line tests;
+#   2. build-asan/ (clang, AddressSanitizer + UndefinedBehaviorSanitizer): the same tests plus
+#      the libFuzzer targets, each fuzzed for a bounded time.
+# Set STIPPLE_SKIP_ASAN=1 to run only the first part.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+jobs=$(nproc)
+werror="${CI:+ON}"
+
+[[ -f build/build.ninja ]] || scripts/setup.sh
+cmake --build build -- -j"$jobs" | grep -vE '^\[[0-9]+/[0-9]+\] (Building|Linking)' || true
+echo "== tests (build/) =="
+ctest --test-dir build --output-on-failure -j"$jobs"
+
+if [[ "${STIPPLE_SKIP_ASAN:-0}" != 1 ]]; then
+  echo "== tests under AddressSanitizer + UndefinedBehaviorSanitizer, with fuzzing (build-asan/) =="
+  cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
+    -DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
+    -DSTIPPLE_SANITIZE=ON -DSTIPPLE_FUZZ=ON -DSTIPPLE_WERROR="${werror:-OFF}" >/dev/null
+  cmake --build build-asan -- -j"$jobs" | grep -vE '^\[[0-9]+/[0-9]+\] (Building|Linking)' || true
+  # Leaks inside the Vulkan driver and the WebGPU libraries are not ours to fix.
+  export LSAN_OPTIONS="suppressions=$root/tests/lsan.supp:print_suppressions=0"
+  export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+  ctest --test-dir build-asan --output-on-failure -j"$jobs"
+fi

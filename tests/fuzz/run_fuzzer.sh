@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# run_fuzzer.sh FUZZER SECONDS CORPUS_DIR [SEED_DIR]: runs a libFuzzer binary for a bounded time
+# on a fresh working corpus seeded with the real files (LAS, LAZ) when they exist.
+set -euo pipefail
+fuzzer=$1 seconds=$2 corpus=$3 seeds=${4:-}
+rm -rf "$corpus" && mkdir -p "$corpus"
+if [[ -n "$seeds" && -d "$seeds" ]]; then
+  # Small seeds keep the run fast: the first 64 KiB of each file holds header, VLRs and points.
+  while IFS= read -r -d '' f; do
+    head -c 65536 "$f" >"$corpus/$(basename "$f")"
+  done < <(find "$seeds" -type f \( -name '*.las' -o -name '*.laz' \) -print0)
+else
+  echo "seed corpus not found (../shared/data absent): fuzzing from an empty corpus"
+fi
+exec "$fuzzer" -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=20 -print_final_stats=1 "$corpus"
