@@ -1,9 +1,13 @@
 // `stipple render`: headless rendering of LAS/LAZ/COPC files (or the built-in scene) to PNG.
+#include <algorithm>
 #include <chrono>
+#include <fstream>
 #include <cmath>
 #include <filesystem>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "app/commands.hpp"
 #include "core/error.hpp"
@@ -30,6 +34,8 @@ struct RenderArgs {
   uint64_t scene_points = 1'000'000;
   uint32_t seed = 1;
   std::string background = "0.07,0.08,0.1";
+  uint32_t frames = 1;
+  std::string stats;
 };
 
 std::vector<double> parse_numbers(const std::string& text, size_t expected, const char* what) {
@@ -104,13 +110,58 @@ void run_render(const RenderArgs& args) {
       args.point_size > 0 ? args.point_size : pc::auto_point_size(cloud, camera, args.height);
   auto bg = parse_numbers(args.background, 3, "--background");
   style.background = glm::vec3(bg[0], bg[1], bg[2]);
-  pc::draw_points(*ctx, pipeline, gpu_cloud, camera, style, target.color_view.get(),
-                  target.depth_view.get(), args.width, args.height);
+  auto load_end = std::chrono::steady_clock::now();
+  // Every frame is waited for, so GPU and wall times are per frame, not pipelined.
+  std::vector<double> gpu_ms, wall_ms;
+  for (uint32_t frame = 0; frame < args.frames; ++frame) {
+    auto t0 = std::chrono::steady_clock::now();
+    pc::draw_points(*ctx, pipeline, gpu_cloud, camera, style, target.color_view.get(),
+                    target.depth_view.get(), args.width, args.height);
+    auto times = gpu::read_pass_times(*ctx, pipeline.timer);
+    if (times.empty()) ctx->wait_idle();
+    else gpu_ms.push_back(times[0]);
+    wall_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  }
   gpu::Image image =
       gpu::read_texture(*ctx, target.color.get(), args.width, args.height, target.color_format);
   gpu::write_png(args.output, image);
   double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  auto median = [](std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  if (!args.stats.empty()) {
+    nlohmann::json j;
+    j["backend"] = ctx->description.backend;
+    j["adapter"] = ctx->description.device;
+    j["graphics_api"] = ctx->description.graphics_api;
+    j["points"] = gpu_cloud.point_count;
+    j["width"] = args.width;
+    j["height"] = args.height;
+    j["point_size_px"] = style.point_size;
+    j["frames"] = args.frames;
+    j["load_s"] = std::chrono::duration<double>(load_end - start).count();
+    j["passes"]["points"]["gpu_ms"] = gpu_ms;
+    j["passes"]["points"]["gpu_ms_median"] = median(gpu_ms);
+    j["frame_wall_ms"] = wall_ms;
+    j["frame_wall_ms_median"] = median(wall_ms);
+    j["gpu_timing"] = !gpu_ms.empty();
+    if (!gpu_ms.empty() && median(gpu_ms) > 0)
+      j["points_per_second"] = double(gpu_cloud.point_count) / (median(gpu_ms) * 1e-3);
+    std::string tmp = args.stats + ".partial";
+    {
+      std::ofstream out(tmp);
+      out << j.dump(2) << "\n";
+      if (!out) fail("{}: cannot write stats", args.stats);
+    }
+    std::filesystem::rename(tmp, args.stats);
+  }
+  if (args.frames > 1)
+    std::printf("%u frames: GPU %.3f ms, wall %.3f ms per frame (median)\n", args.frames,
+                median(gpu_ms), median(wall_ms));
   std::printf("rendered %llu points (%s colour, %.1f px) with %s on %s to %s (%ux%u) in %.2f s\n",
               static_cast<unsigned long long>(gpu_cloud.point_count), cloud.color_source.c_str(),
               double(style.point_size), ctx->description.backend.c_str(),
@@ -155,6 +206,10 @@ void add_render_command(CLI::App& cli) {
   cmd->add_option("--seed", args->seed, "Built-in scene: random seed")->capture_default_str();
   cmd->add_option("--background", args->background, "Background colour 'r,g,b' in 0..1")
       ->capture_default_str();
+  cmd->add_option("--frames", args->frames, "Render this many frames (timing; the last is saved)")
+      ->check(CLI::Range(1u, 100000u))->capture_default_str();
+  cmd->add_option("--stats", args->stats, "Write timings (GPU ms per pass from timestamp queries, "
+                                          "wall ms per frame) as JSON");
   cmd->callback([args] { run_render(*args); });
 }
 

@@ -106,6 +106,7 @@ PointPipeline create_point_pipeline(gpu::Context& ctx, WGPUTextureFormat color_f
   desc.fragment = &fragment;
   p.pipeline = gpu::RenderPipeline(wgpuDeviceCreateRenderPipeline(ctx.device.get(), &desc));
   ctx.check("creating the point pipeline");
+  p.timer = gpu::create_pass_timer(ctx, 1);
   p.frame_uniforms = gpu::create_buffer(ctx, sizeof(FrameUniforms),
                                         WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst,
                                         "frame-uniforms");
@@ -177,6 +178,8 @@ void draw_points(gpu::Context& ctx, PointPipeline& p, const GpuPointCloud& cloud
   pass_desc.colorAttachmentCount = 1;
   pass_desc.colorAttachments = &color_attachment;
   pass_desc.depthStencilAttachment = &depth_attachment;
+  WGPUPassTimestampWrites timestamps;
+  pass_desc.timestampWrites = gpu::pass_timestamps(p.timer, 0, timestamps);
   gpu::RenderPassEncoder pass(wgpuCommandEncoderBeginRenderPass(encoder.get(), &pass_desc));
   wgpuRenderPassEncoderSetPipeline(pass.get(), p.pipeline.get());
   for (size_t i = 0; i < cloud.chunks.size(); ++i) {
@@ -188,6 +191,7 @@ void draw_points(gpu::Context& ctx, PointPipeline& p, const GpuPointCloud& cloud
     wgpuRenderPassEncoderDraw(pass.get(), 4, chunk.count, 0, 0);
   }
   wgpuRenderPassEncoderEnd(pass.get());
+  gpu::resolve_pass_timer(p.timer, encoder.get());
   gpu::CommandBuffer commands(wgpuCommandEncoderFinish(encoder.get(), nullptr));
   WGPUCommandBuffer raw = commands.get();
   wgpuQueueSubmit(ctx.queue.get(), 1, &raw);

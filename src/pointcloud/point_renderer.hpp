@@ -9,6 +9,7 @@
 #include "math/camera.hpp"
 #include "pointcloud/point_cloud.hpp"
 #include "renderer/gpu.hpp"
+#include "renderer/gpu_timer.hpp"
 
 namespace stipple::pc {
 
@@ -40,12 +41,14 @@ struct PointPipeline {
   uint32_t chunk_stride = 256;
   uint32_t chunk_capacity = 0;
   gpu::BindGroup bind_group;
+  gpu::PassTimer timer;  // one pass: the point draw
 };
 
 PointPipeline create_point_pipeline(gpu::Context& ctx, WGPUTextureFormat color_format,
                                     WGPUTextureFormat depth_format);
 
-// Records and submits one frame into the target views.
+// Records and submits one frame into the target views. With the pipeline's timer enabled,
+// read_pass_times(ctx, pipeline.timer) gives the draw's GPU time afterwards.
 void draw_points(gpu::Context& ctx, PointPipeline& pipeline, const GpuPointCloud& cloud,
                  const Camera& camera, const PointStyle& style, WGPUTextureView color,
                  WGPUTextureView depth, uint32_t width, uint32_t height);
