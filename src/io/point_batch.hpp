@@ -22,9 +22,9 @@ struct PointBatch {
   std::vector<float> scan_angle;  // degrees (rank in 0-5, 0.006 degree steps in 6-10)
   std::vector<uint8_t> user_data;
   std::vector<uint16_t> point_source_id;
-  std::vector<double> gps_time;            // formats 1, 3-10
-  std::vector<glm::u16vec3> rgb;           // formats 2, 3, 5, 7, 8, 10; as stored (see rgb_bits)
-  std::vector<uint16_t> nir;               // formats 8, 10
+  std::vector<double> gps_time;   // formats 1, 3-10
+  std::vector<glm::u16vec3> rgb;  // formats 2, 3, 5, 7, 8, 10; as stored (see rgb_bits)
+  std::vector<uint16_t> nir;      // formats 8, 10
   struct WavePacket {
     uint8_t descriptor_index;
     uint64_t data_offset;
@@ -32,9 +32,9 @@ struct PointBatch {
     float return_point_location;
     float dx, dy, dz;
   };
-  std::vector<WavePacket> wave_packets;    // formats 4, 5, 9, 10
+  std::vector<WavePacket> wave_packets;  // formats 4, 5, 9, 10
   size_t extra_bytes_per_point = 0;
-  std::vector<uint8_t> extra_bytes;        // size() * extra_bytes_per_point, raw as in the file
+  std::vector<uint8_t> extra_bytes;  // size() * extra_bytes_per_point, raw as in the file
 
   size_t size() const { return positions.size(); }
   void clear();
