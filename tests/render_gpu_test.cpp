@@ -72,9 +72,8 @@ TEST_P(Render, ContextHasAdapterLimitsAndReadsBack) {
   EXPECT_GE(ctx->limits.maxBufferSize, 256ull << 20);
   std::vector<uint32_t> data(1000);
   for (uint32_t i = 0; i < data.size(); ++i) data[i] = i * 2654435761u;
-  auto buffer = gpu::create_buffer(*ctx, data.size() * 4,
-                                   WGPUBufferUsage_Storage | WGPUBufferUsage_CopySrc, "t",
-                                   data.data());
+  auto buffer = gpu::create_buffer(
+      *ctx, data.size() * 4, WGPUBufferUsage_Storage | WGPUBufferUsage_CopySrc, "t", data.data());
   auto bytes = gpu::read_buffer(*ctx, buffer.get(), 40, 400);
   ASSERT_EQ(bytes.size(), 400u);
   EXPECT_EQ(std::memcmp(bytes.data(), data.data() + 10, 400), 0);
@@ -93,8 +92,8 @@ TEST_P(Render, ShaderErrorsAreReported) {
 TEST_P(Render, PointsLandWhereTheCameraProjectsThem) {
   auto ctx = context();
   // Three coloured points in a plane 10 m in front of a camera looking north (Z-up source).
-  auto cloud = make_cloud({{0, 10, 0}, {2, 10, 0}, {0, 10, 1.5}},
-                          {{255, 0, 0}, {0, 255, 0}, {0, 0, 255}});
+  auto cloud =
+      make_cloud({{0, 10, 0}, {2, 10, 0}, {0, 10, 1.5}}, {{255, 0, 0}, {0, 255, 0}, {0, 0, 255}});
   Camera camera;
   camera.fov_y = glm::radians(60.0);
   camera.look_at(z_up_to_y_up({0, 0, 0}), z_up_to_y_up({0, 10, 0}));
@@ -115,8 +114,8 @@ TEST_P(Render, PointsLandWhereTheCameraProjectsThem) {
     EXPECT_EQ(p[1], expected[i][1]) << "point " << i;
     EXPECT_EQ(p[2], expected[i][2]) << "point " << i;
   }
-  for (size_t i = 0; i < size_t(w) * h; ++i) lit += image.rgba[i * 4] + image.rgba[i * 4 + 1] +
-                                                         image.rgba[i * 4 + 2] > 0;
+  for (size_t i = 0; i < size_t(w) * h; ++i)
+    lit += image.rgba[i * 4] + image.rgba[i * 4 + 1] + image.rgba[i * 4 + 2] > 0;
   // Three 3x3-pixel squares, nothing else.
   EXPECT_EQ(lit, 27u);
 }
@@ -174,7 +173,8 @@ TEST_P(Render, AutzenShowsAllPointsInTheirColours) {
   {
     io::LasReader reader(path);
     io::PointBatch batch;
-    while (reader.read(batch, 1 << 16)) {}
+    while (reader.read(batch, 1 << 16)) {
+    }
     ASSERT_EQ(batch.rgb.size(), 110000u);
     for (auto c : batch.rgb) {
       data_mean[0] += c.r;

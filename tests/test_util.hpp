@@ -17,13 +17,13 @@ inline std::filesystem::path data_dir() {
   return std::filesystem::exists(p) ? p : std::filesystem::path();
 }
 
-#define STIPPLE_REQUIRE_DATA(path_var, relative)                                          \
-  auto path_var = ::stipple::test::data_dir() / (relative);                               \
-  if (::stipple::test::data_dir().empty() || !std::filesystem::exists(path_var))          \
+#define STIPPLE_REQUIRE_DATA(path_var, relative)                                 \
+  auto path_var = ::stipple::test::data_dir() / (relative);                      \
+  if (::stipple::test::data_dir().empty() || !std::filesystem::exists(path_var)) \
   GTEST_SKIP() << "test data " << (relative) << " not found (../shared/data is absent)"
 
 struct CoverageStats {
-  double coverage = 0;   // fraction of pixels that differ from the background
+  double coverage = 0;         // fraction of pixels that differ from the background
   double mean[3] = {0, 0, 0};  // mean RGB of covered pixels
   size_t covered = 0;
 };

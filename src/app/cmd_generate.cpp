@@ -91,8 +91,7 @@ void run_generate(const GenerateArgs& args) {
   }
   writer.close();
   progress.finish();
-  double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::printf("wrote %llu points to %s (LAS 1.4 format %d%s, EPSG:%d) in %.2f s\n",
               static_cast<unsigned long long>(args.points), args.output.c_str(), args.point_format,
               options.compress ? ", LAZ" : "", scene.epsg, seconds);
@@ -103,15 +102,19 @@ void run_generate(const GenerateArgs& args) {
 void add_generate_command(CLI::App& cli) {
   auto args = std::make_shared<GenerateArgs>();
   auto* cmd = cli.add_subcommand(
-      "generate", "Write the built-in procedural scene (terrain, buildings, trees sampled like an "
-                  "airborne scan) as LAS or LAZ, of any size");
+      "generate",
+      "Write the built-in procedural scene (terrain, buildings, trees sampled like an "
+      "airborne scan) as LAS or LAZ, of any size");
   cmd->add_option("-o,--output", args->output, "Output .las or .laz")->required();
   cmd->add_option("-n,--points", args->points, "Number of points")
-      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40))->capture_default_str();
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40))
+      ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Random seed")->capture_default_str();
-  cmd->add_option("--point-format", args->point_format, "LAS point format (2, 3, 5, 7, 8 or 10 "
-                                                        "carry the scene's colours)")
-      ->check(CLI::Range(0, 10))->capture_default_str();
+  cmd->add_option("--point-format", args->point_format,
+                  "LAS point format (2, 3, 5, 7, 8 or 10 "
+                  "carry the scene's colours)")
+      ->check(CLI::Range(0, 10))
+      ->capture_default_str();
   cmd->add_option("--threads", args->threads, "Worker threads (default: all cores)");
   cmd->callback([args] { run_generate(*args); });
 }

@@ -52,11 +52,16 @@ nlohmann::json header_json(const io::LasHeader& h) {
   j["crs"] = crs;
   nlohmann::json vlrs = nlohmann::json::array();
   for (const auto& v : h.vlrs)
-    vlrs.push_back({{"user_id", v.user_id}, {"record_id", v.record_id},
-                    {"description", v.description}, {"bytes", v.data.size()}});
+    vlrs.push_back({{"user_id", v.user_id},
+                    {"record_id", v.record_id},
+                    {"description", v.description},
+                    {"bytes", v.data.size()}});
   for (const auto& v : h.evlrs)
-    vlrs.push_back({{"user_id", v.user_id}, {"record_id", v.record_id},
-                    {"description", v.description}, {"bytes", v.data.size()}, {"extended", true}});
+    vlrs.push_back({{"user_id", v.user_id},
+                    {"record_id", v.record_id},
+                    {"description", v.description},
+                    {"bytes", v.data.size()},
+                    {"extended", true}});
   j["vlrs"] = vlrs;
   nlohmann::json extra = nlohmann::json::array();
   for (const auto& e : h.extra_bytes)
@@ -104,10 +109,10 @@ void print_gpu(const std::string& backend, bool json) {
   if (json) {
     nlohmann::json j;
     j["backend"] = d.backend;
-    j["adapter"] = {{"vendor", d.vendor}, {"architecture", d.architecture}, {"device", d.device},
-                    {"description", d.description}, {"graphics_api", d.graphics_api},
-                    {"type", d.adapter_type}, {"vendor_id", d.vendor_id},
-                    {"device_id", d.device_id}};
+    j["adapter"] = {
+        {"vendor", d.vendor},           {"architecture", d.architecture}, {"device", d.device},
+        {"description", d.description}, {"graphics_api", d.graphics_api}, {"type", d.adapter_type},
+        {"vendor_id", d.vendor_id},     {"device_id", d.device_id}};
     for (const auto& [name, value] : gpu::limit_list(ctx->limits)) j["limits"][name] = value;
     for (auto f : ctx->adapter_features) j["features"].push_back(gpu::feature_name(f));
     std::printf("%s\n", j.dump(2).c_str());
@@ -136,8 +141,10 @@ void run_info(const InfoArgs& args) {
   for (const auto& input : args.inputs) {
     // Opening a reader also looks at the first points (8-bit colour detection).
     io::LasHeader header = io::LasReader(input).header();
-    if (args.json) all.push_back(header_json(header));
-    else print_header(header, args.vlrs);
+    if (args.json)
+      all.push_back(header_json(header));
+    else
+      print_header(header, args.vlrs);
   }
   if (args.json) std::printf("%s\n", (all.size() == 1 ? all[0] : all).dump(2).c_str());
 }

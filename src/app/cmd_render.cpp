@@ -1,9 +1,9 @@
 // `stipple render`: headless rendering of LAS/LAZ/COPC files (or the built-in scene) to PNG.
 #include <algorithm>
 #include <chrono>
-#include <fstream>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -43,7 +43,8 @@ std::vector<double> parse_numbers(const std::string& text, size_t expected, cons
   size_t start = 0;
   while (start <= text.size()) {
     size_t comma = text.find(',', start);
-    std::string part = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    std::string part =
+        text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
     try {
       size_t used = 0;
       values.push_back(std::stod(part, &used));
@@ -56,7 +57,8 @@ std::vector<double> parse_numbers(const std::string& text, size_t expected, cons
     start = comma + 1;
   }
   if (values.size() != expected)
-    fail("{} '{}': expected {} comma-separated numbers, got {}", what, text, expected, values.size());
+    fail("{} '{}': expected {} comma-separated numbers, got {}", what, text, expected,
+         values.size());
   return values;
 }
 
@@ -118,16 +120,17 @@ void run_render(const RenderArgs& args) {
     pc::draw_points(*ctx, pipeline, gpu_cloud, camera, style, target.color_view.get(),
                     target.depth_view.get(), args.width, args.height);
     auto times = gpu::read_pass_times(*ctx, pipeline.timer);
-    if (times.empty()) ctx->wait_idle();
-    else gpu_ms.push_back(times[0]);
+    if (times.empty())
+      ctx->wait_idle();
+    else
+      gpu_ms.push_back(times[0]);
     wall_ms.push_back(
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   }
   gpu::Image image =
       gpu::read_texture(*ctx, target.color.get(), args.width, args.height, target.color_format);
   gpu::write_png(args.output, image);
-  double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   auto median = [](std::vector<double> v) {
     if (v.empty()) return 0.0;
     std::sort(v.begin(), v.end());
@@ -173,27 +176,34 @@ void run_render(const RenderArgs& args) {
 
 void add_render_command(CLI::App& cli) {
   auto args = std::make_shared<RenderArgs>();
-  auto* cmd = cli.add_subcommand(
-      "render", "Render point clouds (LAS/LAZ/COPC) headless to a PNG; with no input, the "
-                "built-in procedural scene");
+  auto* cmd =
+      cli.add_subcommand("render",
+                         "Render point clouds (LAS/LAZ/COPC) headless to a PNG; with no input, the "
+                         "built-in procedural scene");
   cmd->add_option("inputs", args->inputs, "Input files (.las, .laz, .copc.laz)")
       ->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", args->output, "Output PNG")->capture_default_str();
   cmd->add_option("--width", args->width, "Image width in pixels")
-      ->check(CLI::Range(1u, 16384u))->capture_default_str();
+      ->check(CLI::Range(1u, 16384u))
+      ->capture_default_str();
   cmd->add_option("--height", args->height, "Image height in pixels")
-      ->check(CLI::Range(1u, 16384u))->capture_default_str();
+      ->check(CLI::Range(1u, 16384u))
+      ->capture_default_str();
   cmd->add_option("--camera", args->camera,
                   "Camera as 'eye_x,eye_y,eye_z,target_x,target_y,target_z' in the data's "
                   "coordinates (Z up; local ENU metres for lon/lat data); default frames the data");
-  cmd->add_option("--azimuth", args->azimuth, "Auto-framing: view azimuth in degrees (0 = from south)")
+  cmd->add_option("--azimuth", args->azimuth,
+                  "Auto-framing: view azimuth in degrees (0 = from south)")
       ->capture_default_str();
   cmd->add_option("--elevation", args->elevation, "Auto-framing: view elevation in degrees")
-      ->check(CLI::Range(-89.0, 89.0))->capture_default_str();
+      ->check(CLI::Range(-89.0, 89.0))
+      ->capture_default_str();
   cmd->add_option("--fov", args->fov, "Vertical field of view in degrees")
-      ->check(CLI::Range(1.0, 170.0))->capture_default_str();
-  cmd->add_option("--backend", args->backend, "WebGPU implementation: dawn or wgpu "
-                                              "(default: $STIPPLE_BACKEND, else dawn)")
+      ->check(CLI::Range(1.0, 170.0))
+      ->capture_default_str();
+  cmd->add_option("--backend", args->backend,
+                  "WebGPU implementation: dawn or wgpu "
+                  "(default: $STIPPLE_BACKEND, else dawn)")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
   cmd->add_option("--color", args->color,
                   "Colour by: auto, rgb, intensity, classification, elevation, return")
@@ -202,14 +212,17 @@ void add_render_command(CLI::App& cli) {
   cmd->add_option("--point-size", args->point_size, "Point size in pixels (default: from density)")
       ->check(CLI::Range(0.0f, 64.0f));
   cmd->add_option("--scene-points", args->scene_points, "Built-in scene: number of points")
-      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))->capture_default_str();
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))
+      ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Built-in scene: random seed")->capture_default_str();
   cmd->add_option("--background", args->background, "Background colour 'r,g,b' in 0..1")
       ->capture_default_str();
   cmd->add_option("--frames", args->frames, "Render this many frames (timing; the last is saved)")
-      ->check(CLI::Range(1u, 100000u))->capture_default_str();
-  cmd->add_option("--stats", args->stats, "Write timings (GPU ms per pass from timestamp queries, "
-                                          "wall ms per frame) as JSON");
+      ->check(CLI::Range(1u, 100000u))
+      ->capture_default_str();
+  cmd->add_option("--stats", args->stats,
+                  "Write timings (GPU ms per pass from timestamp queries, "
+                  "wall ms per frame) as JSON");
   cmd->callback([args] { run_render(*args); });
 }
 

@@ -14,7 +14,7 @@ void init_logging(int verbosity);
 #define STIPPLE_WARN(...) spdlog::warn(__VA_ARGS__)
 #define STIPPLE_ERROR(...) spdlog::error(__VA_ARGS__)
 // Invariant checks stay on in release builds: a broken invariant must never produce output.
-#define STIPPLE_ASSERT(expr, message)                                     \
-  do {                                                                    \
+#define STIPPLE_ASSERT(expr, message)                                          \
+  do {                                                                         \
     if (!(expr)) ::stipple::assert_failed(#expr, __FILE__, __LINE__, message); \
   } while (false)

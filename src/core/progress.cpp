@@ -14,9 +14,13 @@ Progress::Progress(std::string label, uint64_t total, std::string unit)
   enabled_ = force ? force[0] == '1' : isatty(STDERR_FILENO) != 0;
 }
 
-Progress::~Progress() { finish(); }
+Progress::~Progress() {
+  finish();
+}
 
-void Progress::advance(uint64_t n) { set(done_ + n); }
+void Progress::advance(uint64_t n) {
+  set(done_ + n);
+}
 
 void Progress::set(uint64_t done) {
   done_ = done;

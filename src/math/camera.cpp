@@ -10,8 +10,8 @@ namespace stipple {
 void Camera::look_at(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up_hint) {
   position = eye;
   glm::dvec3 f = glm::normalize(target - eye);
-  glm::dvec3 up_dir = std::abs(glm::dot(f, glm::normalize(up_hint))) > 0.999 ? glm::dvec3(0, 0, -1)
-                                                                            : up_hint;
+  glm::dvec3 up_dir =
+      std::abs(glm::dot(f, glm::normalize(up_hint))) > 0.999 ? glm::dvec3(0, 0, -1) : up_hint;
   glm::dvec3 r = glm::normalize(glm::cross(f, up_dir));
   glm::dvec3 u = glm::cross(r, f);
   glm::dmat3 m(r, u, -f);  // columns: camera X, Y, Z in world space

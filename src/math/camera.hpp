@@ -10,14 +10,18 @@
 namespace stipple {
 
 // World space is right-handed and Y-up. Scanned data (LAS, projected CRSs, ENU) is Z-up.
-inline glm::dvec3 z_up_to_y_up(const glm::dvec3& p) { return {p.x, p.z, -p.y}; }
-inline glm::dvec3 y_up_to_z_up(const glm::dvec3& p) { return {p.x, -p.z, p.y}; }
+inline glm::dvec3 z_up_to_y_up(const glm::dvec3& p) {
+  return {p.x, p.z, -p.y};
+}
+inline glm::dvec3 y_up_to_z_up(const glm::dvec3& p) {
+  return {p.x, -p.z, p.y};
+}
 
 struct Camera {
   glm::dvec3 position{0.0};
   glm::dquat orientation{1.0, 0.0, 0.0, 0.0};  // camera-to-world rotation; looks along -Z
-  double fov_y = glm::radians(60.0);             // vertical field of view, radians
-  double near_plane = 0.1;                       // far plane is at infinity (reverse Z)
+  double fov_y = glm::radians(60.0);           // vertical field of view, radians
+  double near_plane = 0.1;                     // far plane is at infinity (reverse Z)
 
   glm::dvec3 forward() const { return orientation * glm::dvec3(0, 0, -1); }
   glm::dvec3 up() const { return orientation * glm::dvec3(0, 1, 0); }

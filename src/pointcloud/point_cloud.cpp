@@ -71,10 +71,10 @@ uint32_t ramp_color(double t) {
 }
 
 uint32_t return_color(uint8_t number, uint8_t count) {
-  if (count <= 1) return pack_rgba(240, 200, 60);  // single return
-  if (number <= 1) return pack_rgba(220, 60, 50);  // first of many
+  if (count <= 1) return pack_rgba(240, 200, 60);       // single return
+  if (number <= 1) return pack_rgba(220, 60, 50);       // first of many
   if (number >= count) return pack_rgba(40, 110, 230);  // last of many
-  return pack_rgba(60, 190, 80);                         // intermediate
+  return pack_rgba(60, 190, 80);                        // intermediate
 }
 
 }  // namespace
@@ -84,10 +84,11 @@ void append_batch(PointCloud& cloud, const io::PointBatch& batch, ColorMode mode
   if (mode == ColorMode::Auto) mode = batch.rgb.empty() ? ColorMode::Elevation : ColorMode::Rgb;
   if (mode == ColorMode::Rgb && batch.rgb.empty()) mode = ColorMode::Elevation;
   if (mode == ColorMode::Intensity && batch.intensity.empty()) mode = ColorMode::Elevation;
-  if (mode == ColorMode::Classification && batch.classification.empty()) mode = ColorMode::Elevation;
+  if (mode == ColorMode::Classification && batch.classification.empty())
+    mode = ColorMode::Elevation;
   if (mode == ColorMode::ReturnNumber && batch.return_number.empty()) mode = ColorMode::Elevation;
-  static constexpr const char* names[] = {"auto", "rgb", "intensity", "classification",
-                                          "elevation", "return"};
+  static constexpr const char* names[] = {"auto",           "rgb",       "intensity",
+                                          "classification", "elevation", "return"};
   cloud.color_source = names[int(mode)];
 
   const double z_span = std::max(elevation_range.y - elevation_range.x, 1e-9);
@@ -128,12 +129,16 @@ void append_batch(PointCloud& cloud, const io::PointBatch& batch, ColorMode mode
           color = pack_rgba(v, v, v);
           break;
         }
-        case ColorMode::Classification: color = classification_color(batch.classification[i]); break;
+        case ColorMode::Classification:
+          color = classification_color(batch.classification[i]);
+          break;
         case ColorMode::ReturnNumber:
           color = return_color(batch.return_number[i],
                                batch.number_of_returns.empty() ? 1 : batch.number_of_returns[i]);
           break;
-        default: color = ramp_color((source.z - elevation_range.x) / z_span); break;
+        default:
+          color = ramp_color((source.z - elevation_range.x) / z_span);
+          break;
       }
       chunk.vertices.push_back({float(rel.x), float(rel.y), float(rel.z), color});
     }

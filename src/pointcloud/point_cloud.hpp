@@ -19,8 +19,8 @@ ColorMode parse_color_mode(const std::string& name);
 struct PointChunk {
   glm::dvec3 origin{0.0};  // world space (Y-up), double
   struct Vertex {
-    float x, y, z;   // relative to origin
-    uint32_t rgba;   // R in the low byte
+    float x, y, z;  // relative to origin
+    uint32_t rgba;  // R in the low byte
   };
   std::vector<Vertex> vertices;
 };
@@ -30,7 +30,7 @@ struct PointCloud {
   Aabb source_bounds;  // in the source frame (Z-up: projected CRS units, or local ENU metres)
   Aabb world_bounds;   // Y-up world space
   uint64_t point_count = 0;
-  bool geographic = false;  // source was lon/lat: positions converted to a local ENU frame
+  bool geographic = false;   // source was lon/lat: positions converted to a local ENU frame
   std::string color_source;  // what the colours show, for reports
 };
 

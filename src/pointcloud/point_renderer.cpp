@@ -107,9 +107,9 @@ PointPipeline create_point_pipeline(gpu::Context& ctx, WGPUTextureFormat color_f
   p.pipeline = gpu::RenderPipeline(wgpuDeviceCreateRenderPipeline(ctx.device.get(), &desc));
   ctx.check("creating the point pipeline");
   p.timer = gpu::create_pass_timer(ctx, 1);
-  p.frame_uniforms = gpu::create_buffer(ctx, sizeof(FrameUniforms),
-                                        WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst,
-                                        "frame-uniforms");
+  p.frame_uniforms =
+      gpu::create_buffer(ctx, sizeof(FrameUniforms),
+                         WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "frame-uniforms");
   return p;
 }
 
@@ -117,9 +117,9 @@ namespace {
 void ensure_chunk_capacity(gpu::Context& ctx, PointPipeline& p, uint32_t chunks) {
   if (chunks <= p.chunk_capacity && p.bind_group) return;
   p.chunk_capacity = std::max<uint32_t>(chunks, 16);
-  p.chunk_uniforms = gpu::create_buffer(ctx, uint64_t(p.chunk_capacity) * p.chunk_stride,
-                                        WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst,
-                                        "chunk-uniforms");
+  p.chunk_uniforms =
+      gpu::create_buffer(ctx, uint64_t(p.chunk_capacity) * p.chunk_stride,
+                         WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "chunk-uniforms");
   WGPUBindGroupEntry entries[2] = {WGPU_BIND_GROUP_ENTRY_INIT, WGPU_BIND_GROUP_ENTRY_INIT};
   entries[0].binding = 0;
   entries[0].buffer = p.frame_uniforms.get();
@@ -142,7 +142,8 @@ void draw_points(gpu::Context& ctx, PointPipeline& p, const GpuPointCloud& cloud
 
   FrameUniforms frame{};
   // Rotation-only view: the camera is at the origin of what the GPU sees.
-  glm::mat4 view_proj = glm::mat4(camera.projection(double(width) / height) * camera.view_rotation());
+  glm::mat4 view_proj =
+      glm::mat4(camera.projection(double(width) / height) * camera.view_rotation());
   std::memcpy(frame.view_proj, glm::value_ptr(view_proj), sizeof(frame.view_proj));
   frame.viewport[0] = float(width);
   frame.viewport[1] = float(height);
@@ -158,7 +159,8 @@ void draw_points(gpu::Context& ctx, PointPipeline& p, const GpuPointCloud& cloud
     std::memcpy(offsets.data() + i * p.chunk_stride, v, sizeof(v));
   }
   if (!cloud.chunks.empty())
-    wgpuQueueWriteBuffer(ctx.queue.get(), p.chunk_uniforms.get(), 0, offsets.data(), offsets.size());
+    wgpuQueueWriteBuffer(ctx.queue.get(), p.chunk_uniforms.get(), 0, offsets.data(),
+                         offsets.size());
 
   WGPUCommandEncoderDescriptor enc_desc = WGPU_COMMAND_ENCODER_DESCRIPTOR_INIT;
   gpu::CommandEncoder encoder(wgpuDeviceCreateCommandEncoder(ctx.device.get(), &enc_desc));

@@ -6,9 +6,9 @@
 namespace stipple::pc {
 namespace {
 
-constexpr double kBlock = 60.0;      // town block pitch, metres
-constexpr double kRoad = 10.0;       // road width between blocks
-constexpr double kTreeCell = 9.0;    // one tree candidate per cell
+constexpr double kBlock = 60.0;       // town block pitch, metres
+constexpr double kRoad = 10.0;        // road width between blocks
+constexpr double kTreeCell = 9.0;     // one tree candidate per cell
 constexpr double kLineSpacing = 0.5;  // scan-line spacing scales with density below
 
 uint64_t mix(uint64_t x) {
@@ -18,7 +18,9 @@ uint64_t mix(uint64_t x) {
   x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
   return x ^ (x >> 31);
 }
-double unit(uint64_t h) { return double(h >> 11) * (1.0 / 9007199254740992.0); }
+double unit(uint64_t h) {
+  return double(h >> 11) * (1.0 / 9007199254740992.0);
+}
 double hash2(int64_t x, int64_t y, uint64_t seed) {
   return unit(mix(uint64_t(x) * 0x632be59bd9b4e019ull ^ mix(uint64_t(y) ^ seed)));
 }
@@ -81,8 +83,8 @@ Building building_at(double x, double y, double size, uint64_t seed) {
                     : 5.0 + 6.0 * hash2(id_x, id_y, seed + 106);
   bld.gabled = !tall && hash2(id_x, id_y, seed + 107) < 0.6;
   bld.ridge_along_x = (bld.x1 - bld.x0) > (bld.y1 - bld.y0);
-  static constexpr uint8_t roofs[][3] = {
-      {168, 72, 52}, {140, 60, 48}, {96, 96, 104}, {120, 116, 110}, {70, 72, 80}, {180, 150, 120}};
+  static constexpr uint8_t roofs[][3] = {{168, 72, 52},   {140, 60, 48}, {96, 96, 104},
+                                         {120, 116, 110}, {70, 72, 80},  {180, 150, 120}};
   const auto& c = roofs[size_t(hash2(id_x, id_y, seed + 108) * 6) % 6];
   bld.r = c[0];
   bld.g = c[1];
@@ -124,8 +126,14 @@ Tree tree_at(double x, double y, double size, uint64_t seed) {
       double dome = std::sqrt(1.0 - d2 / (radius * radius));
       double top = ground + height - radius * 1.2 * (1.0 - dome);
       if (best.present && top < best.top) continue;
-      best = {true, cx, cy, radius, ground + height * 0.35, top,
-              uint8_t(30 + 40 * hash2(i, j, seed + 207)), uint8_t(80 + 60 * hash2(i, j, seed + 208)),
+      best = {true,
+              cx,
+              cy,
+              radius,
+              ground + height * 0.35,
+              top,
+              uint8_t(30 + 40 * hash2(i, j, seed + 207)),
+              uint8_t(80 + 60 * hash2(i, j, seed + 208)),
               uint8_t(25 + 30 * hash2(i, j, seed + 209))};
     }
   }
@@ -213,7 +221,8 @@ void generate_scene(const SceneParams& params, uint64_t first, uint64_t count,
         ret = 1;
         double depth = unit(mix(h + 11));
         z = tree.top - depth * depth * (tree.top - tree.crown_base) * 0.6;
-        double shade = 0.75 + 0.25 * (z - tree.crown_base) / std::max(1.0, tree.top - tree.crown_base);
+        double shade =
+            0.75 + 0.25 * (z - tree.crown_base) / std::max(1.0, tree.top - tree.crown_base);
         r = uint8_t(tree.r * shade), g = uint8_t(tree.g * shade), b = uint8_t(tree.b * shade);
         cls = 5;
         inten = 0.2;
@@ -243,8 +252,8 @@ void generate_scene(const SceneParams& params, uint64_t first, uint64_t count,
     size_t o = base + k;
     batch.positions[o] = params.origin + glm::dvec3(x, y, z);
     batch.rgb[o] = glm::u16vec3(r, g, b);
-    batch.intensity[o] = uint16_t(std::clamp(inten + 0.1 * (unit(mix(h + 17)) - 0.5), 0.0, 1.0) *
-                                  65535.0);
+    batch.intensity[o] =
+        uint16_t(std::clamp(inten + 0.1 * (unit(mix(h + 17)) - 0.5), 0.0, 1.0) * 65535.0);
     batch.classification[o] = cls;
     batch.return_number[o] = ret;
     batch.number_of_returns[o] = rets;

@@ -10,7 +10,9 @@
 
 namespace stipple::gpu {
 
-WGPUStringView to_view(std::string_view s) { return WGPUStringView{s.data(), s.size()}; }
+WGPUStringView to_view(std::string_view s) {
+  return WGPUStringView{s.data(), s.size()};
+}
 
 std::string to_string(WGPUStringView s) {
   if (!s.data) return {};
@@ -22,33 +24,50 @@ namespace {
 
 const char* graphics_api_name(WGPUBackendType type) {
   switch (type) {
-    case WGPUBackendType_Null: return "Null";
-    case WGPUBackendType_WebGPU: return "WebGPU";
-    case WGPUBackendType_D3D11: return "D3D11";
-    case WGPUBackendType_D3D12: return "D3D12";
-    case WGPUBackendType_Metal: return "Metal";
-    case WGPUBackendType_Vulkan: return "Vulkan";
-    case WGPUBackendType_OpenGL: return "OpenGL";
-    case WGPUBackendType_OpenGLES: return "OpenGLES";
-    default: return "unknown";
+    case WGPUBackendType_Null:
+      return "Null";
+    case WGPUBackendType_WebGPU:
+      return "WebGPU";
+    case WGPUBackendType_D3D11:
+      return "D3D11";
+    case WGPUBackendType_D3D12:
+      return "D3D12";
+    case WGPUBackendType_Metal:
+      return "Metal";
+    case WGPUBackendType_Vulkan:
+      return "Vulkan";
+    case WGPUBackendType_OpenGL:
+      return "OpenGL";
+    case WGPUBackendType_OpenGLES:
+      return "OpenGLES";
+    default:
+      return "unknown";
   }
 }
 
 const char* adapter_type_name(WGPUAdapterType type) {
   switch (type) {
-    case WGPUAdapterType_DiscreteGPU: return "discrete GPU";
-    case WGPUAdapterType_IntegratedGPU: return "integrated GPU";
-    case WGPUAdapterType_CPU: return "CPU";
-    default: return "unknown";
+    case WGPUAdapterType_DiscreteGPU:
+      return "discrete GPU";
+    case WGPUAdapterType_IntegratedGPU:
+      return "integrated GPU";
+    case WGPUAdapterType_CPU:
+      return "CPU";
+    default:
+      return "unknown";
   }
 }
 
 const char* error_type_name(WGPUErrorType type) {
   switch (type) {
-    case WGPUErrorType_Validation: return "validation error";
-    case WGPUErrorType_OutOfMemory: return "out of memory";
-    case WGPUErrorType_Internal: return "internal error";
-    default: return "error";
+    case WGPUErrorType_Validation:
+      return "validation error";
+    case WGPUErrorType_OutOfMemory:
+      return "out of memory";
+    case WGPUErrorType_Internal:
+      return "internal error";
+    default:
+      return "error";
   }
 }
 
@@ -72,9 +91,12 @@ void on_device_lost(WGPUDevice const*, WGPUDeviceLostReason reason, WGPUStringVi
 
 void on_wgpu_log(WGPULogLevel level, WGPUStringView message, void*) {
   std::string text = to_string(message);
-  if (level == WGPULogLevel_Error) STIPPLE_ERROR("wgpu: {}", text);
-  else if (level == WGPULogLevel_Warn) STIPPLE_DEBUG("wgpu: {}", text);
-  else STIPPLE_TRACE("wgpu: {}", text);
+  if (level == WGPULogLevel_Error)
+    STIPPLE_ERROR("wgpu: {}", text);
+  else if (level == WGPULogLevel_Warn)
+    STIPPLE_DEBUG("wgpu: {}", text);
+  else
+    STIPPLE_TRACE("wgpu: {}", text);
 }
 
 // Dawn's WGPULimits (older header) has four more trailing members than ours; give every
@@ -87,54 +109,96 @@ struct LimitsStorage {
 
 }  // namespace
 
-WGPUTextureFormat native(WGPUTextureFormat format) { return native_format(format); }
+WGPUTextureFormat native(WGPUTextureFormat format) {
+  return native_format(format);
+}
 
 std::string feature_name(WGPUFeatureName feature) {
   switch (feature) {
-    case WGPUFeatureName_CoreFeaturesAndLimits: return "core-features-and-limits";
-    case WGPUFeatureName_DepthClipControl: return "depth-clip-control";
-    case WGPUFeatureName_Depth32FloatStencil8: return "depth32float-stencil8";
-    case WGPUFeatureName_TextureCompressionBC: return "texture-compression-bc";
-    case WGPUFeatureName_TextureCompressionBCSliced3D: return "texture-compression-bc-sliced-3d";
-    case WGPUFeatureName_TextureCompressionETC2: return "texture-compression-etc2";
-    case WGPUFeatureName_TextureCompressionASTC: return "texture-compression-astc";
-    case WGPUFeatureName_TextureCompressionASTCSliced3D: return "texture-compression-astc-sliced-3d";
-    case WGPUFeatureName_TimestampQuery: return "timestamp-query";
-    case WGPUFeatureName_IndirectFirstInstance: return "indirect-first-instance";
-    case WGPUFeatureName_ShaderF16: return "shader-f16";
-    case WGPUFeatureName_RG11B10UfloatRenderable: return "rg11b10ufloat-renderable";
-    case WGPUFeatureName_BGRA8UnormStorage: return "bgra8unorm-storage";
-    case WGPUFeatureName_Float32Filterable: return "float32-filterable";
-    case WGPUFeatureName_Float32Blendable: return "float32-blendable";
-    case WGPUFeatureName_ClipDistances: return "clip-distances";
-    case WGPUFeatureName_DualSourceBlending: return "dual-source-blending";
-    case WGPUFeatureName_Subgroups: return "subgroups";
-    case WGPUFeatureName_TextureFormatsTier1: return "texture-formats-tier1";
-    case WGPUFeatureName_TextureFormatsTier2: return "texture-formats-tier2";
-    case WGPUFeatureName_PrimitiveIndex: return "primitive-index";
-    case WGPUFeatureName_TextureComponentSwizzle: return "texture-component-swizzle";
-    default: break;
+    case WGPUFeatureName_CoreFeaturesAndLimits:
+      return "core-features-and-limits";
+    case WGPUFeatureName_DepthClipControl:
+      return "depth-clip-control";
+    case WGPUFeatureName_Depth32FloatStencil8:
+      return "depth32float-stencil8";
+    case WGPUFeatureName_TextureCompressionBC:
+      return "texture-compression-bc";
+    case WGPUFeatureName_TextureCompressionBCSliced3D:
+      return "texture-compression-bc-sliced-3d";
+    case WGPUFeatureName_TextureCompressionETC2:
+      return "texture-compression-etc2";
+    case WGPUFeatureName_TextureCompressionASTC:
+      return "texture-compression-astc";
+    case WGPUFeatureName_TextureCompressionASTCSliced3D:
+      return "texture-compression-astc-sliced-3d";
+    case WGPUFeatureName_TimestampQuery:
+      return "timestamp-query";
+    case WGPUFeatureName_IndirectFirstInstance:
+      return "indirect-first-instance";
+    case WGPUFeatureName_ShaderF16:
+      return "shader-f16";
+    case WGPUFeatureName_RG11B10UfloatRenderable:
+      return "rg11b10ufloat-renderable";
+    case WGPUFeatureName_BGRA8UnormStorage:
+      return "bgra8unorm-storage";
+    case WGPUFeatureName_Float32Filterable:
+      return "float32-filterable";
+    case WGPUFeatureName_Float32Blendable:
+      return "float32-blendable";
+    case WGPUFeatureName_ClipDistances:
+      return "clip-distances";
+    case WGPUFeatureName_DualSourceBlending:
+      return "dual-source-blending";
+    case WGPUFeatureName_Subgroups:
+      return "subgroups";
+    case WGPUFeatureName_TextureFormatsTier1:
+      return "texture-formats-tier1";
+    case WGPUFeatureName_TextureFormatsTier2:
+      return "texture-formats-tier2";
+    case WGPUFeatureName_PrimitiveIndex:
+      return "primitive-index";
+    case WGPUFeatureName_TextureComponentSwizzle:
+      return "texture-component-swizzle";
+    default:
+      break;
   }
   uint32_t value = uint32_t(feature);
   // wgpu-native's own features live at 0x0003xxxx (wgpu.h), Dawn's at 0x0005xxxx.
   switch (value) {
-    case WGPUNativeFeature_Immediates: return "wgpu:immediates";
-    case WGPUNativeFeature_TimestampQueryInsideEncoders: return "wgpu:timestamp-query-inside-encoders";
-    case WGPUNativeFeature_TimestampQueryInsidePasses: return "wgpu:timestamp-query-inside-passes";
-    case WGPUNativeFeature_ShaderF64: return "wgpu:shader-f64";
-    case WGPUNativeFeature_ShaderI16: return "wgpu:shader-i16";
-    case WGPUNativeFeature_Subgroup: return "wgpu:subgroup";
-    case WGPUNativeFeature_MultiDrawIndirectCount: return "wgpu:multi-draw-indirect-count";
-    case WGPUNativeFeature_PipelineStatisticsQuery: return "wgpu:pipeline-statistics-query";
-    case WGPUNativeFeature_VertexWritableStorage: return "wgpu:vertex-writable-storage";
-    case WGPUNativeFeature_PolygonModeLine: return "wgpu:polygon-mode-line";
-    case WGPUNativeFeature_PolygonModePoint: return "wgpu:polygon-mode-point";
-    case WGPUNativeFeature_ConservativeRasterization: return "wgpu:conservative-rasterization";
-    case WGPUNativeFeature_ShaderEarlyDepthTest: return "wgpu:shader-early-depth-test";
-    case WGPUNativeFeature_ShaderInt64: return "wgpu:shader-int64";
-    case WGPUNativeFeature_ShaderInt64AtomicMinMax: return "wgpu:shader-int64-atomic-min-max";
-    case WGPUNativeFeature_ShaderInt64AtomicAllOps: return "wgpu:shader-int64-atomic-all-ops";
-    default: break;
+    case WGPUNativeFeature_Immediates:
+      return "wgpu:immediates";
+    case WGPUNativeFeature_TimestampQueryInsideEncoders:
+      return "wgpu:timestamp-query-inside-encoders";
+    case WGPUNativeFeature_TimestampQueryInsidePasses:
+      return "wgpu:timestamp-query-inside-passes";
+    case WGPUNativeFeature_ShaderF64:
+      return "wgpu:shader-f64";
+    case WGPUNativeFeature_ShaderI16:
+      return "wgpu:shader-i16";
+    case WGPUNativeFeature_Subgroup:
+      return "wgpu:subgroup";
+    case WGPUNativeFeature_MultiDrawIndirectCount:
+      return "wgpu:multi-draw-indirect-count";
+    case WGPUNativeFeature_PipelineStatisticsQuery:
+      return "wgpu:pipeline-statistics-query";
+    case WGPUNativeFeature_VertexWritableStorage:
+      return "wgpu:vertex-writable-storage";
+    case WGPUNativeFeature_PolygonModeLine:
+      return "wgpu:polygon-mode-line";
+    case WGPUNativeFeature_PolygonModePoint:
+      return "wgpu:polygon-mode-point";
+    case WGPUNativeFeature_ConservativeRasterization:
+      return "wgpu:conservative-rasterization";
+    case WGPUNativeFeature_ShaderEarlyDepthTest:
+      return "wgpu:shader-early-depth-test";
+    case WGPUNativeFeature_ShaderInt64:
+      return "wgpu:shader-int64";
+    case WGPUNativeFeature_ShaderInt64AtomicMinMax:
+      return "wgpu:shader-int64-atomic-min-max";
+    case WGPUNativeFeature_ShaderInt64AtomicAllOps:
+      return "wgpu:shader-int64-atomic-all-ops";
+    default:
+      break;
   }
   const char* family = (value >> 16) == 3 ? "wgpu" : (value >> 16) == 5 ? "dawn" : "unknown";
   return fmt::format("{}:0x{:08x}", family, value);
@@ -246,16 +310,19 @@ std::unique_ptr<Context> create_context(const ContextOptions& options) {
                            WGPUStringView message, void* userdata, void*) {
     auto* r = static_cast<AdapterResult*>(userdata);
     r->done = true;
-    if (status == WGPURequestAdapterStatus_Success) r->adapter = adapter;
-    else r->message = to_string(message);
+    if (status == WGPURequestAdapterStatus_Success)
+      r->adapter = adapter;
+    else
+      r->message = to_string(message);
   };
   adapter_cb.userdata1 = &adapter_result;
   wgpuInstanceRequestAdapter(ctx->instance.get(), &adapter_options, adapter_cb);
   ctx->wait_until([&] { return adapter_result.done; });
   if (!adapter_result.adapter) {
-    fail("{}: no WebGPU adapter found ({}). A Vulkan driver is needed: Mesa's lavapipe "
-         "(mesa-vulkan-drivers 25 from bookworm-backports) or a GPU driver",
-         backend_name(backend), adapter_result.message);
+    fail(
+        "{}: no WebGPU adapter found ({}). A Vulkan driver is needed: Mesa's lavapipe "
+        "(mesa-vulkan-drivers 25 from bookworm-backports) or a GPU driver",
+        backend_name(backend), adapter_result.message);
   }
   ctx->adapter = Adapter(adapter_result.adapter);
 
@@ -311,12 +378,14 @@ std::unique_ptr<Context> create_context(const ContextOptions& options) {
   device_desc.uncapturedErrorCallbackInfo.userdata1 = ctx.get();
   WGPURequestDeviceCallbackInfo device_cb = WGPU_REQUEST_DEVICE_CALLBACK_INFO_INIT;
   device_cb.mode = WGPUCallbackMode_AllowProcessEvents;
-  device_cb.callback = [](WGPURequestDeviceStatus status, WGPUDevice device,
-                          WGPUStringView message, void* userdata, void*) {
+  device_cb.callback = [](WGPURequestDeviceStatus status, WGPUDevice device, WGPUStringView message,
+                          void* userdata, void*) {
     auto* r = static_cast<DeviceResult*>(userdata);
     r->done = true;
-    if (status == WGPURequestDeviceStatus_Success) r->device = device;
-    else r->message = to_string(message);
+    if (status == WGPURequestDeviceStatus_Success)
+      r->device = device;
+    else
+      r->message = to_string(message);
   };
   device_cb.userdata1 = &device_result;
   wgpuAdapterRequestDevice(ctx->adapter.get(), &device_desc, device_cb);
@@ -484,10 +553,10 @@ OffscreenTarget create_offscreen_target(Context& ctx, uint32_t width, uint32_t h
   OffscreenTarget t;
   t.width = width;
   t.height = height;
-  t.color = create_texture_2d(
-      ctx, width, height, t.color_format,
-      WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc | WGPUTextureUsage_TextureBinding,
-      "offscreen-color");
+  t.color = create_texture_2d(ctx, width, height, t.color_format,
+                              WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc |
+                                  WGPUTextureUsage_TextureBinding,
+                              "offscreen-color");
   t.depth = create_texture_2d(ctx, width, height, t.depth_format,
                               WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_TextureBinding,
                               "offscreen-depth");

@@ -16,9 +16,9 @@ PassTimer create_pass_timer(Context& ctx, uint32_t passes) {
   desc.type = WGPUQueryType_Timestamp;
   desc.count = passes * 2;
   timer.queries = QuerySet(wgpuDeviceCreateQuerySet(ctx.device.get(), &desc));
-  timer.resolved = create_buffer(ctx, uint64_t(passes) * 2 * 8,
-                                 WGPUBufferUsage_QueryResolve | WGPUBufferUsage_CopySrc,
-                                 "pass-timestamps");
+  timer.resolved =
+      create_buffer(ctx, uint64_t(passes) * 2 * 8,
+                    WGPUBufferUsage_QueryResolve | WGPUBufferUsage_CopySrc, "pass-timestamps");
   return timer;
 }
 
@@ -45,7 +45,8 @@ std::vector<double> read_pass_times(Context& ctx, PassTimer& timer) {
   std::memcpy(ticks.data(), bytes.data(), ticks.size() * 8);
   // WebGPU resolves to nanoseconds; wgpu-native resolves raw ticks and reports their period.
   double period_ns = 1.0;
-  if (has_proc("wgpuQueueGetTimestampPeriod")) period_ns = wgpuQueueGetTimestampPeriod(ctx.queue.get());
+  if (has_proc("wgpuQueueGetTimestampPeriod"))
+    period_ns = wgpuQueueGetTimestampPeriod(ctx.queue.get());
   std::vector<double> ms(timer.capacity);
   for (uint32_t i = 0; i < timer.capacity; ++i) {
     uint64_t begin = ticks[i * 2], end = ticks[i * 2 + 1];

@@ -26,7 +26,8 @@ std::string shader_source(std::string_view name) {
     return text.str();
   }
   for (unsigned i = 0; i < detail::kEmbeddedShaderCount; ++i)
-    if (detail::kEmbeddedShaders[i].name == name) return std::string(detail::kEmbeddedShaders[i].source);
+    if (detail::kEmbeddedShaders[i].name == name)
+      return std::string(detail::kEmbeddedShaders[i].source);
   fail("no shader named '{}' is embedded", name);
 }
 

@@ -20,15 +20,17 @@ std::optional<Backend> g_loaded;
 // The library for a backend: an explicit override, the SDK setup.sh unpacked (path compiled in),
 // or the plain soname for installed copies.
 std::string library_path(Backend backend) {
-  const char* env = std::getenv(backend == Backend::Wgpu ? "STIPPLE_WGPU_LIBRARY"
-                                                           : "STIPPLE_DAWN_LIBRARY");
+  const char* env =
+      std::getenv(backend == Backend::Wgpu ? "STIPPLE_WGPU_LIBRARY" : "STIPPLE_DAWN_LIBRARY");
   if (env && *env) return env;
   const char* built = backend == Backend::Wgpu ? STIPPLE_WGPU_LIB : STIPPLE_DAWN_LIB;
   if (std::filesystem::exists(built)) return built;
   return backend == Backend::Wgpu ? "libwgpu_native-release.so" : "libwebgpu_wrapper.so";
 }
 
-void* lookup(void* library, const char* name) { return dlsym(library, name); }
+void* lookup(void* library, const char* name) {
+  return dlsym(library, name);
+}
 
 }  // namespace
 
@@ -69,10 +71,14 @@ void load_backend(Backend backend) {
   g_loaded = backend;
 }
 
-bool has_proc(const char* name) { return detail::has_proc(name); }
+bool has_proc(const char* name) {
+  return detail::has_proc(name);
+}
 
 namespace {
-bool dawn_loaded() { return g_loaded && *g_loaded == Backend::Dawn; }
+bool dawn_loaded() {
+  return g_loaded && *g_loaded == Backend::Dawn;
+}
 
 // Dawn's older numbering: the 16-bit normalised formats were Dawn extensions at 0x00050000..5
 // and the rest of the list is shifted down by the six slots they take in the newer header.
