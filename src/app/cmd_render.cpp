@@ -203,7 +203,7 @@ void add_render_command(CLI::App& cli) {
       ->capture_default_str();
   cmd->add_option("--backend", args->backend,
                   "WebGPU implementation: dawn or wgpu "
-                  "(default: $STIPPLE_BACKEND, else dawn)")
+                  "(default: $STIPPLE_BACKEND, else wgpu)")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
   cmd->add_option("--color", args->color,
                   "Colour by: auto, rgb, intensity, classification, elevation, return")

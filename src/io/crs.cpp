@@ -52,7 +52,12 @@ struct Proj {
   PJ_CONTEXT* ctx = proj_context_create();
   std::vector<PJ*> objects;
   Proj() {
-    if (ctx) proj_log_level(ctx, PJ_LOG_NONE);
+    // PROJ's own messages (e.g. a missing proj.db) would bypass our logger; a missing name is
+    // not an error for us.
+    if (ctx) {
+      proj_log_level(ctx, PJ_LOG_NONE);
+      proj_log_func(ctx, nullptr, [](void*, int, const char*) {});
+    }
   }
   ~Proj() {
     for (PJ* o : objects) proj_destroy(o);
