@@ -1,4 +1,4 @@
-// The stipple command line: render, info, generate.
+// The stipple command line: render, info, generate, bench.
 #include <cstdio>
 #include <exception>
 
@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   stipple::app::add_render_command(cli);
   stipple::app::add_info_command(cli);
   stipple::app::add_generate_command(cli);
+  stipple::app::add_bench_command(cli);
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
