@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,7 @@
 #include "pointcloud/procedural.hpp"
 #include "renderer/gpu.hpp"
 #include "renderer/png.hpp"
+#include "renderer/render_graph.hpp"
 
 namespace stipple::app {
 namespace {
@@ -36,6 +38,7 @@ struct RenderArgs {
   std::string background = "0.07,0.08,0.1";
   uint32_t frames = 1;
   std::string stats;
+  std::string dump_graph;
 };
 
 std::vector<double> parse_numbers(const std::string& text, size_t expected, const char* what) {
@@ -105,30 +108,65 @@ void run_render(const RenderArgs& args) {
   gpu_options.backend = args.backend;
   auto ctx = gpu::create_context(gpu_options);
   auto gpu_cloud = pc::upload_point_cloud(*ctx, cloud);
-  auto target = gpu::create_offscreen_target(*ctx, args.width, args.height);
-  auto pipeline = pc::create_point_pipeline(*ctx, target.color_format, target.depth_format);
+  // Only the colour target outlives the frame; depth is a transient of the point pass.
+  const WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
+  gpu::Texture color = gpu::create_texture_2d(
+      *ctx, args.width, args.height, color_format,
+      WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc, "render-color");
+  gpu::TextureView color_view = gpu::create_view(color);
+  auto pipeline = pc::create_point_pipeline(*ctx, color_format, WGPUTextureFormat_Depth32Float);
   pc::PointStyle style;
   style.point_size =
       args.point_size > 0 ? args.point_size : pc::auto_point_size(cloud, camera, args.height);
   auto bg = parse_numbers(args.background, 3, "--background");
   style.background = glm::vec3(bg[0], bg[1], bg[2]);
   auto load_end = std::chrono::steady_clock::now();
+
+  // The frame's graph, rebuilt every frame as a real-time loop would; transients come from the
+  // pool, so only the first frame allocates them.
+  gpu::TransientPool pool;
+  gpu::PassTimer timer;
+  auto build_graph = [&](gpu::RenderGraph& graph) {
+    graph.import_texture("color", color.get(), color_view.get(),
+                         {args.width, args.height, color_format,
+                          WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc},
+                         gpu::Access::Writable);
+    pc::add_point_pass(graph, pipeline, gpu_cloud, camera, style, args.width, args.height);
+    graph.compile();
+  };
   // Every frame is waited for, so GPU and wall times are per frame, not pipelined.
+  std::map<std::string, std::vector<double>> pass_ms;
   std::vector<double> gpu_ms, wall_ms;
   for (uint32_t frame = 0; frame < args.frames; ++frame) {
     auto t0 = std::chrono::steady_clock::now();
-    pc::draw_points(*ctx, pipeline, gpu_cloud, camera, style, target.color_view.get(),
-                    target.depth_view.get(), args.width, args.height);
-    auto times = gpu::read_pass_times(*ctx, pipeline.timer);
-    if (times.empty())
+    gpu::RenderGraph graph;
+    build_graph(graph);
+    if (frame == 0) {
+      timer = gpu::create_pass_timer(*ctx, std::max(1u, graph.plan().timed_passes));
+      // Every surviving pass has its stats keys, timed or not.
+      for (uint32_t p : graph.plan().order) pass_ms[graph.passes()[p].name];
+      if (!args.dump_graph.empty()) {
+        std::ofstream out(args.dump_graph);
+        graph.dump_dot(out);
+        if (!out) fail("{}: cannot write the graph", args.dump_graph);
+      }
+    }
+    graph.execute(*ctx, pool, &timer);
+    auto times = graph.read_pass_times(*ctx, timer);
+    if (times.empty()) {
       ctx->wait_idle();
-    else
-      gpu_ms.push_back(times[0]);
+    } else {
+      double total = 0;
+      for (const auto& [name, ms] : times) {
+        pass_ms[name].push_back(ms);
+        total += ms;
+      }
+      gpu_ms.push_back(total);
+    }
     wall_ms.push_back(
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   }
-  gpu::Image image =
-      gpu::read_texture(*ctx, target.color.get(), args.width, args.height, target.color_format);
+  gpu::Image image = gpu::read_texture(*ctx, color.get(), args.width, args.height, color_format);
   gpu::write_png(args.output, image);
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   auto median = [](std::vector<double> v) {
@@ -147,13 +185,19 @@ void run_render(const RenderArgs& args) {
     j["point_size_px"] = style.point_size;
     j["frames"] = args.frames;
     j["load_s"] = std::chrono::duration<double>(load_end - start).count();
-    j["passes"]["points"]["gpu_ms"] = gpu_ms;
-    j["passes"]["points"]["gpu_ms_median"] = median(gpu_ms);
+    j["passes"] = nlohmann::json::object();
+    for (const auto& [name, ms] : pass_ms) {
+      j["passes"][name]["gpu_ms"] = ms;
+      j["passes"][name]["gpu_ms_median"] = median(ms);
+    }
+    j["frame_gpu_ms_median"] = median(gpu_ms);
+    j["transient_textures_created"] = pool.stats.textures_created;
+    j["transient_buffers_created"] = pool.stats.buffers_created;
     j["frame_wall_ms"] = wall_ms;
     j["frame_wall_ms_median"] = median(wall_ms);
     j["gpu_timing"] = !gpu_ms.empty();
     if (!gpu_ms.empty() && median(gpu_ms) > 0)
-      j["points_per_second"] = double(gpu_cloud.point_count) / (median(gpu_ms) * 1e-3);
+      j["points_per_second"] = double(gpu_cloud.point_count) / (median(pass_ms["points"]) * 1e-3);
     std::string tmp = args.stats + ".partial";
     {
       std::ofstream out(tmp);
@@ -223,6 +267,8 @@ void add_render_command(CLI::App& cli) {
   cmd->add_option("--stats", args->stats,
                   "Write timings (GPU ms per pass from timestamp queries, "
                   "wall ms per frame) as JSON");
+  cmd->add_option("--dump-graph", args->dump_graph,
+                  "Write the frame's render graph as Graphviz DOT (culled passes dashed)");
   cmd->callback([args] { run_render(*args); });
 }
 

@@ -7,7 +7,7 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "core/error.hpp"
-#include "renderer/shaders.hpp"
+#include "renderer/shader_preprocessor.hpp"
 
 namespace stipple::pc {
 
@@ -40,7 +40,7 @@ static_assert(sizeof(FrameUniforms) == 80);
 PointPipeline create_point_pipeline(gpu::Context& ctx, WGPUTextureFormat color_format,
                                     WGPUTextureFormat depth_format) {
   PointPipeline p;
-  p.shader = gpu::create_shader(ctx, gpu::shader_source("points.wgsl"), "points.wgsl");
+  p.shader = gpu::create_shader_from_file(ctx, "points.wgsl");
   p.chunk_stride = std::max<uint32_t>(16, ctx.limits.minUniformBufferOffsetAlignment);
 
   WGPUBindGroupLayoutEntry entries[2] = {WGPU_BIND_GROUP_LAYOUT_ENTRY_INIT,
@@ -105,6 +105,7 @@ PointPipeline create_point_pipeline(gpu::Context& ctx, WGPUTextureFormat color_f
   desc.multisample.mask = ~0u;
   desc.fragment = &fragment;
   p.pipeline = gpu::RenderPipeline(wgpuDeviceCreateRenderPipeline(ctx.device.get(), &desc));
+  p.depth_format = depth_format;
   ctx.check("creating the point pipeline");
   p.timer = gpu::create_pass_timer(ctx, 1);
   p.frame_uniforms =
@@ -135,68 +136,88 @@ void ensure_chunk_capacity(gpu::Context& ctx, PointPipeline& p, uint32_t chunks)
 }
 }  // namespace
 
+void add_point_pass(gpu::RenderGraph& graph, PointPipeline& p, const GpuPointCloud& cloud,
+                    const Camera& camera, const PointStyle& style, uint32_t width, uint32_t height,
+                    const PointPassTargets& targets) {
+  auto execute = [&p, &cloud, camera, style, width, height, targets](gpu::PassContext& pc) {
+    gpu::Context& ctx = pc.gpu();
+    ensure_chunk_capacity(ctx, p, uint32_t(cloud.chunks.size()));
+
+    FrameUniforms frame{};
+    // Rotation-only view: the camera is at the origin of what the GPU sees.
+    glm::mat4 view_proj =
+        glm::mat4(camera.projection(double(width) / height) * camera.view_rotation());
+    std::memcpy(frame.view_proj, glm::value_ptr(view_proj), sizeof(frame.view_proj));
+    frame.viewport[0] = float(width);
+    frame.viewport[1] = float(height);
+    frame.point_size = style.point_size;
+    frame.round_points = style.round && style.point_size >= 3.0f ? 1u : 0u;
+    // Queue writes land before the graph's command buffer, which is submitted after this.
+    wgpuQueueWriteBuffer(ctx.queue.get(), p.frame_uniforms.get(), 0, &frame, sizeof(frame));
+
+    // Camera-relative offsets: subtract in double, then cast (seed 000, eq. 5).
+    std::vector<uint8_t> offsets(size_t(p.chunk_stride) * std::max<size_t>(1, cloud.chunks.size()));
+    for (size_t i = 0; i < cloud.chunks.size(); ++i) {
+      glm::dvec3 rel = cloud.chunks[i].origin - camera.position;
+      float v[4] = {float(rel.x), float(rel.y), float(rel.z), 0.0f};
+      std::memcpy(offsets.data() + i * p.chunk_stride, v, sizeof(v));
+    }
+    if (!cloud.chunks.empty())
+      wgpuQueueWriteBuffer(ctx.queue.get(), p.chunk_uniforms.get(), 0, offsets.data(),
+                           offsets.size());
+
+    WGPURenderPassColorAttachment color_attachment = WGPU_RENDER_PASS_COLOR_ATTACHMENT_INIT;
+    color_attachment.view = pc.view(targets.color);
+    color_attachment.loadOp = WGPULoadOp_Clear;
+    color_attachment.storeOp = WGPUStoreOp_Store;
+    color_attachment.clearValue = {style.background.r, style.background.g, style.background.b, 1.0};
+    WGPURenderPassDepthStencilAttachment depth_attachment =
+        WGPU_RENDER_PASS_DEPTH_STENCIL_ATTACHMENT_INIT;
+    depth_attachment.view = pc.view(targets.depth);
+    depth_attachment.depthLoadOp = WGPULoadOp_Clear;
+    // A transient depth buffer is dropped after the pass; an imported one is kept.
+    depth_attachment.depthStoreOp = targets.create_depth ? WGPUStoreOp_Discard : WGPUStoreOp_Store;
+    depth_attachment.depthClearValue = 0.0f;  // reverse Z: far is 0
+    WGPURenderPassDescriptor pass_desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
+    pass_desc.label = gpu::to_view("points");
+    pass_desc.colorAttachmentCount = 1;
+    pass_desc.colorAttachments = &color_attachment;
+    pass_desc.depthStencilAttachment = &depth_attachment;
+    gpu::RenderPassEncoder pass = pc.begin_render_pass(pass_desc);
+    wgpuRenderPassEncoderSetPipeline(pass.get(), p.pipeline.get());
+    for (size_t i = 0; i < cloud.chunks.size(); ++i) {
+      const auto& chunk = cloud.chunks[i];
+      uint32_t dynamic_offset = uint32_t(i) * p.chunk_stride;
+      wgpuRenderPassEncoderSetBindGroup(pass.get(), 0, p.bind_group.get(), 1, &dynamic_offset);
+      wgpuRenderPassEncoderSetVertexBuffer(pass.get(), 0, chunk.vertices.get(), 0,
+                                           uint64_t(chunk.count) * sizeof(PointChunk::Vertex));
+      wgpuRenderPassEncoderDraw(pass.get(), 4, chunk.count, 0, 0);
+    }
+    wgpuRenderPassEncoderEnd(pass.get());
+  };
+  auto pass = graph.add_pass("points", gpu::PassKind::Render, std::move(execute));
+  pass.write(targets.color);
+  if (targets.create_depth)
+    pass.create_texture(targets.depth,
+                        {width, height, p.depth_format, WGPUTextureUsage_RenderAttachment});
+  else
+    pass.write(targets.depth);
+}
+
 void draw_points(gpu::Context& ctx, PointPipeline& p, const GpuPointCloud& cloud,
                  const Camera& camera, const PointStyle& style, WGPUTextureView color,
                  WGPUTextureView depth, uint32_t width, uint32_t height) {
-  ensure_chunk_capacity(ctx, p, uint32_t(cloud.chunks.size()));
-
-  FrameUniforms frame{};
-  // Rotation-only view: the camera is at the origin of what the GPU sees.
-  glm::mat4 view_proj =
-      glm::mat4(camera.projection(double(width) / height) * camera.view_rotation());
-  std::memcpy(frame.view_proj, glm::value_ptr(view_proj), sizeof(frame.view_proj));
-  frame.viewport[0] = float(width);
-  frame.viewport[1] = float(height);
-  frame.point_size = style.point_size;
-  frame.round_points = style.round && style.point_size >= 3.0f ? 1u : 0u;
-  wgpuQueueWriteBuffer(ctx.queue.get(), p.frame_uniforms.get(), 0, &frame, sizeof(frame));
-
-  // Camera-relative offsets: subtract in double, then cast (seed 000, eq. 5).
-  std::vector<uint8_t> offsets(size_t(p.chunk_stride) * std::max<size_t>(1, cloud.chunks.size()));
-  for (size_t i = 0; i < cloud.chunks.size(); ++i) {
-    glm::dvec3 rel = cloud.chunks[i].origin - camera.position;
-    float v[4] = {float(rel.x), float(rel.y), float(rel.z), 0.0f};
-    std::memcpy(offsets.data() + i * p.chunk_stride, v, sizeof(v));
-  }
-  if (!cloud.chunks.empty())
-    wgpuQueueWriteBuffer(ctx.queue.get(), p.chunk_uniforms.get(), 0, offsets.data(),
-                         offsets.size());
-
-  WGPUCommandEncoderDescriptor enc_desc = WGPU_COMMAND_ENCODER_DESCRIPTOR_INIT;
-  gpu::CommandEncoder encoder(wgpuDeviceCreateCommandEncoder(ctx.device.get(), &enc_desc));
-  WGPURenderPassColorAttachment color_attachment = WGPU_RENDER_PASS_COLOR_ATTACHMENT_INIT;
-  color_attachment.view = color;
-  color_attachment.loadOp = WGPULoadOp_Clear;
-  color_attachment.storeOp = WGPUStoreOp_Store;
-  color_attachment.clearValue = {style.background.r, style.background.g, style.background.b, 1.0};
-  WGPURenderPassDepthStencilAttachment depth_attachment =
-      WGPU_RENDER_PASS_DEPTH_STENCIL_ATTACHMENT_INIT;
-  depth_attachment.view = depth;
-  depth_attachment.depthLoadOp = WGPULoadOp_Clear;
-  depth_attachment.depthStoreOp = WGPUStoreOp_Store;
-  depth_attachment.depthClearValue = 0.0f;  // reverse Z: far is 0
-  WGPURenderPassDescriptor pass_desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
-  pass_desc.label = gpu::to_view("points");
-  pass_desc.colorAttachmentCount = 1;
-  pass_desc.colorAttachments = &color_attachment;
-  pass_desc.depthStencilAttachment = &depth_attachment;
-  WGPUPassTimestampWrites timestamps;
-  pass_desc.timestampWrites = gpu::pass_timestamps(p.timer, 0, timestamps);
-  gpu::RenderPassEncoder pass(wgpuCommandEncoderBeginRenderPass(encoder.get(), &pass_desc));
-  wgpuRenderPassEncoderSetPipeline(pass.get(), p.pipeline.get());
-  for (size_t i = 0; i < cloud.chunks.size(); ++i) {
-    const auto& chunk = cloud.chunks[i];
-    uint32_t dynamic_offset = uint32_t(i) * p.chunk_stride;
-    wgpuRenderPassEncoderSetBindGroup(pass.get(), 0, p.bind_group.get(), 1, &dynamic_offset);
-    wgpuRenderPassEncoderSetVertexBuffer(pass.get(), 0, chunk.vertices.get(), 0,
-                                         uint64_t(chunk.count) * sizeof(PointChunk::Vertex));
-    wgpuRenderPassEncoderDraw(pass.get(), 4, chunk.count, 0, 0);
-  }
-  wgpuRenderPassEncoderEnd(pass.get());
-  gpu::resolve_pass_timer(p.timer, encoder.get());
-  gpu::CommandBuffer commands(wgpuCommandEncoderFinish(encoder.get(), nullptr));
-  WGPUCommandBuffer raw = commands.get();
-  wgpuQueueSubmit(ctx.queue.get(), 1, &raw);
+  gpu::RenderGraph graph;
+  // Only the views are known here; the descriptions are informational for imports.
+  graph.import_texture("color", nullptr, color, {width, height, WGPUTextureFormat_Undefined, 0},
+                       gpu::Access::Writable);
+  graph.import_texture("depth", nullptr, depth, {width, height, p.depth_format, 0},
+                       gpu::Access::Writable);
+  PointPassTargets targets;
+  targets.create_depth = false;
+  add_point_pass(graph, p, cloud, camera, style, width, height, targets);
+  gpu::TransientPool pool;  // nothing transient
+  graph.execute(ctx, pool, &p.timer);
   ctx.check("drawing points");
 }
 

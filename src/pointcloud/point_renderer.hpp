@@ -2,6 +2,7 @@
 // Draws a PointCloud with WebGPU: one interleaved vertex buffer per chunk, instanced quads,
 // reverse-Z depth, camera-relative chunk offsets.
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -10,6 +11,7 @@
 #include "pointcloud/point_cloud.hpp"
 #include "renderer/gpu.hpp"
 #include "renderer/gpu_timer.hpp"
+#include "renderer/render_graph.hpp"
 
 namespace stipple::pc {
 
@@ -41,14 +43,28 @@ struct PointPipeline {
   uint32_t chunk_stride = 256;
   uint32_t chunk_capacity = 0;
   gpu::BindGroup bind_group;
-  gpu::PassTimer timer;  // one pass: the point draw
+  WGPUTextureFormat depth_format = WGPUTextureFormat_Depth32Float;
+  gpu::PassTimer timer;  // one pass: the point draw (draw_points)
 };
 
 PointPipeline create_point_pipeline(gpu::Context& ctx, WGPUTextureFormat color_format,
                                     WGPUTextureFormat depth_format);
 
-// Records and submits one frame into the target views. With the pipeline's timer enabled,
-// read_pass_times(ctx, pipeline.timer) gives the draw's GPU time afterwards.
+// The point draw as render pass "points" of a graph: clears and draws into `color` (an imported
+// writable texture). The depth buffer is a transient the pass creates, unless `create_depth` is
+// off and `depth` names an imported writable texture.
+struct PointPassTargets {
+  std::string color = "color";
+  std::string depth = "depth";
+  bool create_depth = true;
+};
+void add_point_pass(gpu::RenderGraph& graph, PointPipeline& pipeline, const GpuPointCloud& cloud,
+                    const Camera& camera, const PointStyle& style, uint32_t width, uint32_t height,
+                    const PointPassTargets& targets = {});
+
+// Records and submits one frame into the target views (a one-pass graph with both imported).
+// With the pipeline's timer enabled, read_pass_times(ctx, pipeline.timer) gives the draw's GPU
+// time afterwards.
 void draw_points(gpu::Context& ctx, PointPipeline& pipeline, const GpuPointCloud& cloud,
                  const Camera& camera, const PointStyle& style, WGPUTextureView color,
                  WGPUTextureView depth, uint32_t width, uint32_t height);

@@ -448,7 +448,8 @@ TextureView create_view(const Texture& texture) {
   return TextureView(wgpuTextureCreateView(texture.get(), nullptr));
 }
 
-ShaderModule create_shader(Context& ctx, std::string_view wgsl, std::string_view label) {
+ShaderModule create_shader(Context& ctx, std::string_view wgsl, std::string_view label,
+                           const std::function<std::string(std::string_view)>& map_message) {
   WGPUShaderSourceWGSL source = WGPU_SHADER_SOURCE_WGSL_INIT;
   source.code = to_view(wgsl);
   WGPUShaderModuleDescriptor desc = WGPU_SHADER_MODULE_DESCRIPTOR_INIT;
@@ -474,7 +475,8 @@ ShaderModule create_shader(Context& ctx, std::string_view wgsl, std::string_view
   wgpuDevicePopErrorScope(ctx.device.get(), cb);
   ctx.wait_until([&] { return scope.done || ctx.lost; });
   if (scope.type != WGPUErrorType_NoError || !module)
-    fail("shader '{}' failed to compile:\n{}", label, scope.message);
+    fail("shader '{}' failed to compile:\n{}", label,
+         map_message ? map_message(scope.message) : scope.message);
   return module;
 }
 

@@ -2,6 +2,7 @@
 // A small RAII layer over webgpu.h: handles, the device context, buffer/texture/pipeline
 // helpers, synchronous readback and an offscreen target.
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -127,8 +128,10 @@ Buffer create_buffer(Context& ctx, uint64_t size, WGPUBufferUsage usage, std::st
 Texture create_texture_2d(Context& ctx, uint32_t width, uint32_t height, WGPUTextureFormat format,
                           WGPUTextureUsage usage, std::string_view label);
 TextureView create_view(const Texture& texture);
-// Compiles WGSL; throws stipple::Error with the compiler's messages (file:line:column) on failure.
-ShaderModule create_shader(Context& ctx, std::string_view wgsl, std::string_view label);
+// Compiles WGSL; throws stipple::Error with the compiler's messages (file:line:column) on failure,
+// passed through map_message when given (preprocessed sources map lines back to their files).
+ShaderModule create_shader(Context& ctx, std::string_view wgsl, std::string_view label,
+                           const std::function<std::string(std::string_view)>& map_message = {});
 
 // Copies a buffer range to the CPU, blocking until done.
 std::vector<uint8_t> read_buffer(Context& ctx, WGPUBuffer buffer, uint64_t offset, uint64_t size);

@@ -1,5 +1,6 @@
 #include "renderer/gpu_timer.hpp"
 
+#include <algorithm>
 #include <cstring>
 
 #include "renderer/webgpu_loader.hpp"
@@ -32,9 +33,11 @@ const WGPUPassTimestampWrites* pass_timestamps(PassTimer& timer, uint32_t index,
   return &storage;
 }
 
-void resolve_pass_timer(PassTimer& timer, WGPUCommandEncoder encoder) {
+void resolve_pass_timer(PassTimer& timer, WGPUCommandEncoder encoder, uint32_t passes) {
   if (!timer.enabled) return;
-  wgpuCommandEncoderResolveQuerySet(encoder, timer.queries.get(), 0, timer.capacity * 2,
+  uint32_t count = std::min(passes, timer.capacity);
+  if (count == 0) return;
+  wgpuCommandEncoderResolveQuerySet(encoder, timer.queries.get(), 0, count * 2,
                                     timer.resolved.get(), 0);
 }
 
