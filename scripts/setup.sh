@@ -71,7 +71,7 @@ dawn_ver=0.1.7
 if [[ ! -f "$deps/dawn/lib/libwebgpu_wrapper.so" ]]; then
   log "fetching Dawn from the npm package bun-webgpu-linux-x64@$dawn_ver"
   tmp=$(mktemp -d)
-  (cd "$tmp" && npm pack -q "bun-webgpu-linux-x64@$dawn_ver" >/dev/null && tar xzf ./*.tgz)
+  (cd "$tmp" && npm pack --loglevel=error "bun-webgpu-linux-x64@$dawn_ver" >/dev/null && tar xzf ./*.tgz)
   mkdir -p "$deps/dawn/lib"
   cp "$(find "$tmp/package" -name 'libwebgpu_wrapper.so' | head -n1)" "$deps/dawn/lib/"
   rm -rf "$tmp"
@@ -83,6 +83,6 @@ log "building build/ (Release with debug info)"
 cmake -S "$root" -B "$root/build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
   -DSTIPPLE_WERROR="${CI:+ON}" >/dev/null
-cmake --build "$root/build" -- -k 0 | grep -vE '^\[[0-9]+/[0-9]+\] (Building|Linking)' || true
+cmake --build "$root/build" -- -k 0 | { grep -vE "^\[[0-9]+/[0-9]+\] (Building|Linking|Generating|Embedding|Re-checking)|^ninja: no work" || true; }
 test -x "$root/build/stipple"
 log "done: build/stipple"

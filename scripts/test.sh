@@ -12,7 +12,7 @@ jobs=$(nproc)
 werror="${CI:+ON}"
 
 [[ -f build/build.ninja ]] || scripts/setup.sh
-cmake --build build -- -j"$jobs" | grep -vE '^\[[0-9]+/[0-9]+\] (Building|Linking)' || true
+cmake --build build -- -j"$jobs" | { grep -vE "^\[[0-9]+/[0-9]+\] (Building|Linking|Generating|Embedding|Re-checking)|^ninja: no work" || true; }
 echo "== tests (build/) =="
 ctest --test-dir build --output-on-failure -j"$jobs"
 
@@ -22,7 +22,7 @@ if [[ "${STIPPLE_SKIP_ASAN:-0}" != 1 ]]; then
     -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
     -DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
     -DSTIPPLE_SANITIZE=ON -DSTIPPLE_FUZZ=ON -DSTIPPLE_WERROR="${werror:-OFF}" >/dev/null
-  cmake --build build-asan -- -j"$jobs" | grep -vE '^\[[0-9]+/[0-9]+\] (Building|Linking)' || true
+  cmake --build build-asan -- -j"$jobs" | { grep -vE "^\[[0-9]+/[0-9]+\] (Building|Linking|Generating|Embedding|Re-checking)|^ninja: no work" || true; }
   # Leaks inside the Vulkan driver and the WebGPU libraries are not ours to fix.
   export LSAN_OPTIONS="suppressions=$root/tests/lsan.supp:print_suppressions=0"
   export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
