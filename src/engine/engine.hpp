@@ -95,7 +95,7 @@ class Engine {
   }
   template <Plugin... Ps>
   Engine& add_plugins(PluginGroup<Ps...> group) {
-    std::apply([this](auto&... ps) { (add_plugin(std::move(ps)), ...); }, group.plugins);
+    std::apply([&](auto&... ps) { (add_plugin(std::move(ps)), ...); }, group.plugins);
     return *this;
   }
   template <Plugin P>
