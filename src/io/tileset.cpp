@@ -192,6 +192,8 @@ class Builder {
   Builder(Tileset& ts, const Fetcher& fetcher, const TilesetOptions& options)
       : ts_(ts), fetch_(fetcher), options_(options) {}
 
+  void enter(const std::string& uri) { chain_.push_back(uri); }
+
   // Parses a tileset document and attaches its root under `parent` (-1: the tileset's root).
   void document(std::span<const uint8_t> bytes, const std::string& uri, int32_t parent,
                 const glm::dmat4& parent_transform, Refine parent_refine) {
@@ -464,6 +466,7 @@ Tileset parse_tileset(std::span<const uint8_t> json_bytes, const std::string& ur
   Tileset ts;
   ts.uri = uri;
   Builder builder(ts, fetcher, options);
+  builder.enter(uri);  // a reference back to the root is a cycle too
   try {
     builder.document(json_bytes, uri, -1, glm::dmat4(1.0), Refine::Replace);
   } catch (const Error&) {
