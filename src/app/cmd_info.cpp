@@ -1,5 +1,7 @@
 // `stipple info`: what a point-cloud file holds, or what the GPU offers.
+#include <algorithm>
 #include <cstdio>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -8,7 +10,9 @@
 #include "app/commands.hpp"
 #include "core/error.hpp"
 #include "io/las.hpp"
+#include "io/tileset.hpp"
 #include "renderer/gpu.hpp"
+#include "tiles3d/render_load.hpp"
 
 namespace stipple::app {
 namespace {
@@ -131,6 +135,42 @@ void print_gpu(const std::string& backend, bool json) {
     std::printf("  %s%s\n", gpu::feature_name(f).c_str(), ctx->has_feature(f) ? " (enabled)" : "");
 }
 
+// A tileset's shape: depth, tiles, content types, declared points (from loading every content
+// would be too much for a summary: points are counted for the tiles a framing camera selects).
+nlohmann::json tileset_json(const std::string& uri) {
+  io::Tileset ts = io::load_tileset(uri);
+  nlohmann::json j;
+  j["uri"] = uri;
+  j["version"] = ts.version;
+  j["geometric_error"] = ts.geometric_error;
+  j["tiles"] = ts.tiles.size();
+  uint32_t depth = 0;
+  size_t contents = 0;
+  std::map<std::string, size_t> types;
+  for (const auto& t : ts.tiles) {
+    depth = std::max(depth, t.depth);
+    contents += t.contents.size();
+    for (const auto& c : t.contents) {
+      std::string p = io::uri_path(c);
+      size_t dot = p.rfind('.');
+      types[dot == std::string::npos ? "?" : p.substr(dot + 1)]++;
+    }
+  }
+  j["depth"] = depth + 1;
+  j["contents"] = contents;
+  j["content_types"] = types;
+  j["external_tilesets"] = ts.external_tilesets;
+  j["implicit"] = ts.implicit;
+  j["subtrees"] = ts.subtrees;
+  j["warnings"] = ts.warnings;
+  j["errors"] = ts.errors;
+  auto loaded = tiles3d::load_tileset_for_render(uri, {});
+  j["points_selected_for_default_view"] = loaded.cloud.point_count;
+  j["tiles_selected_for_default_view"] = loaded.tiles_rendered;
+  j["tile_errors"] = loaded.errors.size();
+  return j;
+}
+
 void run_info(const InfoArgs& args) {
   if (args.gpu) {
     print_gpu(args.backend, args.json);
@@ -139,6 +179,24 @@ void run_info(const InfoArgs& args) {
   if (args.inputs.empty()) fail("info: give a file, or --gpu");
   nlohmann::json all = nlohmann::json::array();
   for (const auto& input : args.inputs) {
+    if (tiles3d::is_tileset_input(input)) {
+      auto j = tileset_json(input);
+      if (args.json) {
+        all.push_back(j);
+      } else {
+        std::printf("%s\n  3D Tiles %s: %zu tiles, depth %u, %zu contents %s\n", input.c_str(),
+                    j["version"].get<std::string>().c_str(), j["tiles"].get<size_t>(),
+                    j["depth"].get<uint32_t>(), j["contents"].get<size_t>(),
+                    j["content_types"].dump().c_str());
+        std::printf("  external tilesets: %u, implicit: %s, subtrees: %u, errors: %zu\n",
+                    j["external_tilesets"].get<uint32_t>(), j["implicit"].get<bool>() ? "yes" : "no",
+                    j["subtrees"].get<uint32_t>(), j["errors"].size());
+        std::printf("  points in the default view: %llu (%u tiles)\n",
+                    static_cast<unsigned long long>(j["points_selected_for_default_view"].get<uint64_t>()),
+                    j["tiles_selected_for_default_view"].get<uint32_t>());
+      }
+      continue;
+    }
     // Opening a reader also looks at the first points (8-bit colour detection).
     io::LasHeader header = io::LasReader(input).header();
     if (args.json)
@@ -154,7 +212,7 @@ void run_info(const InfoArgs& args) {
 void add_info_command(CLI::App& cli) {
   auto args = std::make_shared<InfoArgs>();
   auto* cmd = cli.add_subcommand("info", "Describe LAS/LAZ/COPC files, or the GPU (--gpu)");
-  cmd->add_option("inputs", args->inputs, "Input files")->check(CLI::ExistingFile);
+  cmd->add_option("inputs", args->inputs, "Input files, tileset.json paths or URLs");
   cmd->add_flag("--gpu", args->gpu, "Print the WebGPU adapter, backend, limits and features");
   cmd->add_flag("--json", args->json, "Print JSON instead of text");
   cmd->add_flag("--vlrs", args->vlrs, "List every VLR and EVLR");

@@ -20,6 +20,8 @@
 #include "renderer/gpu.hpp"
 #include "renderer/png.hpp"
 #include "renderer/render_graph.hpp"
+#include "io/fetch.hpp"
+#include "tiles3d/render_load.hpp"
 
 namespace stipple::app {
 namespace {
@@ -82,6 +84,14 @@ void run_render(const RenderArgs& args) {
                        {bounds.min.z + 20.0, bounds.max.z - 60.0}, block);
     }
     STIPPLE_INFO("built-in scene: {} points", cloud.point_count);
+  } else if (args.inputs.size() == 1 && tiles3d::is_tileset_input(args.inputs[0])) {
+    // 3D Tiles (file or URL): stream what the framing camera selects, then render it.
+    tiles3d::RenderLoadOptions options;
+    options.width = args.width, options.height = args.height;
+    options.azimuth = args.azimuth, options.elevation = args.elevation, options.fov = args.fov;
+    auto loaded = tiles3d::load_tileset_for_render(args.inputs[0], options);
+    for (const auto& e : loaded.errors) STIPPLE_WARN("tile {}: {}", e.tile, e.message);
+    cloud = std::move(loaded.cloud);
   } else {
     std::vector<std::filesystem::path> files(args.inputs.begin(), args.inputs.end());
     pc::LoadOptions options;
@@ -224,8 +234,11 @@ void add_render_command(CLI::App& cli) {
       cli.add_subcommand("render",
                          "Render point clouds (LAS/LAZ/COPC) headless to a PNG; with no input, the "
                          "built-in procedural scene");
-  cmd->add_option("inputs", args->inputs, "Input files (.las, .laz, .copc.laz)")
-      ->check(CLI::ExistingFile);
+  cmd->add_option("inputs", args->inputs,
+                  "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json path or URL")
+      ->check([](const std::string& in) {
+        return io::is_url(in) ? std::string() : CLI::ExistingFile(in);
+      });
   cmd->add_option("-o,--output", args->output, "Output PNG")->capture_default_str();
   cmd->add_option("--width", args->width, "Image width in pixels")
       ->check(CLI::Range(1u, 16384u))

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# run_fuzzer.sh FUZZER SECONDS CORPUS_DIR [SEED_DIR]: runs a libFuzzer binary for a bounded time
+# run_fuzzer.sh FUZZER SECONDS CORPUS_DIR [SEED_DIR [EXTRA_SEED_DIR]]: runs a libFuzzer binary for a bounded time
 # on a fresh working corpus seeded with the real files (LAS, LAZ) when they exist.
 set -euo pipefail
-fuzzer=$1 seconds=$2 corpus=$3 seeds=${4:-}
+fuzzer=$1 seconds=$2 corpus=$3 seeds=${4:-} extra=${5:-}
 rm -rf "$corpus" && mkdir -p "$corpus"
 if [[ -n "$seeds" && -d "$seeds" ]]; then
   # Small seeds keep the run fast: the first 64 KiB of each file holds header, VLRs and points.
@@ -11,5 +11,11 @@ if [[ -n "$seeds" && -d "$seeds" ]]; then
   done < <(find "$seeds" -type f \( -name '*.las' -o -name '*.laz' \) -print0)
 else
   echo "seed corpus not found (../shared/data absent): fuzzing from an empty corpus"
+fi
+# Generated seeds (small 3D Tiles files) are copied whole.
+if [[ -n "$extra" && -d "$extra" ]]; then
+  while IFS= read -r -d '' f; do
+    cp "$f" "$corpus/$(basename "$f")"
+  done < <(find "$extra" -type f \( -name '*.pnts' -o -name '*.glb' -o -name '*.subtree' \) -print0)
 fi
 exec "$fuzzer" -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=20 -print_final_stats=1 "$corpus"

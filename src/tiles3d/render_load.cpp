@@ -1,0 +1,98 @@
+#include "tiles3d/render_load.hpp"
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "math/geo.hpp"
+
+namespace stipple::tiles3d {
+
+bool is_tileset_input(const std::string& input) {
+  return io::is_url(input) || io::is_tileset_uri(input);
+}
+
+glm::dmat4 world_from_tileset(const io::Tileset& ts) {
+  const glm::dmat4 y_up(1, 0, 0, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1);
+  if (ts.tiles.empty()) return y_up;
+  glm::dvec3 c = ts.tiles[0].box.center;
+  if (glm::length(c) < 1e6) return y_up;  // a local frame already
+  glm::dvec3 llh = geo::ecef_to_geodetic(c);
+  glm::dmat3 enu = geo::enu_basis(llh.x, llh.y);
+  glm::dmat4 local(glm::transpose(enu));  // ECEF -> ENU rotation
+  local = local * glm::translate(glm::dmat4(1.0), -c);
+  return y_up * local;
+}
+
+Aabb world_bounds(const io::Tileset& ts, const glm::dmat4& m) {
+  Aabb box;
+  if (ts.tiles.empty()) return box;
+  const io::Obb& o = ts.tiles[0].box;
+  for (int i = 0; i < 8; ++i) {
+    glm::dvec3 p = o.center;
+    for (int k = 0; k < 3; ++k) p += o.half_axes[k] * ((i >> k) & 1 ? 1.0 : -1.0);
+    box.extend(glm::dvec3(m * glm::dvec4(p, 1.0)));
+  }
+  return box;
+}
+
+void append_content(pc::PointCloud& cloud, const io::PointContent& content,
+                    const glm::dmat4& tile_transform, const glm::dmat4& world_from_tileset) {
+  if (content.point_count == 0) return;
+  glm::dmat4 m = world_from_tileset * tile_transform;
+  pc::PointChunk chunk;
+  chunk.origin = glm::dvec3(m * glm::dvec4(content.center, 1.0));
+  glm::dmat3 linear(m);  // offsets from the centre only need the linear part
+  chunk.vertices.reserve(content.point_count);
+  for (size_t i = 0; i < content.point_count; ++i) {
+    glm::dvec3 p = linear * glm::dvec3(content.positions[i]);
+    uint32_t rgba = content.rgba.empty() ? pc::pack_rgba(220, 220, 220) : content.rgba[i];
+    chunk.vertices.push_back({float(p.x), float(p.y), float(p.z), rgba | 0xff000000u});
+    glm::dvec3 world = chunk.origin + p;
+    cloud.world_bounds.extend(world);
+    cloud.source_bounds.extend(glm::dvec3(tile_transform * glm::dvec4(content.center + glm::dvec3(content.positions[i]), 1.0)));
+  }
+  cloud.point_count += content.point_count;
+  cloud.chunks.push_back(std::move(chunk));
+}
+
+RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoadOptions& options) {
+  io::TilesetOptions ts_options;
+  ts_options.fetch = options.streamer.fetch;
+  auto tileset = std::make_shared<const io::Tileset>(io::load_tileset(uri, ts_options));
+  RenderLoadResult out;
+  for (const auto& e : tileset->errors) out.errors.push_back({0, e});
+  View view;
+  view.width = options.width;
+  view.height = options.height;
+  view.world_from_tileset = world_from_tileset(*tileset);
+  if (options.camera) {
+    view.camera = *options.camera;
+  } else {
+    view.camera = frame_box(world_bounds(*tileset, view.world_from_tileset),
+                            double(options.width) / options.height, options.azimuth,
+                            options.elevation, options.fov);
+  }
+  TileStreamer streamer(tileset, options.streamer);
+  const Selection* selection = nullptr;
+  for (size_t i = 0; i < options.max_updates; ++i) {
+    selection = &streamer.update(view);
+    if (streamer.idle()) break;
+    streamer.wait_for_progress();
+  }
+  for (auto& e : streamer.take_errors()) out.errors.push_back(std::move(e));
+  out.camera = view.camera;
+  out.cloud.color_source = "tile colours";
+  for (uint32_t t : selection->render) {
+    const auto* contents = streamer.content(t);
+    if (!contents) continue;
+    for (const auto& c : *contents)
+      append_content(out.cloud, c, tileset->tiles[t].transform, view.world_from_tileset);
+    ++out.tiles_rendered;
+  }
+  STIPPLE_INFO("{}: {} tiles, {} rendered, {} points, {} errors", uri, tileset->tiles.size(),
+               out.tiles_rendered, out.cloud.point_count, out.errors.size());
+  return out;
+}
+
+}  // namespace stipple::tiles3d

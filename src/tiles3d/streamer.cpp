@@ -1,0 +1,186 @@
+#include "tiles3d/streamer.hpp"
+
+#include <algorithm>
+#include <condition_variable>
+#include <cstring>
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "io/glb_points.hpp"
+
+namespace stipple::tiles3d {
+
+io::PointContent decode_content(const std::vector<uint8_t>& bytes, const std::string& uri,
+                                const io::DecodeLimits& limits, const io::FetchOptions& fetch) {
+  if (bytes.size() >= 4 && std::memcmp(bytes.data(), "pnts", 4) == 0)
+    return io::decode_pnts(bytes, uri, limits);
+  if ((bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0) ||
+      io::uri_path(uri).ends_with(".gltf"))
+    return io::decode_glb_points(bytes, uri, limits, [&](const std::string& u) {
+      return io::fetch(io::resolve_uri(uri, u), fetch);
+    });
+  std::string magic;
+  for (size_t i = 0; i < 4 && i < bytes.size(); ++i)
+    magic += std::isprint(bytes[i]) ? char(bytes[i]) : '?';
+  fail("{}: content type '{}' is not supported (pnts and glb point tiles are)", uri, magic);
+}
+
+struct TileStreamer::Job {
+  uint32_t tile;
+  std::atomic<bool> cancelled{false};
+  std::vector<io::PointContent> result;
+  std::string error;
+};
+
+struct TileStreamer::Shared {
+  std::mutex mutex;
+  std::condition_variable done_cv;
+  std::deque<std::shared_ptr<Job>> done;
+};
+
+TileStreamer::TileStreamer(std::shared_ptr<const io::Tileset> tileset, StreamerOptions options)
+    : tileset_(std::move(tileset)), options_(options), shared_(std::make_shared<Shared>()),
+      pool_(std::make_unique<ThreadPool>(std::max(1u, options.threads))) {
+  states_.resize(tileset_->tiles.size());
+  contents_.resize(tileset_->tiles.size());
+  jobs_.resize(tileset_->tiles.size());
+}
+
+TileStreamer::~TileStreamer() {
+  for (auto& j : jobs_)
+    if (j) j->cancelled = true;
+  pool_.reset();  // joins the workers
+}
+
+void TileStreamer::integrate() {
+  std::deque<std::shared_ptr<Job>> done;
+  {
+    std::lock_guard lock(shared_->mutex);
+    done.swap(shared_->done);
+  }
+  for (auto& job : done) {
+    --in_flight_;
+    uint32_t t = job->tile;
+    jobs_[t].reset();
+    if (job->cancelled) {
+      states_[t].state = LoadState::Unloaded;
+      ++stats_.loads_cancelled;
+      continue;
+    }
+    if (!job->error.empty()) {
+      states_[t].state = LoadState::Failed;
+      new_errors_.push_back({t, job->error});
+      all_errors_.push_back({t, job->error});
+      STIPPLE_WARN("tile {}: {}", t, job->error);
+      continue;
+    }
+    uint64_t bytes = 0;
+    for (const auto& c : job->result) bytes += c.memory_bytes();
+    bool fits = false;
+    auto evict = make_room(states_, bytes, options_.traversal.memory_budget, frame_, &fits);
+    if (!fits) {
+      // Not even evicting every unused tile makes room: drop the result, try again later.
+      states_[t].state = LoadState::Unloaded;
+      ++stats_.discarded_over_budget;
+      continue;
+    }
+    for (uint32_t e : evict) {
+      contents_[e].clear();
+      contents_[e].shrink_to_fit();
+      stats_.resident_bytes -= states_[e].bytes;
+      states_[e] = TileState{};
+      ++stats_.evictions;
+    }
+    contents_[t] = std::move(job->result);
+    states_[t].state = LoadState::Loaded;
+    states_[t].bytes = bytes;
+    states_[t].last_used = frame_;
+    stats_.resident_bytes += bytes;
+    stats_.peak_resident_bytes = std::max(stats_.peak_resident_bytes, stats_.resident_bytes);
+    ++stats_.loads_completed;
+  }
+}
+
+const Selection& TileStreamer::update(const View& view) {
+  ++frame_;
+  integrate();
+  selection_ = select_tiles(*tileset_, view, states_, options_.traversal, frame_);
+  for (uint32_t t : selection_.used) states_[t].last_used = frame_;
+  for (uint32_t e : selection_.evict) {
+    contents_[e].clear();
+    contents_[e].shrink_to_fit();
+    stats_.resident_bytes -= states_[e].bytes;
+    states_[e] = TileState{};
+    ++stats_.evictions;
+  }
+  for (uint32_t c : selection_.cancel)
+    if (jobs_[c]) jobs_[c]->cancelled = true;  // its worker skips the work or its result
+  // The queue is this frame's wish list: what is no longer asked for is dropped (cancelled).
+  queue_.clear();
+  for (const auto& r : selection_.loads)
+    if (states_[r.tile].state == LoadState::Unloaded) queue_.push_back(r);
+  start_jobs();
+  return selection_;
+}
+
+void TileStreamer::start_jobs() {
+  size_t next = 0;
+  while (in_flight_ < options_.max_in_flight && next < queue_.size()) {
+    uint32_t t = queue_[next++].tile;
+    auto job = std::make_shared<Job>();
+    job->tile = t;
+    jobs_[t] = job;
+    states_[t].state = LoadState::Loading;
+    ++in_flight_;
+    std::vector<std::string> uris = tileset_->tiles[t].contents;
+    pool_->submit([job, uris, shared = shared_, fetch = options_.fetch, limits = options_.limits] {
+      try {
+        for (const auto& uri : uris) {
+          if (job->cancelled) break;
+          auto bytes = io::fetch(uri, fetch);
+          if (job->cancelled) break;
+          job->result.push_back(decode_content(bytes, uri, limits, fetch));
+        }
+      } catch (const std::exception& e) {
+        job->error = e.what();
+        job->result.clear();
+      }
+      std::lock_guard lock(shared->mutex);
+      shared->done.push_back(job);
+      shared->done_cv.notify_all();
+    });
+  }
+  queue_.erase(queue_.begin(), queue_.begin() + std::ptrdiff_t(next));
+}
+
+void TileStreamer::wait_for_progress() {
+  if (in_flight_ == 0) return;
+  std::unique_lock lock(shared_->mutex);
+  shared_->done_cv.wait(lock, [&] { return !shared_->done.empty(); });
+}
+
+bool TileStreamer::idle() const { return in_flight_ == 0 && queue_.empty(); }
+
+const std::vector<io::PointContent>* TileStreamer::content(uint32_t tile) const {
+  if (tile >= states_.size() || states_[tile].state != LoadState::Loaded) return nullptr;
+  return &contents_[tile];
+}
+
+std::vector<TileError> TileStreamer::take_errors() {
+  std::vector<TileError> out;
+  out.swap(new_errors_);
+  return out;
+}
+
+StreamerStats TileStreamer::stats() const {
+  StreamerStats s = stats_;
+  s.in_flight = in_flight_;
+  s.queued = uint32_t(queue_.size());
+  for (const auto& st : states_) {
+    s.loaded += st.state == LoadState::Loaded;
+    s.failed += st.state == LoadState::Failed;
+  }
+  return s;
+}
+
+}  // namespace stipple::tiles3d

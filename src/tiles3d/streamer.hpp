@@ -1,0 +1,87 @@
+#pragma once
+// Streams tile content for a view: runs select_tiles every update, fetches and decodes requested
+// tiles on a worker pool (off the calling thread), cancels what is no longer wanted, and keeps
+// resident content within a memory budget by evicting least recently used tiles.
+#include <atomic>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "core/thread_pool.hpp"
+#include "io/fetch.hpp"
+#include "io/pnts.hpp"
+#include "io/tileset.hpp"
+#include "tiles3d/traversal.hpp"
+
+namespace stipple::tiles3d {
+
+struct StreamerOptions {
+  TraversalOptions traversal;
+  io::FetchOptions fetch;
+  io::DecodeLimits limits;
+  unsigned threads = 4;         // worker threads (I/O bound: more than cores is fine)
+  unsigned max_in_flight = 8;   // tiles fetched or decoded at once
+};
+
+struct TileError {
+  uint32_t tile;
+  std::string message;
+};
+
+struct StreamerStats {
+  uint64_t resident_bytes = 0;
+  uint64_t peak_resident_bytes = 0;
+  uint32_t loaded = 0, failed = 0, in_flight = 0, queued = 0;
+  uint64_t loads_completed = 0, loads_cancelled = 0, evictions = 0, discarded_over_budget = 0;
+};
+
+// Decodes one content by its URI's extension or magic (pnts, glb, glTF). Throws stipple::Error.
+io::PointContent decode_content(const std::vector<uint8_t>& bytes, const std::string& uri,
+                                const io::DecodeLimits& limits, const io::FetchOptions& fetch);
+
+class TileStreamer {
+ public:
+  TileStreamer(std::shared_ptr<const io::Tileset> tileset, StreamerOptions options);
+  ~TileStreamer();
+  TileStreamer(const TileStreamer&) = delete;
+  TileStreamer& operator=(const TileStreamer&) = delete;
+
+  // One frame: integrates finished loads, selects tiles, evicts, cancels and schedules loads.
+  // Returns the selection whose `render` tiles are all resident.
+  const Selection& update(const View& view);
+  // Blocks until something in flight finishes (or returns at once when nothing is).
+  void wait_for_progress();
+  bool idle() const;  // nothing queued or in flight
+
+  const io::Tileset& tileset() const { return *tileset_; }
+  // Content of a Loaded tile (all of its contents merged); nullptr otherwise.
+  const std::vector<io::PointContent>* content(uint32_t tile) const;
+  const std::vector<TileState>& states() const { return states_; }
+  std::vector<TileError> take_errors();
+  const std::vector<TileError>& errors() const { return all_errors_; }
+  StreamerStats stats() const;
+
+ private:
+  struct Job;
+  struct Shared;
+  std::shared_ptr<const io::Tileset> tileset_;
+  StreamerOptions options_;
+  std::vector<TileState> states_;
+  std::vector<std::vector<io::PointContent>> contents_;
+  std::vector<std::shared_ptr<Job>> jobs_;  // by tile, while Loading
+  std::vector<LoadRequest> queue_;          // wanted, not started; most important first
+  std::shared_ptr<Shared> shared_;
+  std::unique_ptr<ThreadPool> pool_;
+  Selection selection_;
+  uint64_t frame_ = 0;
+  StreamerStats stats_;
+  std::vector<TileError> new_errors_, all_errors_;
+  uint32_t in_flight_ = 0;
+
+  void integrate();
+  void start_jobs();
+};
+
+}  // namespace stipple::tiles3d

@@ -1,0 +1,204 @@
+#include "tiles3d/traversal.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include <glm/geometric.hpp>
+
+namespace stipple::tiles3d {
+namespace {
+
+struct Planes {
+  std::array<glm::dvec4, 5> p;  // left, right, bottom, top, near; inside when dot >= 0
+};
+
+Planes frustum(const View& view) {
+  glm::dmat4 m = view.camera.view_projection(view.width / view.height);
+  auto row = [&](int r) { return glm::dvec4(m[0][r], m[1][r], m[2][r], m[3][r]); };
+  Planes out;
+  out.p[0] = row(3) + row(0);
+  out.p[1] = row(3) - row(0);
+  out.p[2] = row(3) + row(1);
+  out.p[3] = row(3) - row(1);
+  // Reverse-Z with an infinite far plane: only the near plane, straight from the camera.
+  glm::dvec3 f = view.camera.forward();
+  out.p[4] = glm::dvec4(f, -glm::dot(f, view.camera.position + f * view.camera.near_plane));
+  for (auto& plane : out.p) {
+    double l = glm::length(glm::dvec3(plane));
+    if (l > 0) plane /= l;
+  }
+  return out;
+}
+
+struct WorldBox {
+  glm::dvec3 center;
+  glm::dmat3 axes;
+  double sphere = -1;
+};
+
+bool outside(const Planes& planes, const WorldBox& b) {
+  for (const auto& p : planes.p) {
+    glm::dvec3 n(p);
+    double r = b.sphere >= 0 ? b.sphere
+                             : std::abs(glm::dot(n, b.axes[0])) + std::abs(glm::dot(n, b.axes[1])) +
+                                   std::abs(glm::dot(n, b.axes[2]));
+    if (glm::dot(n, b.center) + p.w < -r) return true;
+  }
+  return false;
+}
+
+class Traversal {
+ public:
+  Traversal(const io::Tileset& ts, const View& view, const std::vector<TileState>& states,
+            const TraversalOptions& options, Selection& out)
+      : ts_(ts), view_(view), states_(states), options_(options), out_(out),
+        planes_(frustum(view)),
+        tileset_from_world_(glm::inverse(view.world_from_tileset)),
+        eye_(glm::dvec3(tileset_from_world_ * glm::dvec4(view.camera.position, 1.0))) {
+    // Distances are measured in the tileset frame; its scale to the world is taken along x.
+    scale_ = glm::length(glm::dvec3(view.world_from_tileset[0]));
+  }
+
+  // Returns whether what this tile wants drawn is resident (no hole where it is).
+  bool visit(uint32_t index) {
+    const io::Tile& t = ts_.tiles[index];
+    ++out_.visited;
+    if (options_.frustum_cull && culled(t)) {
+      ++out_.culled;
+      return true;  // not visible: it cannot leave a hole
+    }
+    double d = t.box.distance(eye_) * scale_;
+    double sse = screen_space_error(t.geometric_error, d, view_);
+    const bool has_content = !t.contents.empty();
+    const LoadState state = states_[index].state;
+    const bool ready = !has_content || state == LoadState::Loaded || state == LoadState::Failed;
+    const bool refine = !t.children.empty() && sse > options_.max_sse;
+    if (!refine) {
+      want(index, sse, d);
+      return ready;
+    }
+    if (t.refine == io::Refine::Add) {
+      want(index, sse, d);
+      bool children_ready = true;
+      for (uint32_t c : t.children) children_ready &= visit(c);
+      return ready && children_ready;
+    }
+    // REPLACE: children replace this tile only once all of them are ready; until then this
+    // tile (if resident) is drawn instead and the children keep loading.
+    size_t render_mark = out_.render.size();
+    bool children_ready = true;
+    for (uint32_t c : t.children) children_ready &= visit(c);
+    if (children_ready) return true;
+    if (has_content && state == LoadState::Loaded) {
+      out_.render.resize(render_mark);  // drop the partial children
+      out_.render.push_back(index);
+      out_.used.push_back(index);
+      return true;
+    }
+    if (has_content && state != LoadState::Failed) request(index, sse, d);
+    return false;
+  }
+
+ private:
+  const io::Tileset& ts_;
+  const View& view_;
+  const std::vector<TileState>& states_;
+  const TraversalOptions& options_;
+  Selection& out_;
+  Planes planes_;
+  glm::dmat4 tileset_from_world_;
+  glm::dvec3 eye_;
+  double scale_ = 1;
+
+  bool culled(const io::Tile& t) const {
+    WorldBox b;
+    glm::dmat3 linear(view_.world_from_tileset);
+    b.center = glm::dvec3(view_.world_from_tileset * glm::dvec4(t.box.center, 1.0));
+    b.axes = linear * t.box.half_axes;
+    if (t.box.sphere_radius >= 0) b.sphere = t.box.sphere_radius * scale_;
+    return outside(planes_, b);
+  }
+  void want(uint32_t index, double sse, double d) {
+    const io::Tile& t = ts_.tiles[index];
+    if (t.contents.empty()) return;
+    LoadState s = states_[index].state;
+    if (s == LoadState::Loaded) {
+      out_.render.push_back(index);
+      out_.used.push_back(index);
+    } else if (s != LoadState::Failed) {
+      request(index, sse, d);
+    }
+  }
+  void request(uint32_t index, double sse, double d) {
+    out_.loads.push_back({index, sse, d});
+    out_.used.push_back(index);
+  }
+};
+
+}  // namespace
+
+double screen_space_error(double geometric_error, double distance, const View& view) {
+  if (distance <= 0) return std::numeric_limits<double>::infinity();
+  double f = view.height / (2.0 * std::tan(view.camera.fov_y * 0.5));
+  return geometric_error * f / distance;
+}
+
+Selection select_tiles(const io::Tileset& tileset, const View& view,
+                       const std::vector<TileState>& states, const TraversalOptions& options,
+                       uint64_t frame) {
+  Selection out;
+  if (tileset.tiles.empty() || states.size() != tileset.tiles.size()) return out;
+  Traversal(tileset, view, states, options, out).visit(0);
+  std::sort(out.loads.begin(), out.loads.end(), [](const LoadRequest& a, const LoadRequest& b) {
+    if (a.sse != b.sse) return a.sse > b.sse;
+    return a.distance < b.distance;
+  });
+  // A tile requested twice (ADD parent kept as REPLACE fallback) keeps its first entry.
+  std::vector<bool> seen(states.size());
+  std::erase_if(out.loads, [&](const LoadRequest& r) {
+    if (seen[r.tile]) return true;
+    seen[r.tile] = true;
+    return false;
+  });
+  std::vector<bool> wanted(states.size());
+  for (uint32_t t : out.used) wanted[t] = true;
+  for (uint32_t i = 0; i < states.size(); ++i)
+    if (states[i].state == LoadState::Loading && !wanted[i]) out.cancel.push_back(i);
+  // Evict least recently used tiles not wanted this frame until the budget holds.
+  std::vector<TileState> now = states;
+  for (uint32_t t : out.used) now[t].last_used = frame;
+  bool fits = false;
+  out.evict = make_room(now, 0, options.memory_budget, frame, &fits);
+  return out;
+}
+
+std::vector<uint32_t> make_room(const std::vector<TileState>& states, uint64_t incoming,
+                                uint64_t budget, uint64_t frame, bool* fits) {
+  uint64_t resident = 0;
+  std::vector<uint32_t> candidates;
+  for (uint32_t i = 0; i < states.size(); ++i) {
+    if (states[i].state != LoadState::Loaded) continue;
+    resident += states[i].bytes;
+    if (states[i].last_used < frame) candidates.push_back(i);
+  }
+  std::vector<uint32_t> evict;
+  if (resident + incoming <= budget) {
+    if (fits) *fits = true;
+    return evict;
+  }
+  std::sort(candidates.begin(), candidates.end(), [&](uint32_t a, uint32_t b) {
+    return states[a].last_used != states[b].last_used ? states[a].last_used < states[b].last_used
+                                                      : a > b;  // deeper (later) tiles first
+  });
+  for (uint32_t c : candidates) {
+    if (resident + incoming <= budget) break;
+    evict.push_back(c);
+    resident -= states[c].bytes;
+  }
+  if (fits) *fits = resident + incoming <= budget;
+  return evict;
+}
+
+}  // namespace stipple::tiles3d
