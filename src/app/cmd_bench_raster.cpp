@@ -112,9 +112,9 @@ pc::GpuPointCloud upload_billboards(gpu::Context& ctx, const pc::BatchedCloud& c
     pc::GpuPointCloud::Chunk chunk;
     chunk.count = uint32_t(count);
     chunk.origin = origin;
-    chunk.vertices = gpu::create_buffer(ctx, count * sizeof(pc::PointChunk::Vertex),
-                                        WGPUBufferUsage_Vertex, "bench-billboards",
-                                        vertices.data());
+    chunk.vertices =
+        gpu::create_buffer(ctx, count * sizeof(pc::PointChunk::Vertex), WGPUBufferUsage_Vertex,
+                           "bench-billboards", vertices.data());
     out.point_count += count;
     out.chunks.push_back(std::move(chunk));
     if (out.chunks.size() % 256 == 0) ctx.wait_idle();  // bound the staging memory
@@ -158,8 +158,7 @@ void run_raster_bench(const RasterArgs& args) {
               ctx->description.device.c_str(), ctx->description.graphics_api.c_str(),
               has64 ? "64-bit visibility buffer" : "no 64-bit atomics: 32-bit two-pass fallback");
   double copy_gbs = copy_bandwidth_gbs(*ctx, uint64_t(args.copy_mb) << 20);
-  std::printf("buffer copy: %.1f GB/s copied (%.1f GB/s read + write)\n", copy_gbs,
-              2 * copy_gbs);
+  std::printf("buffer copy: %.1f GB/s copied (%.1f GB/s read + write)\n", copy_gbs, 2 * copy_gbs);
 
   nlohmann::json out;
   out["backend"] = ctx->description.backend;
@@ -185,17 +184,17 @@ void run_raster_bench(const RasterArgs& args) {
     scene.point_count = n;
     scene.seed = args.seed;
     auto t0 = Clock::now();
-    pc::BatchedCloud cloud =
-        pc::generate_batched_scene(scene, pc::parse_spatial_order(args.order), pc::kBatchPoints,
-                                   true);
+    pc::BatchedCloud cloud = pc::generate_batched_scene(scene, pc::parse_spatial_order(args.order),
+                                                        pc::kBatchPoints, true);
     double gen_s = std::chrono::duration<double>(Clock::now() - t0).count();
     t0 = Clock::now();
     pc::GpuBatchedCloud raster_cloud = pc::upload_batched_cloud(*ctx, cloud);
     double upload_s = std::chrono::duration<double>(Clock::now() - t0).count();
-    std::printf("# %llu points: generated in %.1f s, %zu batches, %zu segments, %.2f GB on the "
-                "GPU (uploaded in %.1f s)\n",
-                static_cast<unsigned long long>(n), gen_s, cloud.batches.size(),
-                raster_cloud.segments.size(), double(raster_cloud.bytes) * 1e-9, upload_s);
+    std::printf(
+        "# %llu points: generated in %.1f s, %zu batches, %zu segments, %.2f GB on the "
+        "GPU (uploaded in %.1f s)\n",
+        static_cast<unsigned long long>(n), gen_s, cloud.batches.size(),
+        raster_cloud.segments.size(), double(raster_cloud.bytes) * 1e-9, upload_s);
     pc::GpuPointCloud billboards;
     if (args.billboard) billboards = upload_billboards(*ctx, cloud, pool);
 
@@ -246,8 +245,7 @@ void run_raster_bench(const RasterArgs& args) {
           double total = 0;
           for (const auto& [name, ms] : times) total += ms;
           frame_ms.push_back(total);
-          geom_ms.push_back(times.count("raster-depth") ? times["raster-depth"]
-                                                        : times["points"]);
+          geom_ms.push_back(times.count("raster-depth") ? times["raster-depth"] : times["points"]);
         }
         ctx->check("bench frame");
         double ms = median(frame_ms), geom = median(geom_ms);
@@ -307,10 +305,11 @@ void run_raster_bench(const RasterArgs& args) {
       }
     }
   }
-  std::printf("\nframe ms: all passes of a frame (clear, geometry, resolve/accumulate, display), "
-              "median of %u; Gpts/s: all N points per frame time; GB/s: point data loaded per "
-              "second; %%copy: against the copy's read + write traffic\n",
-              args.frames);
+  std::printf(
+      "\nframe ms: all passes of a frame (clear, geometry, resolve/accumulate, display), "
+      "median of %u; Gpts/s: all N points per frame time; GB/s: point data loaded per "
+      "second; %%copy: against the copy's read + write traffic\n",
+      args.frames);
   if (!args.json.empty()) {
     std::ofstream file(args.json);
     file << out.dump(2) << "\n";

@@ -115,7 +115,8 @@ void run_render(const RenderArgs& args) {
   pc::GpuPointCloud gpu_cloud;
   pc::GpuBatchedCloud raster_cloud;
   if (compute) {
-    raster_cloud = pc::upload_batched_cloud(*ctx, pc::build_batches(cloud, pc::SpatialOrder::Morton));
+    raster_cloud =
+        pc::upload_batched_cloud(*ctx, pc::build_batches(cloud, pc::SpatialOrder::Morton));
     gpu_cloud.point_count = raster_cloud.point_count;
   } else {
     gpu_cloud = pc::upload_point_cloud(*ctx, cloud);
@@ -149,8 +150,8 @@ void run_render(const RenderArgs& args) {
       pc::ComputeRasterOptions raster_options;
       raster_options.hqs = args.hqs;
       raster_options.background = style.background;
-      pc::add_compute_raster_passes(graph, raster, raster_cloud, camera, raster_options,
-                                    args.width, args.height);
+      pc::add_compute_raster_passes(graph, raster, raster_cloud, camera, raster_options, args.width,
+                                    args.height);
     } else {
       pc::add_point_pass(graph, pipeline, gpu_cloud, camera, style, args.width, args.height);
     }
@@ -219,7 +220,8 @@ void run_render(const RenderArgs& args) {
     j["frame_wall_ms_median"] = median(wall_ms);
     j["gpu_timing"] = !gpu_ms.empty();
     if (!gpu_ms.empty() && median(gpu_ms) > 0)
-      j["points_per_second"] = double(gpu_cloud.point_count) / (median(pass_ms[compute ? "raster-depth" : "points"]) * 1e-3);
+      j["points_per_second"] = double(gpu_cloud.point_count) /
+                               (median(pass_ms[compute ? "raster-depth" : "points"]) * 1e-3);
     std::string tmp = args.stats + ".partial";
     {
       std::ofstream out(tmp);

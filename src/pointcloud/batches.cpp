@@ -184,9 +184,9 @@ BatchedCloud generate_batched_scene(const SceneParams& params, SpatialOrder orde
   // The scene is scanned line by line, so a run of consecutive indices is a strip across it;
   // runs of ~128 sqrt(N) points make strips about as tall as a batch is wide.
   uint64_t n = params.point_count;
-  uint64_t piece = std::clamp<uint64_t>(
-      uint64_t(128.0 * std::sqrt(double(n))) / batch_points * batch_points, uint64_t(batch_points) * 64,
-      uint64_t(batch_points) * 800);
+  uint64_t piece =
+      std::clamp<uint64_t>(uint64_t(128.0 * std::sqrt(double(n))) / batch_points * batch_points,
+                           uint64_t(batch_points) * 64, uint64_t(batch_points) * 800);
   uint64_t pieces = (n + piece - 1) / piece;
   uint64_t batches_per_piece = piece / batch_points;
   BatchedCloud out;
@@ -242,7 +242,8 @@ BatchVisibility classify_batch(const glm::mat4& view_proj, const glm::vec3& offs
   bool behind = false;
   glm::vec2 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
   for (int i = 0; i < 8; ++i) {
-    glm::vec3 corner = offset + size * glm::vec3(float(i & 1), float(i >> 1 & 1), float(i >> 2 & 1));
+    glm::vec3 corner =
+        offset + size * glm::vec3(float(i & 1), float(i >> 1 & 1), float(i >> 2 & 1));
     glm::vec4 c = view_proj * glm::vec4(corner, 1.0f);
     out[0] = out[0] && c.x < -c.w;
     out[1] = out[1] && c.x > c.w;
@@ -279,8 +280,8 @@ RasterCounters reference_counters(const std::vector<Batch>& batches, const Camer
   glm::mat4 vp = raster_view_proj(camera, settings.width, settings.height);
   for (const Batch& b : batches) {
     ++c.batches_processed;
-    BatchVisibility v = classify_batch(vp, glm::vec3(b.min - camera.position), glm::vec3(b.size),
-                                       settings);
+    BatchVisibility v =
+        classify_batch(vp, glm::vec3(b.min - camera.position), glm::vec3(b.size), settings);
     if (v.lod_skip) ++c.batches_lod_skipped;
     if (!v.visible) {
       if (!v.lod_skip) ++c.batches_culled;

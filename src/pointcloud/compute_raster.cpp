@@ -4,8 +4,8 @@
 #include <cstdlib>
 #include <cstring>
 
-#include <glm/gtc/type_ptr.hpp>
 #include <webgpu/wgpu.h>
+#include <glm/gtc/type_ptr.hpp>
 
 #include "core/error.hpp"
 #include "core/log.hpp"
@@ -140,12 +140,11 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
     seg.medium = upload_words(ctx, cloud.medium.data() + f, points, "raster-medium");
     seg.fine = upload_words(ctx, cloud.fine.data() + f, points, "raster-fine");
     seg.color = upload_words(ctx, cloud.color.data() + f, points, "raster-color");
-    seg.batches = gpu::create_buffer(ctx, uint64_t(seg.batch_count) * sizeof(GpuBatch),
-                                     WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst,
-                                     "raster-batches");
-    seg.params = gpu::create_buffer(ctx, sizeof(Params),
-                                    WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst,
-                                    "raster-params");
+    seg.batches =
+        gpu::create_buffer(ctx, uint64_t(seg.batch_count) * sizeof(GpuBatch),
+                           WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "raster-batches");
+    seg.params = gpu::create_buffer(
+        ctx, sizeof(Params), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "raster-params");
     out.bytes += points * 16 + uint64_t(seg.batch_count) * sizeof(GpuBatch);
     out.segments.push_back(std::move(seg));
   }
@@ -205,15 +204,15 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
       WGPUBufferUsage_Storage | WGPUBufferUsage_CopySrc | WGPUBufferUsage_CopyDst,
       "raster-counters");
   ctx.check("creating the compute rasterizer");
-  STIPPLE_DEBUG("compute rasterizer: {}", p.visibility64 ? "64-bit visibility buffer"
-                                                         : "32-bit two-pass fallback");
+  STIPPLE_DEBUG("compute rasterizer: {}",
+                p.visibility64 ? "64-bit visibility buffer" : "32-bit two-pass fallback");
   return p;
 }
 
 void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p,
                                GpuBatchedCloud& cloud, const Camera& camera,
-                               const ComputeRasterOptions& options, uint32_t width,
-                               uint32_t height, const std::string& color_target) {
+                               const ComputeRasterOptions& options, uint32_t width, uint32_t height,
+                               const std::string& color_target) {
   const bool use64 = p.visibility64;
   const bool accumulate = options.hqs || !use64;
   const uint64_t pixels = uint64_t(width) * height;
@@ -265,8 +264,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                  groups_y](gpu::PassContext& pc) {
                   gpu::Context& ctx = pc.gpu();
                   upload_frame(ctx);
-                  wgpuCommandEncoderClearBuffer(pc.encoder(), p.counters.get(), 0,
-                                                WGPU_WHOLE_SIZE);
+                  wgpuCommandEncoderClearBuffer(pc.encoder(), p.counters.get(), 0, WGPU_WHOLE_SIZE);
                   if (cloud.segments.empty()) return;
                   auto layout = layout_of(p.clear);
                   auto group = make_bind_group(ctx, layout.get(),
@@ -292,17 +290,24 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                   for (auto& seg : cloud.segments) {
                     WGPUBuffer depth = pc.buffer(depth_name);
                     if (use64)
-                      groups.push_back(make_bind_group(
-                          ctx, layout.get(),
-                          {{0, seg.params.get()}, {1, seg.batches.get()}, {2, seg.coarse.get()},
-                           {3, seg.medium.get()}, {4, seg.fine.get()}, {5, depth}, {6, depth},
-                           {7, p.counters.get()}}));
+                      groups.push_back(make_bind_group(ctx, layout.get(),
+                                                       {{0, seg.params.get()},
+                                                        {1, seg.batches.get()},
+                                                        {2, seg.coarse.get()},
+                                                        {3, seg.medium.get()},
+                                                        {4, seg.fine.get()},
+                                                        {5, depth},
+                                                        {6, depth},
+                                                        {7, p.counters.get()}}));
                     else
-                      groups.push_back(make_bind_group(
-                          ctx, layout.get(),
-                          {{0, seg.params.get()}, {1, seg.batches.get()}, {2, seg.coarse.get()},
-                           {3, seg.medium.get()}, {4, seg.fine.get()}, {5, depth},
-                           {6, p.counters.get()}}));
+                      groups.push_back(make_bind_group(ctx, layout.get(),
+                                                       {{0, seg.params.get()},
+                                                        {1, seg.batches.get()},
+                                                        {2, seg.coarse.get()},
+                                                        {3, seg.medium.get()},
+                                                        {4, seg.fine.get()},
+                                                        {5, depth},
+                                                        {6, p.counters.get()}}));
                   }
                   auto pass = pc.begin_compute_pass();
                   wgpuComputePassEncoderSetPipeline(pass.get(), pipeline.get());
@@ -323,18 +328,22 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                     auto layout = layout_of(p.accumulate);
                     std::vector<gpu::BindGroup> groups;
                     for (auto& seg : cloud.segments)
-                      groups.push_back(make_bind_group(
-                          ctx, layout.get(),
-                          {{0, seg.params.get()}, {1, seg.batches.get()}, {2, seg.coarse.get()},
-                           {3, seg.medium.get()}, {4, seg.fine.get()}, {5, seg.color.get()},
-                           {6, pc.buffer(depth_name)}, {7, pc.buffer(accum_name)}}));
+                      groups.push_back(make_bind_group(ctx, layout.get(),
+                                                       {{0, seg.params.get()},
+                                                        {1, seg.batches.get()},
+                                                        {2, seg.coarse.get()},
+                                                        {3, seg.medium.get()},
+                                                        {4, seg.fine.get()},
+                                                        {5, seg.color.get()},
+                                                        {6, pc.buffer(depth_name)},
+                                                        {7, pc.buffer(accum_name)}}));
                     auto pass = pc.begin_compute_pass();
                     wgpuComputePassEncoderSetPipeline(pass.get(), p.accumulate.get());
                     for (size_t s = 0; s < cloud.segments.size(); ++s) {
                       wgpuComputePassEncoderSetBindGroup(pass.get(), 0, groups[s].get(), 0,
                                                          nullptr);
-                      wgpuComputePassEncoderDispatchWorkgroups(
-                          pass.get(), cloud.segments[s].batch_count, 1, 1);
+                      wgpuComputePassEncoderDispatchWorkgroups(pass.get(),
+                                                               cloud.segments[s].batch_count, 1, 1);
                     }
                     wgpuComputePassEncoderEnd(pass.get());
                   })
@@ -348,10 +357,11 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                     auto layout = layout_of(p.resolve);
                     std::vector<gpu::BindGroup> groups;
                     for (auto& seg : cloud.segments)
-                      groups.push_back(make_bind_group(
-                          ctx, layout.get(),
-                          {{0, seg.params.get()}, {1, pc.buffer(depth_name)},
-                           {2, seg.color.get()}, {3, pc.buffer(accum_name)}}));
+                      groups.push_back(make_bind_group(ctx, layout.get(),
+                                                       {{0, seg.params.get()},
+                                                        {1, pc.buffer(depth_name)},
+                                                        {2, seg.color.get()},
+                                                        {3, pc.buffer(accum_name)}}));
                     auto pass = pc.begin_compute_pass();
                     wgpuComputePassEncoderSetPipeline(pass.get(), p.resolve.get());
                     for (size_t s = 0; s < cloud.segments.size(); ++s) {
@@ -366,30 +376,30 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   }
 
   graph
-      .add_pass("raster-display", gpu::PassKind::Render,
-                [&p, &cloud, accum_name, color_target](gpu::PassContext& pc) {
-                  gpu::Context& ctx = pc.gpu();
-                  gpu::BindGroupLayout layout(
-                      wgpuRenderPipelineGetBindGroupLayout(p.display.get(), 0));
-                  if (cloud.segments.empty()) return;
-                  auto group = make_bind_group(ctx, layout.get(),
-                                               {{0, cloud.segments[0].params.get()},
-                                                {1, pc.buffer(accum_name)}});
-                  WGPURenderPassColorAttachment color = WGPU_RENDER_PASS_COLOR_ATTACHMENT_INIT;
-                  color.view = pc.view(color_target);
-                  color.loadOp = WGPULoadOp_Clear;
-                  color.storeOp = WGPUStoreOp_Store;
-                  color.clearValue = {0, 0, 0, 1};
-                  WGPURenderPassDescriptor desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
-                  desc.label = gpu::to_view("raster-display");
-                  desc.colorAttachmentCount = 1;
-                  desc.colorAttachments = &color;
-                  auto pass = pc.begin_render_pass(desc);
-                  wgpuRenderPassEncoderSetPipeline(pass.get(), p.display.get());
-                  wgpuRenderPassEncoderSetBindGroup(pass.get(), 0, group.get(), 0, nullptr);
-                  wgpuRenderPassEncoderDraw(pass.get(), 3, 1, 0, 0);
-                  wgpuRenderPassEncoderEnd(pass.get());
-                })
+      .add_pass(
+          "raster-display", gpu::PassKind::Render,
+          [&p, &cloud, accum_name, color_target](gpu::PassContext& pc) {
+            gpu::Context& ctx = pc.gpu();
+            gpu::BindGroupLayout layout(wgpuRenderPipelineGetBindGroupLayout(p.display.get(), 0));
+            if (cloud.segments.empty()) return;
+            auto group =
+                make_bind_group(ctx, layout.get(),
+                                {{0, cloud.segments[0].params.get()}, {1, pc.buffer(accum_name)}});
+            WGPURenderPassColorAttachment color = WGPU_RENDER_PASS_COLOR_ATTACHMENT_INIT;
+            color.view = pc.view(color_target);
+            color.loadOp = WGPULoadOp_Clear;
+            color.storeOp = WGPUStoreOp_Store;
+            color.clearValue = {0, 0, 0, 1};
+            WGPURenderPassDescriptor desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
+            desc.label = gpu::to_view("raster-display");
+            desc.colorAttachmentCount = 1;
+            desc.colorAttachments = &color;
+            auto pass = pc.begin_render_pass(desc);
+            wgpuRenderPassEncoderSetPipeline(pass.get(), p.display.get());
+            wgpuRenderPassEncoderSetBindGroup(pass.get(), 0, group.get(), 0, nullptr);
+            wgpuRenderPassEncoderDraw(pass.get(), 3, 1, 0, 0);
+            wgpuRenderPassEncoderEnd(pass.get());
+          })
       .read(accum_name)
       .write(color_target);
 }

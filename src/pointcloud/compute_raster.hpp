@@ -58,10 +58,10 @@ struct ComputeRasterPipeline {
 };
 
 struct ComputeRasterOptions {
-  bool hqs = false;                // high-quality shading (seed 001, section 3.6)
-  float hqs_tolerance = 0.01f;     // relative depth range that is averaged
-  int force_bits = 0;              // debug: 10, 20 or 30 for every batch
-  float min_batch_px = 0.0f;       // LOD: skip batches smaller than this on screen
+  bool hqs = false;             // high-quality shading (seed 001, section 3.6)
+  float hqs_tolerance = 0.01f;  // relative depth range that is averaged
+  int force_bits = 0;           // debug: 10, 20 or 30 for every batch
+  float min_batch_px = 0.0f;    // LOD: skip batches smaller than this on screen
   glm::vec3 background{0.07f, 0.08f, 0.1f};
 };
 
@@ -74,8 +74,8 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
 // width x height). The cloud and pipeline must outlive the graph's execution.
 void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& pipeline,
                                GpuBatchedCloud& cloud, const Camera& camera,
-                               const ComputeRasterOptions& options, uint32_t width,
-                               uint32_t height, const std::string& color_target = "color");
+                               const ComputeRasterOptions& options, uint32_t width, uint32_t height,
+                               const std::string& color_target = "color");
 
 // The counters of the last executed frame (blocks until it is done).
 RasterCounters read_raster_counters(gpu::Context& ctx, const ComputeRasterPipeline& pipeline);
