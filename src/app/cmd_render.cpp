@@ -14,6 +14,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "math/camera.hpp"
+#include "pointcloud/compute_raster.hpp"
 #include "pointcloud/point_cloud.hpp"
 #include "pointcloud/point_renderer.hpp"
 #include "pointcloud/procedural.hpp"
@@ -41,6 +42,8 @@ struct RenderArgs {
   uint32_t frames = 1;
   std::string stats;
   std::string dump_graph;
+  std::string renderer = "billboard";
+  bool hqs = false;
 };
 
 std::vector<double> parse_numbers(const std::string& text, size_t expected, const char* what) {
@@ -116,8 +119,18 @@ void run_render(const RenderArgs& args) {
 
   gpu::ContextOptions gpu_options;
   gpu_options.backend = args.backend;
+  const bool compute = args.renderer == "compute";
+  if (compute) gpu_options.optional_features = pc::compute_raster_features();
   auto ctx = gpu::create_context(gpu_options);
-  auto gpu_cloud = pc::upload_point_cloud(*ctx, cloud);
+  pc::GpuPointCloud gpu_cloud;
+  pc::GpuBatchedCloud raster_cloud;
+  if (compute) {
+    raster_cloud =
+        pc::upload_batched_cloud(*ctx, pc::build_batches(cloud, pc::SpatialOrder::Morton));
+    gpu_cloud.point_count = raster_cloud.point_count;
+  } else {
+    gpu_cloud = pc::upload_point_cloud(*ctx, cloud);
+  }
   // Only the colour target outlives the frame; depth is a transient of the point pass.
   const WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
   gpu::Texture color = gpu::create_texture_2d(
@@ -125,6 +138,8 @@ void run_render(const RenderArgs& args) {
       WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc, "render-color");
   gpu::TextureView color_view = gpu::create_view(color);
   auto pipeline = pc::create_point_pipeline(*ctx, color_format, WGPUTextureFormat_Depth32Float);
+  pc::ComputeRasterPipeline raster;
+  if (compute) raster = pc::create_compute_raster_pipeline(*ctx, color_format);
   pc::PointStyle style;
   style.point_size =
       args.point_size > 0 ? args.point_size : pc::auto_point_size(cloud, camera, args.height);
@@ -141,7 +156,15 @@ void run_render(const RenderArgs& args) {
                          {args.width, args.height, color_format,
                           WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc},
                          gpu::Access::Writable);
-    pc::add_point_pass(graph, pipeline, gpu_cloud, camera, style, args.width, args.height);
+    if (compute) {
+      pc::ComputeRasterOptions raster_options;
+      raster_options.hqs = args.hqs;
+      raster_options.background = style.background;
+      pc::add_compute_raster_passes(graph, raster, raster_cloud, camera, raster_options, args.width,
+                                    args.height);
+    } else {
+      pc::add_point_pass(graph, pipeline, gpu_cloud, camera, style, args.width, args.height);
+    }
     graph.compile();
   };
   // Every frame is waited for, so GPU and wall times are per frame, not pipelined.
@@ -207,7 +230,8 @@ void run_render(const RenderArgs& args) {
     j["frame_wall_ms_median"] = median(wall_ms);
     j["gpu_timing"] = !gpu_ms.empty();
     if (!gpu_ms.empty() && median(gpu_ms) > 0)
-      j["points_per_second"] = double(gpu_cloud.point_count) / (median(pass_ms["points"]) * 1e-3);
+      j["points_per_second"] = double(gpu_cloud.point_count) /
+                               (median(pass_ms[compute ? "raster-depth" : "points"]) * 1e-3);
     std::string tmp = args.stats + ".partial";
     {
       std::ofstream out(tmp);
@@ -282,6 +306,13 @@ void add_render_command(CLI::App& cli) {
                   "wall ms per frame) as JSON");
   cmd->add_option("--dump-graph", args->dump_graph,
                   "Write the frame's render graph as Graphviz DOT (culled passes dashed)");
+  cmd->add_option("--renderer", args->renderer,
+                  "billboard (point quads) or compute (compute rasterizer, 1-pixel points)")
+      ->check(CLI::IsMember({"billboard", "compute"}))
+      ->capture_default_str();
+  cmd->add_flag("--hqs", args->hqs,
+                "Compute renderer: high-quality shading (average points within 1% of the "
+                "nearest depth)");
   cmd->callback([args] { run_render(*args); });
 }
 

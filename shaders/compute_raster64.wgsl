@@ -1,0 +1,67 @@
+// Compute rasterizer, geometry pass with a 64-bit visibility buffer (seed 001, sections 3.2-3.3):
+// one workgroup per batch culls it against the frustum, picks the precision from its size on
+// screen, and each thread projects ~80 points, keeping the nearest per pixel with a 64-bit
+// atomicMin of (depth << 32 | point index). Needs ShaderInt64AtomicMinMax (wgpu-native).
+#include "compute_raster_common.wgsl"
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> batches: array<GpuBatch>;
+@group(0) @binding(2) var<storage, read> coarse: array<u32>;
+@group(0) @binding(3) var<storage, read> medium: array<u32>;
+@group(0) @binding(4) var<storage, read> fine: array<u32>;
+@group(0) @binding(5) var<storage, read_write> visibility: array<atomic<u64>>;
+// The same buffer as 32-bit words: only min/max are allowed on 64-bit atomics, so the early
+// depth test loads the depth (high) word through this view.
+@group(0) @binding(6) var<storage, read_write> visibility_words: array<atomic<u32>>;
+@group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
+
+var<workgroup> batch_bits: u32;
+
+@compute @workgroup_size(128)
+fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+  if (group.x >= params.batch_count) {
+    return;
+  }
+  let b = batches[group.x];
+  if (lid == 0u) {
+    var skipped = false;
+    let bits = classify(params, b, &skipped);
+    batch_bits = bits;
+    atomicAdd(&counters[C_PROCESSED], 1u);
+    if (bits == 0u) {
+      atomicAdd(&counters[select(C_CULLED, C_LOD_SKIPPED, skipped)], 1u);
+    } else {
+      let k = bits / 10u - 1u;
+      atomicAdd(&counters[C_RENDERED], 1u);
+      atomicAdd(&counters[C_POINTS], b.count);
+      atomicAdd(&counters[C_BATCHES_BITS + k], 1u);
+      atomicAdd(&counters[C_POINTS_BITS + k], b.count);
+    }
+  }
+  let bits = workgroupUniformLoad(&batch_bits);
+  if (bits == 0u) {
+    return;
+  }
+  for (var i = lid; i < b.count; i += WORKGROUP) {
+    let index = b.first + i;
+    let c = coarse[index];
+    var m = 0u;
+    var f = 0u;
+    if (bits >= 20u) {
+      m = medium[index];
+    }
+    if (bits >= 30u) {
+      f = fine[index];
+    }
+    let pr = project(params, b.offset + box_fraction(bits, c, m, f) * b.size);
+    if (!pr.valid) {
+      continue;
+    }
+    let depth = bitcast<u32>(pr.depth);  // positive floats order like their bits
+    // Early depth test: most occluded points never reach the atomic.
+    if (depth > atomicLoad(&visibility_words[pr.pixel * 2u + 1u])) {
+      continue;
+    }
+    atomicMin(&visibility[pr.pixel], (u64(depth) << 32u) | u64(params.segment_base + index));
+  }
+}

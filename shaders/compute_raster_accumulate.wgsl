@@ -1,0 +1,58 @@
+// Colour accumulation (seed 003 section 4.3; high-quality shading, seed 001 section 3.6): every
+// point within a relative depth tolerance of the pixel's nearest depth adds its colour and a
+// count with 32-bit atomicAdd; the display pass divides. The depth comes from the 32-bit depth
+// buffer or from the high word of the 64-bit visibility buffer (depth_stride / depth_word).
+#include "compute_raster_common.wgsl"
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> batches: array<GpuBatch>;
+@group(0) @binding(2) var<storage, read> coarse: array<u32>;
+@group(0) @binding(3) var<storage, read> medium: array<u32>;
+@group(0) @binding(4) var<storage, read> fine: array<u32>;
+@group(0) @binding(5) var<storage, read> colors: array<u32>;
+@group(0) @binding(6) var<storage, read> depth_buffer: array<u32>;
+@group(0) @binding(7) var<storage, read_write> accum: array<atomic<u32>>;
+
+var<workgroup> batch_bits: u32;
+
+@compute @workgroup_size(128)
+fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+  if (group.x >= params.batch_count) {
+    return;
+  }
+  let b = batches[group.x];
+  if (lid == 0u) {
+    var skipped = false;
+    batch_bits = classify(params, b, &skipped);
+  }
+  let bits = workgroupUniformLoad(&batch_bits);
+  if (bits == 0u) {
+    return;
+  }
+  for (var i = lid; i < b.count; i += WORKGROUP) {
+    let index = b.first + i;
+    let c = coarse[index];
+    var m = 0u;
+    var f = 0u;
+    if (bits >= 20u) {
+      m = medium[index];
+    }
+    if (bits >= 30u) {
+      f = fine[index];
+    }
+    let pr = project(params, b.offset + box_fraction(bits, c, m, f) * b.size);
+    if (!pr.valid) {
+      continue;
+    }
+    let nearest = bitcast<f32>(depth_buffer[pr.pixel * params.depth_stride + params.depth_word]);
+    if (pr.depth > nearest * (1.0 + params.depth_tolerance)) {
+      continue;
+    }
+    let rgba = colors[index];
+    let o = pr.pixel * 4u;
+    atomicAdd(&accum[o], rgba & 255u);
+    atomicAdd(&accum[o + 1u], (rgba >> 8u) & 255u);
+    atomicAdd(&accum[o + 2u], (rgba >> 16u) & 255u);
+    atomicAdd(&accum[o + 3u], 1u);
+  }
+}

@@ -1,0 +1,19 @@
+// Clears the depth/visibility buffer to "empty" (all ones: the largest depth) and the
+// accumulation buffer to zero.
+#include "compute_raster_common.wgsl"
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read_write> depth_buffer: array<u32>;
+@group(0) @binding(2) var<storage, read_write> accum: array<vec4<u32>>;
+
+@compute @workgroup_size(16, 16)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+  if (id.x >= params.width || id.y >= params.height) {
+    return;
+  }
+  let pixel = id.y * params.width + id.x;
+  for (var k = 0u; k < params.depth_stride; k++) {
+    depth_buffer[pixel * params.depth_stride + k] = 0xffffffffu;
+  }
+  accum[pixel] = vec4<u32>(0u);
+}
