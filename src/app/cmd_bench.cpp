@@ -405,6 +405,7 @@ void add_bench_command(CLI::App& cli) {
                 "Write into every buffer after allocating (untimed): forces lazily "
                 "initialised memory into use");
   cmd->callback([args] { run_suballoc(*args); });
+  add_bench_points_command(bench);
 }
 
 }  // namespace stipple::app

@@ -9,5 +9,7 @@ void add_info_command(CLI::App& cli);
 void add_generate_command(CLI::App& cli);
 void add_bench_command(CLI::App& cli);
 void add_plugins_command(CLI::App& cli);
+// `stipple bench points`, a subcommand of `bench`.
+void add_bench_points_command(CLI::App* bench);
 
 }  // namespace stipple::app
