@@ -63,13 +63,17 @@ gpu::Image render_billboard(gpu::Context& ctx, const pc::PointCloud& cloud, cons
                             uint32_t w, uint32_t h) {
   auto gpu_cloud = pc::upload_point_cloud(ctx, cloud);
   auto target = gpu::create_offscreen_target(ctx, w, h);
-  auto pipeline = pc::create_point_pipeline(ctx, target.color_format, target.depth_format);
-  pc::PointStyle style;
+  auto pipelines = pc::create_point_pipelines(ctx, target.color_format);
+  // The billboard path at its plainest: 1-pixel squares, depth-tested, RGB, no EDL.
+  pc::PointRenderSettings style;
   style.point_size = 1.0f;
   style.round = false;
+  style.splat = pc::SplatMode::Naive;
+  style.edl = false;
+  style.color = pc::ColorMode::Rgb;
   style.background = {0, 0, 0};
-  pc::draw_points(ctx, pipeline, gpu_cloud, camera, style, target.color_view.get(),
-                  target.depth_view.get(), w, h);
+  pc::draw_points(ctx, pipelines, gpu_cloud, camera, style, target.color.get(),
+                  target.color_view.get(), w, h);
   return gpu::read_texture(ctx, target.color.get(), w, h, target.color_format);
 }
 

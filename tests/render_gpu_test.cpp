@@ -31,17 +31,20 @@ struct Frame {
   gpu::Image image;
 };
 
+// Naive squares without EDL: the plain projection these tests check.
 gpu::Image render(gpu::Context& ctx, const pc::PointCloud& cloud, const Camera& camera,
                   float point_size, uint32_t w = 160, uint32_t h = 120) {
   auto gpu_cloud = pc::upload_point_cloud(ctx, cloud);
   auto target = gpu::create_offscreen_target(ctx, w, h);
-  auto pipeline = pc::create_point_pipeline(ctx, target.color_format, target.depth_format);
-  pc::PointStyle style;
-  style.point_size = point_size;
-  style.round = false;
-  style.background = {0, 0, 0};
-  pc::draw_points(ctx, pipeline, gpu_cloud, camera, style, target.color_view.get(),
-                  target.depth_view.get(), w, h);
+  auto pipelines = pc::create_point_pipelines(ctx, target.color_format, target.depth_format);
+  pc::PointRenderSettings settings;
+  settings.point_size = point_size;
+  settings.round = false;
+  settings.splat = pc::SplatMode::Naive;
+  settings.edl = false;
+  settings.background = {0, 0, 0};
+  pc::draw_points(ctx, pipelines, gpu_cloud, camera, settings, target.color.get(),
+                  target.color_view.get(), w, h);
   auto image = gpu::read_texture(ctx, target.color.get(), w, h, target.color_format);
   ctx.check("test render");
   return image;
@@ -54,7 +57,8 @@ pc::PointCloud make_cloud(const std::vector<glm::dvec3>& points,
   batch.positions = points;
   batch.rgb = colors;
   pc::PointCloud cloud;
-  pc::append_batch(cloud, batch, pc::ColorMode::Rgb, 8, {0, 1}, 1 << 20);
+  pc::append_batch(cloud, batch, 8, 1 << 20);
+  pc::finish_cloud(cloud);
   return cloud;
 }
 
@@ -135,30 +139,91 @@ TEST_P(Render, NearerPointWins) {
   }
 }
 
+namespace {
+
+// The precision baseline without camera-relative rendering: positions made absolute in float32
+// on the CPU (one chunk at the world origin), so the GPU applies the full view-projection,
+// translation included, in float. At 6.4e6 m float32 resolves 0.5 m: millimetre detail is lost.
+pc::PointCloud float_only_cloud(const pc::PointCloud& cloud) {
+  pc::PointCloud flat = cloud;
+  flat.chunks.clear();
+  flat.chunks.emplace_back();
+  pc::PointChunk& out = flat.chunks.back();
+  out.origin = glm::dvec3(0.0);
+  for (const pc::PointChunk& chunk : cloud.chunks)
+    for (auto v : chunk.vertices) {
+      glm::vec3 world(chunk.origin + glm::dvec3(v.x, v.y, v.z));
+      v.x = world.x;
+      v.y = world.y;
+      v.z = world.z;
+      out.vertices.push_back(v);
+    }
+  out.bounds = flat.world_bounds;
+  out.spacing = 0.001;
+  return flat;
+}
+
+struct MillimetreGrid {
+  std::vector<glm::dvec3> points;
+  std::vector<glm::u16vec3> colors;
+  Camera camera;
+};
+
+// 20 x 20 points 1 mm apart around `base` (Z-up), seen from 5 cm.
+MillimetreGrid millimetre_grid(glm::dvec3 base) {
+  MillimetreGrid g;
+  for (int j = 0; j < 20; ++j)
+    for (int i = 0; i < 20; ++i) {
+      g.points.push_back(base + glm::dvec3((i - 10) * 0.001, 0.0, (j - 10) * 0.001));
+      g.colors.push_back({uint16_t(i * 12), uint16_t(j * 12), 200});
+    }
+  g.camera.near_plane = 0.001;
+  g.camera.look_at(z_up_to_y_up(base + glm::dvec3(0, -0.05, 0)), z_up_to_y_up(base));
+  return g;
+}
+
+const glm::dvec3 kEcef(6378137.0 * 0.6, 6378137.0 * 0.5, 6378137.0 * 0.62);
+
+}  // namespace
+
 TEST_P(Render, EarthScaleCoordinatesRenderLikeTheOrigin) {
   // Camera-relative rendering (seed 000, section 5): a grid of points 1 mm apart seen from
   // 5 cm renders the same at the origin and 6.4e6 m away (ECEF magnitude).
   auto ctx = context();
   auto scene_at = [&](glm::dvec3 base) {
-    std::vector<glm::dvec3> points;
-    std::vector<glm::u16vec3> colors;
-    for (int j = 0; j < 20; ++j)
-      for (int i = 0; i < 20; ++i) {
-        points.push_back(base + glm::dvec3((i - 10) * 0.001, 0.0, (j - 10) * 0.001));
-        colors.push_back({uint16_t(i * 12), uint16_t(j * 12), 200});
-      }
-    Camera camera;
-    camera.near_plane = 0.001;
-    camera.look_at(z_up_to_y_up(base + glm::dvec3(0, -0.05, 0)), z_up_to_y_up(base));
-    return render(*ctx, make_cloud(points, colors), camera, 2.0f);
+    auto g = millimetre_grid(base);
+    return render(*ctx, make_cloud(g.points, g.colors), g.camera, 2.0f);
   };
   auto at_origin = scene_at({0, 0, 0});
-  auto at_earth = scene_at({6378137.0 * 0.6, 6378137.0 * 0.5, 6378137.0 * 0.62});
+  auto at_earth = scene_at(kEcef);
   auto stats = test::coverage_stats(at_origin, std::array<uint8_t, 3>{0, 0, 0}.data());
   EXPECT_GT(stats.coverage, 0.05);
   // Tolerance: at most 1% of pixels may differ by more than 2 levels (float rounding of the
   // sub-millimetre offsets may move a point edge by one pixel).
   EXPECT_LT(test::differing_fraction(at_origin, at_earth, 2), 0.01);
+}
+
+TEST_P(Render, FloatOnlyPathFailsAtEarthScale) {
+  // The same grid through the float-only path: fine at the origin (so the helper itself is
+  // right), wrecked at ECEF magnitude.
+  auto ctx = context();
+  auto origin = millimetre_grid({0, 0, 0});
+  auto reference = render(*ctx, make_cloud(origin.points, origin.colors), origin.camera, 2.0f);
+  auto float_origin =
+      render(*ctx, float_only_cloud(make_cloud(origin.points, origin.colors)), origin.camera, 2.0f);
+  EXPECT_LT(test::differing_fraction(reference, float_origin, 2), 0.01);
+
+  auto earth = millimetre_grid(kEcef);
+  auto float_earth =
+      render(*ctx, float_only_cloud(make_cloud(earth.points, earth.colors)), earth.camera, 2.0f);
+  const uint8_t black[3] = {0, 0, 0};
+  double covered = test::coverage_stats(reference, black).coverage;
+  double covered_float = test::coverage_stats(float_earth, black).coverage;
+  // Tolerance: the images must differ a lot: most of the grid's pixels (at least half of the
+  // reference's coverage) change, whether the grid collapses to a few 0.5 m-quantised spots or
+  // smears across the view.
+  EXPECT_GT(test::differing_fraction(reference, float_earth, 2), 0.5 * covered)
+      << "coverage " << covered << " vs float-only " << covered_float;
 }
 
 TEST_P(Render, AutzenShowsAllPointsInTheirColours) {

@@ -166,10 +166,11 @@ TEST_P(RenderGraphGpu, RenderCommandDumpsGraphAndPassTimes) {
   std::filesystem::create_directories(dir);
   std::string command =
       std::string(STIPPLE_BINARY) +
-      " render --scene-points 20000 --width 96 --height 64 --frames 3 --backend " + GetParam() +
-      " -o " + (dir / "out.png").string() + " --stats " + (dir / "stats.json").string() +
-      " --dump-graph " + (dir / "graph.dot").string() + " > " + (dir / "log.txt").string() +
-      " 2>&1";
+      " render --scene-points 20000 --width 96 --height 64 --frames 3 --splat naive --no-edl "
+      "--backend " +
+      GetParam() + " -o " + (dir / "out.png").string() + " --stats " +
+      (dir / "stats.json").string() + " --dump-graph " + (dir / "graph.dot").string() + " > " +
+      (dir / "log.txt").string() + " 2>&1";
   ASSERT_EQ(std::system(command.c_str()), 0) << command;
   std::ifstream dot_in(dir / "graph.dot");
   std::stringstream dot;
@@ -184,6 +185,20 @@ TEST_P(RenderGraphGpu, RenderCommandDumpsGraphAndPassTimes) {
     EXPECT_EQ(stats["passes"]["points"]["gpu_ms"].size(), 3u);
   }
   EXPECT_EQ(stats["transient_textures_created"].get<int>(), 1);  // depth, first frame only
+
+  // The full pipeline: CLOD, the three splatting passes with EDL; depth and the accumulation
+  // texture are the transients.
+  command = std::string(STIPPLE_BINARY) +
+            " render --scene-points 20000 --width 96 --height 64 --frames 2 --clod-k 0.001 "
+            "--backend " +
+            GetParam() + " -o " + (dir / "full.png").string() + " --stats " +
+            (dir / "full.json").string() + " > " + (dir / "log.txt").string() + " 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0) << command;
+  stats = nlohmann::json::parse(std::ifstream(dir / "full.json"));
+  for (const char* pass : {"clod", "splat-depth", "splat-accumulate", "resolve"})
+    EXPECT_TRUE(stats["passes"].contains(pass)) << pass << ": " << stats.dump();
+  EXPECT_FALSE(stats["passes"].contains("points")) << stats.dump();
+  EXPECT_EQ(stats["transient_textures_created"].get<int>(), 2);
   std::filesystem::remove_all(dir);
 }
 

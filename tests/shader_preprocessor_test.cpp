@@ -206,11 +206,11 @@ TEST(ShaderPreprocessor, MapsNagaMessages) {
 }
 
 TEST(ShaderPreprocessor, EmbeddedShadersAreFiles) {
-  auto text = gpu::embedded_shader_files()("points.wgsl");
+  auto text = gpu::embedded_shader_files()("point_draw.wgsl");
   ASSERT_TRUE(text);
   EXPECT_NE(text->find("vs_main"), std::string::npos);
   if (!std::getenv("STIPPLE_SHADER_DIR")) {
-    EXPECT_EQ(gpu::shader_source("points.wgsl"), *text);
+    EXPECT_EQ(gpu::shader_source("point_draw.wgsl"), *text);
   }
   EXPECT_FALSE(gpu::embedded_shader_files()("nothing.wgsl"));
   EXPECT_THROW(gpu::shader_source("nothing.wgsl"), Error);

@@ -105,21 +105,20 @@ pc::GpuPointCloud upload_billboards(gpu::Context& ctx, const pc::BatchedCloud& c
           glm::dvec3 p = pc::dequantize({cloud.coarse[i], cloud.medium[i], cloud.fine[i]}, 30,
                                         batch.min, batch.size) -
                          origin;
-          vertices[i - base] = {float(p.x), float(p.y), float(p.z), cloud.color[i]};
+          vertices[i - base] = {float(p.x), float(p.y), float(p.z), cloud.color[i], 0u};
         }
       }
     });
-    pc::GpuPointCloud::Chunk chunk;
-    chunk.count = uint32_t(count);
+    pc::PointChunk chunk;
     chunk.origin = origin;
-    chunk.vertices =
-        gpu::create_buffer(ctx, count * sizeof(pc::PointChunk::Vertex), WGPUBufferUsage_Vertex,
-                           "bench-billboards", vertices.data());
-    out.point_count += count;
-    out.chunks.push_back(std::move(chunk));
+    chunk.vertices = std::move(vertices);
+    pc::upload_chunk(ctx, out, chunk);
+    vertices = std::move(chunk.vertices);
     if (out.chunks.size() % 256 == 0) ctx.wait_idle();  // bound the staging memory
     b = e;
   }
+  pc::finish_upload(ctx, out);
+  out.attributes.has_rgb = true;
   ctx.wait_idle();
   ctx.check("uploading billboards");
   return out;
@@ -201,7 +200,7 @@ void run_raster_bench(const RasterArgs& args) {
     auto raster64 = pc::create_compute_raster_pipeline(*ctx, format);
     pc::ComputeRasterPipeline fallback;
     if (has64) fallback = pc::create_compute_raster_pipeline(*ctx, format, true);
-    auto point_pipeline = pc::create_point_pipeline(*ctx, format, WGPUTextureFormat_Depth32Float);
+    auto point_pipelines = pc::create_point_pipelines(*ctx, format);
 
     struct Variant {
       std::string name;
@@ -223,9 +222,13 @@ void run_raster_bench(const RasterArgs& args) {
         gpu::TransientPool transients;
         gpu::PassTimer timer;
         std::vector<double> frame_ms, geom_ms;
-        pc::PointStyle style;
+        // 1-pixel depth-tested points, the billboard path's cheapest configuration.
+        pc::PointRenderSettings style;
         style.point_size = 1.0f;
         style.round = false;
+        style.splat = pc::SplatMode::Naive;
+        style.edl = false;
+        style.color = pc::ColorMode::Rgb;
         for (uint32_t f = 0; f < args.warmup + args.frames; ++f) {
           gpu::RenderGraph graph;
           graph.import_texture("color", color.get(), view.get(),
@@ -235,8 +238,8 @@ void run_raster_bench(const RasterArgs& args) {
             pc::add_compute_raster_passes(graph, *variant.pipeline, raster_cloud, v.camera,
                                           variant.options, args.width, args.height);
           else
-            pc::add_point_pass(graph, point_pipeline, billboards, v.camera, style, args.width,
-                               args.height);
+            pc::add_point_cloud_passes(graph, point_pipelines, billboards, v.camera, style,
+                                       args.width, args.height);
           graph.compile();
           if (f == 0) timer = gpu::create_pass_timer(*ctx, graph.plan().timed_passes);
           graph.execute(*ctx, transients, &timer);

@@ -11,8 +11,10 @@
 #include <nlohmann/json.hpp>
 
 #include "app/commands.hpp"
+#include "app/point_options.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "io/fetch.hpp"
 #include "math/camera.hpp"
 #include "pointcloud/compute_raster.hpp"
 #include "pointcloud/point_cloud.hpp"
@@ -21,7 +23,6 @@
 #include "renderer/gpu.hpp"
 #include "renderer/png.hpp"
 #include "renderer/render_graph.hpp"
-#include "io/fetch.hpp"
 #include "tiles3d/render_load.hpp"
 
 namespace stipple::app {
@@ -34,41 +35,15 @@ struct RenderArgs {
   std::string camera;
   double azimuth = 30.0, elevation = 40.0, fov = 50.0;
   std::string backend;
-  std::string color = "auto";
-  float point_size = 0.0f;
+  pc::PointRenderSettings settings;
   uint64_t scene_points = 1'000'000;
   uint32_t seed = 1;
-  std::string background = "0.07,0.08,0.1";
   uint32_t frames = 1;
   std::string stats;
   std::string dump_graph;
   std::string renderer = "billboard";
   bool hqs = false;
 };
-
-std::vector<double> parse_numbers(const std::string& text, size_t expected, const char* what) {
-  std::vector<double> values;
-  size_t start = 0;
-  while (start <= text.size()) {
-    size_t comma = text.find(',', start);
-    std::string part =
-        text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-    try {
-      size_t used = 0;
-      values.push_back(std::stod(part, &used));
-      if (used != part.size()) throw std::invalid_argument(part);
-    } catch (const std::exception&) {
-      fail("{} '{}': '{}' is not a number", what, text, part);
-    }
-    if (!std::isfinite(values.back())) fail("{} '{}': values must be finite", what, text);
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  if (values.size() != expected)
-    fail("{} '{}': expected {} comma-separated numbers, got {}", what, text, expected,
-         values.size());
-  return values;
-}
 
 void run_render(const RenderArgs& args) {
   auto start = std::chrono::steady_clock::now();
@@ -77,15 +52,7 @@ void run_render(const RenderArgs& args) {
     pc::SceneParams scene;
     scene.point_count = args.scene_points;
     scene.seed = args.seed;
-    io::PointBatch batch;
-    const uint64_t block = 1 << 20;
-    Aabb bounds = pc::scene_bounds(scene);
-    for (uint64_t first = 0; first < scene.point_count; first += block) {
-      batch.clear();
-      pc::generate_scene(scene, first, std::min(block, scene.point_count - first), batch);
-      pc::append_batch(cloud, batch, pc::parse_color_mode(args.color), 8,
-                       {bounds.min.z + 20.0, bounds.max.z - 60.0}, block);
-    }
+    cloud = pc::generate_scene_cloud(scene);
     STIPPLE_INFO("built-in scene: {} points", cloud.point_count);
   } else if (args.inputs.size() == 1 && tiles3d::is_tileset_input(args.inputs[0])) {
     // 3D Tiles (file or URL): stream what the framing camera selects, then render it.
@@ -97,9 +64,7 @@ void run_render(const RenderArgs& args) {
     cloud = std::move(loaded.cloud);
   } else {
     std::vector<std::filesystem::path> files(args.inputs.begin(), args.inputs.end());
-    pc::LoadOptions options;
-    options.color = pc::parse_color_mode(args.color);
-    cloud = pc::load_point_cloud(files, options);
+    cloud = pc::load_point_cloud(files, {});
   }
   if (cloud.point_count == 0) fail("nothing to render: the input holds no points");
 
@@ -137,14 +102,13 @@ void run_render(const RenderArgs& args) {
       *ctx, args.width, args.height, color_format,
       WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc, "render-color");
   gpu::TextureView color_view = gpu::create_view(color);
-  auto pipeline = pc::create_point_pipeline(*ctx, color_format, WGPUTextureFormat_Depth32Float);
+  auto pipelines = pc::create_point_pipelines(*ctx, color_format);
+  pc::PointRenderSettings settings = args.settings;
+  if (settings.point_size <= 0)
+    settings.point_size = pc::auto_point_size(cloud, camera, args.height);
+  const pc::ColorMode color_mode = pc::resolve_color_mode(cloud.attributes, settings.color);
   pc::ComputeRasterPipeline raster;
   if (compute) raster = pc::create_compute_raster_pipeline(*ctx, color_format);
-  pc::PointStyle style;
-  style.point_size =
-      args.point_size > 0 ? args.point_size : pc::auto_point_size(cloud, camera, args.height);
-  auto bg = parse_numbers(args.background, 3, "--background");
-  style.background = glm::vec3(bg[0], bg[1], bg[2]);
   auto load_end = std::chrono::steady_clock::now();
 
   // The frame's graph, rebuilt every frame as a real-time loop would; transients come from the
@@ -159,11 +123,12 @@ void run_render(const RenderArgs& args) {
     if (compute) {
       pc::ComputeRasterOptions raster_options;
       raster_options.hqs = args.hqs;
-      raster_options.background = style.background;
+      raster_options.background = settings.background;
       pc::add_compute_raster_passes(graph, raster, raster_cloud, camera, raster_options, args.width,
                                     args.height);
     } else {
-      pc::add_point_pass(graph, pipeline, gpu_cloud, camera, style, args.width, args.height);
+      pc::add_point_cloud_passes(graph, pipelines, gpu_cloud, camera, settings, args.width,
+                                 args.height);
     }
     graph.compile();
   };
@@ -215,7 +180,11 @@ void run_render(const RenderArgs& args) {
     j["points"] = gpu_cloud.point_count;
     j["width"] = args.width;
     j["height"] = args.height;
-    j["point_size_px"] = style.point_size;
+    j["point_size_px"] = settings.point_size;
+    j["splat"] = settings.splat == pc::SplatMode::Blend ? "blend" : "naive";
+    j["edl"] = settings.edl;
+    j["clod_k"] = settings.clod_k;
+    j["color"] = pc::color_mode_name(color_mode);
     j["frames"] = args.frames;
     j["load_s"] = std::chrono::duration<double>(load_end - start).count();
     j["passes"] = nlohmann::json::object();
@@ -230,8 +199,7 @@ void run_render(const RenderArgs& args) {
     j["frame_wall_ms_median"] = median(wall_ms);
     j["gpu_timing"] = !gpu_ms.empty();
     if (!gpu_ms.empty() && median(gpu_ms) > 0)
-      j["points_per_second"] = double(gpu_cloud.point_count) /
-                               (median(pass_ms[compute ? "raster-depth" : "points"]) * 1e-3);
+      j["points_per_second"] = double(gpu_cloud.point_count) / (median(gpu_ms) * 1e-3);
     std::string tmp = args.stats + ".partial";
     {
       std::ofstream out(tmp);
@@ -244,10 +212,10 @@ void run_render(const RenderArgs& args) {
     std::printf("%u frames: GPU %.3f ms, wall %.3f ms per frame (median)\n", args.frames,
                 median(gpu_ms), median(wall_ms));
   std::printf("rendered %llu points (%s colour, %.1f px) with %s on %s to %s (%ux%u) in %.2f s\n",
-              static_cast<unsigned long long>(gpu_cloud.point_count), cloud.color_source.c_str(),
-              double(style.point_size), ctx->description.backend.c_str(),
-              ctx->description.device.c_str(), args.output.c_str(), args.width, args.height,
-              seconds);
+              static_cast<unsigned long long>(gpu_cloud.point_count),
+              pc::color_mode_name(color_mode), double(settings.point_size),
+              ctx->description.backend.c_str(), ctx->description.device.c_str(),
+              args.output.c_str(), args.width, args.height, seconds);
 }
 
 }  // namespace
@@ -286,18 +254,11 @@ void add_render_command(CLI::App& cli) {
                   "WebGPU implementation: dawn or wgpu "
                   "(default: $STIPPLE_BACKEND, else wgpu)")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
-  cmd->add_option("--color", args->color,
-                  "Colour by: auto, rgb, intensity, classification, elevation, return")
-      ->check(CLI::IsMember({"auto", "rgb", "intensity", "classification", "elevation", "return"}))
-      ->capture_default_str();
-  cmd->add_option("--point-size", args->point_size, "Point size in pixels (default: from density)")
-      ->check(CLI::Range(0.0f, 64.0f));
+  add_point_render_options(cmd, args->settings);
   cmd->add_option("--scene-points", args->scene_points, "Built-in scene: number of points")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Built-in scene: random seed")->capture_default_str();
-  cmd->add_option("--background", args->background, "Background colour 'r,g,b' in 0..1")
-      ->capture_default_str();
   cmd->add_option("--frames", args->frames, "Render this many frames (timing; the last is saved)")
       ->check(CLI::Range(1u, 100000u))
       ->capture_default_str();

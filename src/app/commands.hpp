@@ -11,5 +11,7 @@ void add_bench_command(CLI::App& cli);
 void add_bench_raster_command(CLI::App& bench);  // `bench raster`, cmd_bench_raster.cpp
 void add_plugins_command(CLI::App& cli);
 void add_tile_command(CLI::App& cli);
+// `stipple bench points`, a subcommand of `bench`.
+void add_bench_points_command(CLI::App* bench);
 
 }  // namespace stipple::app

@@ -47,12 +47,15 @@ void append_content(pc::PointCloud& cloud, const io::PointContent& content,
   for (size_t i = 0; i < content.point_count; ++i) {
     glm::dvec3 p = linear * glm::dvec3(content.positions[i]);
     uint32_t rgba = content.rgba.empty() ? pc::pack_rgba(220, 220, 220) : content.rgba[i];
-    chunk.vertices.push_back({float(p.x), float(p.y), float(p.z), rgba | 0xff000000u});
+    chunk.vertices.push_back({float(p.x), float(p.y), float(p.z), rgba | 0xff000000u, 0u});
     glm::dvec3 world = chunk.origin + p;
+    chunk.bounds.extend(world);
     cloud.world_bounds.extend(world);
-    cloud.source_bounds.extend(glm::dvec3(tile_transform * glm::dvec4(content.center + glm::dvec3(content.positions[i]), 1.0)));
+    cloud.source_bounds.extend(glm::dvec3(
+        tile_transform * glm::dvec4(content.center + glm::dvec3(content.positions[i]), 1.0)));
   }
   cloud.point_count += content.point_count;
+  cloud.attributes.has_rgb = cloud.attributes.has_rgb || !content.rgba.empty();
   cloud.chunks.push_back(std::move(chunk));
 }
 
@@ -82,7 +85,6 @@ RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoa
   }
   for (auto& e : streamer.take_errors()) out.errors.push_back(std::move(e));
   out.camera = view.camera;
-  out.cloud.color_source = "tile colours";
   for (uint32_t t : selection->render) {
     const auto* contents = streamer.content(t);
     if (!contents) continue;
@@ -90,6 +92,7 @@ RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoa
       append_content(out.cloud, c, tileset->tiles[t].transform, view.world_from_tileset);
     ++out.tiles_rendered;
   }
+  pc::finish_cloud(out.cloud);
   STIPPLE_INFO("{}: {} tiles, {} rendered, {} points, {} errors", uri, tileset->tiles.size(),
                out.tiles_rendered, out.cloud.point_count, out.errors.size());
   return out;
