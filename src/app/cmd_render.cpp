@@ -1,4 +1,5 @@
-// `stipple render`: headless rendering of LAS/LAZ/COPC files (or the built-in scene) to PNG.
+// `stipple render`: headless rendering of LAS/LAZ/COPC files (or the built-in scene) to PNG,
+// composed from engine plugins.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -11,15 +12,15 @@
 #include <nlohmann/json.hpp>
 
 #include "app/commands.hpp"
+#include "app/point_cloud_plugin.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "engine/plugins.hpp"
+#include "engine/render_plugins.hpp"
 #include "math/camera.hpp"
 #include "pointcloud/point_cloud.hpp"
 #include "pointcloud/point_renderer.hpp"
-#include "pointcloud/procedural.hpp"
 #include "renderer/gpu.hpp"
-#include "renderer/png.hpp"
-#include "renderer/render_graph.hpp"
 
 namespace stipple::app {
 namespace {
@@ -39,6 +40,7 @@ struct RenderArgs {
   uint32_t frames = 1;
   std::string stats;
   std::string dump_graph;
+  bool pipelined = false;
 };
 
 std::vector<double> parse_numbers(const std::string& text, size_t expected, const char* what) {
@@ -65,35 +67,37 @@ std::vector<double> parse_numbers(const std::string& text, size_t expected, cons
   return values;
 }
 
+// `render` is a plugin list: the engine's core plugins, the device and frame graph, the point
+// cloud, and an offscreen target that writes the last frame. The app only configures the scene
+// (the camera and the point size, which depend on what was loaded).
 void run_render(const RenderArgs& args) {
   auto start = std::chrono::steady_clock::now();
-  pc::PointCloud cloud;
-  if (args.inputs.empty()) {
-    pc::SceneParams scene;
-    scene.point_count = args.scene_points;
-    scene.seed = args.seed;
-    io::PointBatch batch;
-    const uint64_t block = 1 << 20;
-    Aabb bounds = pc::scene_bounds(scene);
-    for (uint64_t first = 0; first < scene.point_count; first += block) {
-      batch.clear();
-      pc::generate_scene(scene, first, std::min(block, scene.point_count - first), batch);
-      pc::append_batch(cloud, batch, pc::parse_color_mode(args.color), 8,
-                       {bounds.min.z + 20.0, bounds.max.z - 60.0}, block);
-    }
-    STIPPLE_INFO("built-in scene: {} points", cloud.point_count);
-  } else {
-    std::vector<std::filesystem::path> files(args.inputs.begin(), args.inputs.end());
-    pc::LoadOptions options;
-    options.color = pc::parse_color_mode(args.color);
-    cloud = pc::load_point_cloud(files, options);
-  }
-  if (cloud.point_count == 0) fail("nothing to render: the input holds no points");
+  Engine engine;
+  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
+  if (args.pipelined) engine.add_plugin(PipelinedRenderingPlugin{});
+  GpuPlugin gpu;
+  gpu.options.backend = args.backend;
+  engine.add_plugin(std::move(gpu));
+  RenderGraphPlugin graph;
+  graph.keep_history = true;
+  graph.dump_graph = args.dump_graph;
+  engine.add_plugin(std::move(graph));
+  PointCloudPlugin points;
+  points.inputs.files.assign(args.inputs.begin(), args.inputs.end());
+  points.inputs.scene.point_count = args.scene_points;
+  points.inputs.scene.seed = args.seed;
+  points.settings.color = pc::parse_color_mode(args.color);
+  auto bg = parse_numbers(args.background, 3, "--background");
+  points.settings.background = glm::vec3(bg[0], bg[1], bg[2]);
+  engine.add_plugin(std::move(points));
+  engine.add_plugin(HeadlessTargetPlugin{args.width, args.height, args.output, args.frames});
 
+  Registry& main = engine.main();
+  const SceneInfo& scene = main.resource<SceneInfo>();
   double aspect = double(args.width) / args.height;
   Camera camera;
   if (args.camera.empty()) {
-    camera = frame_box(cloud.world_bounds, aspect, args.azimuth, args.elevation, args.fov);
+    camera = frame_box(scene.world_bounds, aspect, args.azimuth, args.elevation, args.fov);
   } else {
     auto v = parse_numbers(args.camera, 6, "--camera");
     camera.fov_y = glm::radians(args.fov);
@@ -103,71 +107,20 @@ void run_render(const RenderArgs& args) {
     camera.look_at(eye, target);
     camera.near_plane = std::max(glm::length(target - eye) * 1e-4, 1e-3);
   }
-
-  gpu::ContextOptions gpu_options;
-  gpu_options.backend = args.backend;
-  auto ctx = gpu::create_context(gpu_options);
-  auto gpu_cloud = pc::upload_point_cloud(*ctx, cloud);
-  // Only the colour target outlives the frame; depth is a transient of the point pass.
-  const WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
-  gpu::Texture color = gpu::create_texture_2d(
-      *ctx, args.width, args.height, color_format,
-      WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc, "render-color");
-  gpu::TextureView color_view = gpu::create_view(color);
-  auto pipeline = pc::create_point_pipeline(*ctx, color_format, WGPUTextureFormat_Depth32Float);
-  pc::PointStyle style;
-  style.point_size =
-      args.point_size > 0 ? args.point_size : pc::auto_point_size(cloud, camera, args.height);
-  auto bg = parse_numbers(args.background, 3, "--background");
-  style.background = glm::vec3(bg[0], bg[1], bg[2]);
+  main.emplace<Camera>(main.create(), camera);
+  auto& settings = main.resource<PointDrawSettings>();
+  main.view<PointCloudData>().each([&](const PointCloudData& data) {
+    settings.point_size = args.point_size > 0 ? args.point_size
+                                              : pc::auto_point_size(*data.cloud, camera, args.height);
+  });
+  const float point_size = settings.point_size;
+  const std::string color_source = scene.color_source;
   auto load_end = std::chrono::steady_clock::now();
 
-  // The frame's graph, rebuilt every frame as a real-time loop would; transients come from the
-  // pool, so only the first frame allocates them.
-  gpu::TransientPool pool;
-  gpu::PassTimer timer;
-  auto build_graph = [&](gpu::RenderGraph& graph) {
-    graph.import_texture("color", color.get(), color_view.get(),
-                         {args.width, args.height, color_format,
-                          WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc},
-                         gpu::Access::Writable);
-    pc::add_point_pass(graph, pipeline, gpu_cloud, camera, style, args.width, args.height);
-    graph.compile();
-  };
-  // Every frame is waited for, so GPU and wall times are per frame, not pipelined.
-  std::map<std::string, std::vector<double>> pass_ms;
-  std::vector<double> gpu_ms, wall_ms;
-  for (uint32_t frame = 0; frame < args.frames; ++frame) {
-    auto t0 = std::chrono::steady_clock::now();
-    gpu::RenderGraph graph;
-    build_graph(graph);
-    if (frame == 0) {
-      timer = gpu::create_pass_timer(*ctx, std::max(1u, graph.plan().timed_passes));
-      // Every surviving pass has its stats keys, timed or not.
-      for (uint32_t p : graph.plan().order) pass_ms[graph.passes()[p].name];
-      if (!args.dump_graph.empty()) {
-        std::ofstream out(args.dump_graph);
-        graph.dump_dot(out);
-        if (!out) fail("{}: cannot write the graph", args.dump_graph);
-      }
-    }
-    graph.execute(*ctx, pool, &timer);
-    auto times = graph.read_pass_times(*ctx, timer);
-    if (times.empty()) {
-      ctx->wait_idle();
-    } else {
-      double total = 0;
-      for (const auto& [name, ms] : times) {
-        pass_ms[name].push_back(ms);
-        total += ms;
-      }
-      gpu_ms.push_back(total);
-    }
-    wall_ms.push_back(
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-  }
-  gpu::Image image = gpu::read_texture(*ctx, color.get(), args.width, args.height, color_format);
-  gpu::write_png(args.output, image);
+  engine.run();
+  engine.shutdown();
+  const auto& stats = engine.render().resource<RenderStats>();
+  const auto& description = engine.main().resource<GpuContext>()->description;
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   auto median = [](std::vector<double> v) {
     if (v.empty()) return 0.0;
@@ -176,28 +129,31 @@ void run_render(const RenderArgs& args) {
   };
   if (!args.stats.empty()) {
     nlohmann::json j;
-    j["backend"] = ctx->description.backend;
-    j["adapter"] = ctx->description.device;
-    j["graphics_api"] = ctx->description.graphics_api;
-    j["points"] = gpu_cloud.point_count;
+    j["backend"] = description.backend;
+    j["adapter"] = description.device;
+    j["graphics_api"] = description.graphics_api;
+    j["points"] = stats.points_total;
     j["width"] = args.width;
     j["height"] = args.height;
-    j["point_size_px"] = style.point_size;
+    j["point_size_px"] = point_size;
     j["frames"] = args.frames;
+    j["pipelined"] = args.pipelined;
     j["load_s"] = std::chrono::duration<double>(load_end - start).count();
     j["passes"] = nlohmann::json::object();
-    for (const auto& [name, ms] : pass_ms) {
+    for (const auto& [name, ms] : stats.history) {
       j["passes"][name]["gpu_ms"] = ms;
       j["passes"][name]["gpu_ms_median"] = median(ms);
     }
-    j["frame_gpu_ms_median"] = median(gpu_ms);
+    const auto& pool = engine.render().resource<FrameGraph>().pool;
+    j["frame_gpu_ms_median"] = median(stats.gpu_ms);
     j["transient_textures_created"] = pool.stats.textures_created;
     j["transient_buffers_created"] = pool.stats.buffers_created;
-    j["frame_wall_ms"] = wall_ms;
-    j["frame_wall_ms_median"] = median(wall_ms);
-    j["gpu_timing"] = !gpu_ms.empty();
-    if (!gpu_ms.empty() && median(gpu_ms) > 0)
-      j["points_per_second"] = double(gpu_cloud.point_count) / (median(pass_ms["points"]) * 1e-3);
+    j["frame_wall_ms"] = stats.wall_ms;
+    j["frame_wall_ms_median"] = median(stats.wall_ms);
+    j["gpu_timing"] = !stats.gpu_ms.empty();
+    auto points_ms = stats.history.find("points");
+    if (!stats.gpu_ms.empty() && median(stats.gpu_ms) > 0 && points_ms != stats.history.end())
+      j["points_per_second"] = double(stats.points_total) / (median(points_ms->second) * 1e-3);
     std::string tmp = args.stats + ".partial";
     {
       std::ofstream out(tmp);
@@ -208,12 +164,11 @@ void run_render(const RenderArgs& args) {
   }
   if (args.frames > 1)
     std::printf("%u frames: GPU %.3f ms, wall %.3f ms per frame (median)\n", args.frames,
-                median(gpu_ms), median(wall_ms));
+                median(stats.gpu_ms), median(stats.wall_ms));
   std::printf("rendered %llu points (%s colour, %.1f px) with %s on %s to %s (%ux%u) in %.2f s\n",
-              static_cast<unsigned long long>(gpu_cloud.point_count), cloud.color_source.c_str(),
-              double(style.point_size), ctx->description.backend.c_str(),
-              ctx->description.device.c_str(), args.output.c_str(), args.width, args.height,
-              seconds);
+              static_cast<unsigned long long>(stats.points_total), color_source.c_str(),
+              double(point_size), description.backend.c_str(), description.device.c_str(),
+              args.output.c_str(), args.width, args.height, seconds);
 }
 
 }  // namespace
@@ -269,6 +224,8 @@ void add_render_command(CLI::App& cli) {
                   "wall ms per frame) as JSON");
   cmd->add_option("--dump-graph", args->dump_graph,
                   "Write the frame's render graph as Graphviz DOT (culled passes dashed)");
+  cmd->add_flag("--pipelined", args->pipelined,
+                 "Run the render world on its own thread (the same images as without)");
   cmd->callback([args] { run_render(*args); });
 }
 

@@ -9,5 +9,6 @@ void add_info_command(CLI::App& cli);
 void add_generate_command(CLI::App& cli);
 void add_bench_command(CLI::App& cli);
 void add_plugins_command(CLI::App& cli);
+void add_view_command(CLI::App& cli);
 
 }  // namespace stipple::app
