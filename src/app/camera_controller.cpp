@@ -133,8 +133,8 @@ void focus_on(CameraController& c, const glm::dvec3& point) {
   if (c.mode == CameraMode::Orbit) c.position = c.pivot - forward_from(c.yaw, c.pitch) * length;
 }
 
-void update_controller(CameraController& c, const platform::InputState& in, double dt,
-                       double fov_y, const glm::dvec2& viewport) {
+void update_controller(CameraController& c, const platform::InputState& in, double dt, double fov_y,
+                       const glm::dvec2& viewport) {
   if (in.pressed(Key::F) || in.pressed(Key::Tab)) toggle_mode(c);
   if (c.mode == CameraMode::Orbit)
     update_orbit(c, in, fov_y, viewport);

@@ -33,7 +33,7 @@ struct CameraController {
   double yaw = 0, pitch = 0;  // radians
   glm::dvec3 pivot{0.0};
   double distance = 1;
-  double scene_size = 100;  // scales fly speed and the zoom limits
+  double scene_size = 100;           // scales fly speed and the zoom limits
   double rotate_speed = 0.005;       // radians per pixel
   double fly_speed_fraction = 0.15;  // of scene_size per second
   double zoom_step = 0.85;           // distance factor per wheel notch

@@ -8,13 +8,13 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
-#include "app/commands.hpp"
-#include "core/error.hpp"
 #include "app/camera_controller.hpp"
+#include "app/commands.hpp"
 #include "app/point_cloud_plugin.hpp"
 #include "app/ui_plugin.hpp"
 #include "app/viewer_plugin.hpp"
 #include "app/window_plugins.hpp"
+#include "core/error.hpp"
 #include "engine/plugins.hpp"
 #include "engine/render_plugins.hpp"
 
@@ -27,13 +27,20 @@ std::string join(const std::vector<std::string>& names) {
 
 // Every built-in plugin, engine ones first, in an order where dependencies come first.
 std::vector<PluginInfo> builtin_plugins() {
-  return {plugin_info<TimePlugin>(),          plugin_info<TransformPlugin>(),
-          plugin_info<CameraPlugin>(),        plugin_info<PipelinedRenderingPlugin>(),
-          plugin_info<GpuPlugin>(),           plugin_info<RenderGraphPlugin>(),
-          plugin_info<HeadlessTargetPlugin>(), plugin_info<PointCloudPlugin>(),
-          plugin_info<WindowPlugin>(),        plugin_info<InputPlugin>(),
-          plugin_info<SurfaceTargetPlugin>(), plugin_info<UiPlugin>(),
-          plugin_info<CameraControllerPlugin>(), plugin_info<ViewerPlugin>()};
+  return {plugin_info<TimePlugin>(),
+          plugin_info<TransformPlugin>(),
+          plugin_info<CameraPlugin>(),
+          plugin_info<PipelinedRenderingPlugin>(),
+          plugin_info<GpuPlugin>(),
+          plugin_info<RenderGraphPlugin>(),
+          plugin_info<HeadlessTargetPlugin>(),
+          plugin_info<PointCloudPlugin>(),
+          plugin_info<WindowPlugin>(),
+          plugin_info<InputPlugin>(),
+          plugin_info<SurfaceTargetPlugin>(),
+          plugin_info<UiPlugin>(),
+          plugin_info<CameraControllerPlugin>(),
+          plugin_info<ViewerPlugin>()};
 }
 
 void run_plugins(const std::string& dot_path) {

@@ -110,8 +110,9 @@ void run_render(const RenderArgs& args) {
   main.emplace<Camera>(main.create(), camera);
   auto& settings = main.resource<PointDrawSettings>();
   main.view<PointCloudData>().each([&](const PointCloudData& data) {
-    settings.point_size = args.point_size > 0 ? args.point_size
-                                              : pc::auto_point_size(*data.cloud, camera, args.height);
+    settings.point_size = args.point_size > 0
+                              ? args.point_size
+                              : pc::auto_point_size(*data.cloud, camera, args.height);
   });
   const float point_size = settings.point_size;
   const std::string color_source = scene.color_source;
@@ -225,7 +226,7 @@ void add_render_command(CLI::App& cli) {
   cmd->add_option("--dump-graph", args->dump_graph,
                   "Write the frame's render graph as Graphviz DOT (culled passes dashed)");
   cmd->add_flag("--pipelined", args->pipelined,
-                 "Run the render world on its own thread (the same images as without)");
+                "Run the render world on its own thread (the same images as without)");
   cmd->callback([args] { run_render(*args); });
 }
 

@@ -1,6 +1,7 @@
 #include "app/imgui_webgpu.hpp"
 
 #include <algorithm>
+#include <cstddef>
 #include <cstring>
 
 #include "core/error.hpp"
@@ -148,9 +149,9 @@ std::unique_ptr<UiRenderer> create_ui_renderer(gpu::Context& ctx, WGPUTextureFor
   r->pipeline = gpu::RenderPipeline(wgpuDeviceCreateRenderPipeline(ctx.device.get(), &desc));
 
   // The font atlas, uploaded once.
-  r->font = gpu::create_texture_2d(ctx, atlas.width, atlas.height, WGPUTextureFormat_RGBA8Unorm,
-                                   WGPUTextureUsage_TextureBinding | WGPUTextureUsage_CopyDst,
-                                   "ui-font");
+  r->font =
+      gpu::create_texture_2d(ctx, atlas.width, atlas.height, WGPUTextureFormat_RGBA8Unorm,
+                             WGPUTextureUsage_TextureBinding | WGPUTextureUsage_CopyDst, "ui-font");
   r->font_view = gpu::create_view(r->font);
   WGPUTexelCopyTextureInfo dst = WGPU_TEXEL_COPY_TEXTURE_INFO_INIT;
   dst.texture = r->font.get();
@@ -164,8 +165,8 @@ std::unique_ptr<UiRenderer> create_ui_renderer(gpu::Context& ctx, WGPUTextureFor
   sampler_desc.magFilter = WGPUFilterMode_Linear;
   sampler_desc.minFilter = WGPUFilterMode_Linear;
   r->sampler = gpu::Sampler(wgpuDeviceCreateSampler(ctx.device.get(), &sampler_desc));
-  r->uniforms = gpu::create_buffer(ctx, sizeof(Uniforms),
-                                   WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "ui-uniforms");
+  r->uniforms = gpu::create_buffer(
+      ctx, sizeof(Uniforms), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "ui-uniforms");
   WGPUBindGroupEntry bind[3] = {WGPU_BIND_GROUP_ENTRY_INIT, WGPU_BIND_GROUP_ENTRY_INIT,
                                 WGPU_BIND_GROUP_ENTRY_INIT};
   bind[0].binding = 0;
@@ -228,8 +229,8 @@ void add_ui_pass(gpu::RenderGraph& graph, UiRenderer& r, const UiDrawList& draw,
       float x1 = std::min((cmd.clip.z - offset.x) * scale.x, float(width));
       float y1 = std::min((cmd.clip.w - offset.y) * scale.y, float(height));
       if (x1 <= x0 || y1 <= y0 || cmd.index_count == 0) continue;
-      wgpuRenderPassEncoderSetScissorRect(pass.get(), uint32_t(x0), uint32_t(y0),
-                                          uint32_t(x1 - x0), uint32_t(y1 - y0));
+      wgpuRenderPassEncoderSetScissorRect(pass.get(), uint32_t(x0), uint32_t(y0), uint32_t(x1 - x0),
+                                          uint32_t(y1 - y0));
       wgpuRenderPassEncoderDrawIndexed(pass.get(), cmd.index_count, 1, cmd.first_index,
                                        cmd.base_vertex, 0);
     }

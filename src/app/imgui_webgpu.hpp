@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
+#include <imgui.h>
 #include <glm/vec2.hpp>
 #include <glm/vec4.hpp>
-#include <imgui.h>
 
 #include "renderer/gpu.hpp"
 #include "renderer/render_graph.hpp"

@@ -9,7 +9,8 @@
 #include "core/log.hpp"
 
 int main(int argc, char** argv) {
-  CLI::App cli{"stipple: a point-cloud engine on WebGPU (LAS/LAZ/COPC, headless rendering, viewer)"};
+  CLI::App cli{
+      "stipple: a point-cloud engine on WebGPU (LAS/LAZ/COPC, headless rendering, viewer)"};
   cli.set_version_flag("--version", "stipple 0.1.0");
   cli.require_subcommand(1);
   int verbosity = 0;

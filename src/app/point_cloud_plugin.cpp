@@ -27,7 +27,7 @@ struct RenderPointCloud {
   glm::dvec3 translation{0.0};  // from the entity's GlobalTransform (rotation/scale unsupported)
 
   uint64_t uploaded_generation = std::numeric_limits<uint64_t>::max();
-  pc::GpuPointCloud all;       // every non-empty chunk, upload order (drawn ones moved out)
+  pc::GpuPointCloud all;  // every non-empty chunk, upload order (drawn ones moved out)
   std::vector<Aabb> gpu_bounds;
   std::vector<uint32_t> gpu_counts;
   // The pass reads this cloud when the graph executes (Draw), so the chunks to draw are moved

@@ -35,7 +35,8 @@ void ui_begin_frame(Registry& main) {
   ImGui::NewFrame();
   const ImGuiIO& io = ImGui::GetIO();
   bool visible = main.resource<UiSettings>().visible;
-  main.insert_resource(UiCapture{visible && io.WantCaptureMouse, visible && io.WantCaptureKeyboard});
+  main.insert_resource(
+      UiCapture{visible && io.WantCaptureMouse, visible && io.WantCaptureKeyboard});
 }
 
 void ui_end_frame(Registry& main) {

@@ -42,8 +42,10 @@ void viewer_keys(Registry& main) {
   }
   if (capture && capture->keyboard) return;
   if (input.pressed(Key::Escape)) main.resource<AppExit>().requested = true;
-  if (input.pressed(Key::P)) main.resource<ScreenshotRequests>().paths.push_back(next_screenshot_name());
-  if (input.pressed(Key::V)) main.resource<SurfaceSettings>().vsync ^= true;
+  if (input.pressed(Key::P))
+    main.resource<ScreenshotRequests>().paths.push_back(next_screenshot_name());
+  if (input.pressed(Key::V))
+    if (auto* surface = main.try_resource<SurfaceSettings>()) surface->vsync ^= true;
   if (input.pressed(Key::F1))
     if (auto* ui = main.try_resource<UiSettings>()) ui->visible ^= true;
 }
@@ -67,7 +69,7 @@ void viewer_panel(Registry& main) {
   const auto& gpu = main.resource<GpuContext>()->description;
   const auto& scene = main.resource<SceneInfo>();
   auto& settings = main.resource<PointDrawSettings>();
-  auto& surface = main.resource<SurfaceSettings>();
+  auto* surface = main.try_resource<SurfaceSettings>();  // absent with a headless target
 
   ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
   ImGui::SetNextWindowBgAlpha(0.8f);
@@ -103,7 +105,7 @@ void viewer_panel(Registry& main) {
   int color = int(settings.color);
   if (ImGui::Combo("colour", &color, kColorModes, IM_ARRAYSIZE(kColorModes)))
     settings.color = pc::ColorMode(color);
-  ImGui::Checkbox("vsync (V)", &surface.vsync);
+  if (surface) ImGui::Checkbox("vsync (V)", &surface->vsync);
   main.view<CameraController>().each([&](CameraController& c) {
     int mode = int(c.mode);
     ImGui::Text("camera:");

@@ -18,10 +18,10 @@ struct ViewerPlugin {
   static constexpr std::string_view description =
       "viewer keys (P screenshot, V vsync, F1 UI, Esc quit), stats and controls panel, "
       "--frames/--screenshot";
-  static constexpr std::array<std::string_view, 4> dependencies{
-      "InputPlugin", "RenderGraphPlugin", "PointCloudPlugin", "SurfaceTargetPlugin"};
-  static constexpr std::array<std::string_view, 2> optional_dependencies{"UiPlugin",
-                                                                         "CameraControllerPlugin"};
+  static constexpr std::array<std::string_view, 3> dependencies{"InputPlugin", "RenderGraphPlugin",
+                                                                "PointCloudPlugin"};
+  static constexpr std::array<std::string_view, 3> optional_dependencies{
+      "SurfaceTargetPlugin", "UiPlugin", "CameraControllerPlugin"};
   uint64_t exit_after_frames = 0;  // 0: run until the window closes
   std::string screenshot;          // written from the last frame when exiting after N frames
   void build(Engine& engine);

@@ -13,8 +13,7 @@ namespace stipple {
 namespace {
 
 double now_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 void start_render_frame(Registry& render) {
@@ -178,8 +177,8 @@ void HeadlessTargetPlugin::build(Engine& engine) {
       [](Registry& render) {
         auto& t = render.resource<HeadlessTarget>();
         if (!t.color) {
-          const WGPUTextureUsage usage = WGPUTextureUsage_RenderAttachment |
-                                         WGPUTextureUsage_CopySrc;
+          const WGPUTextureUsage usage =
+              WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc;
           t.color = gpu::create_texture_2d(*render.resource<GpuContext>(), t.width, t.height,
                                            WGPUTextureFormat_RGBA8Unorm, usage, "headless-color");
           t.view = gpu::create_view(t.color);

@@ -71,7 +71,7 @@ struct FrameGraph {
 
 // Render-world resource: statistics of the frames drawn so far.
 struct RenderStats {
-  uint64_t frames = 0;  // frames whose graph ran
+  uint64_t frames = 0;                                 // frames whose graph ran
   std::map<std::string, double> pass_ms;               // last frame, GPU milliseconds
   std::map<std::string, std::vector<double>> history;  // per pass, every frame (keep_history)
   std::vector<double> gpu_ms, wall_ms;                 // per frame

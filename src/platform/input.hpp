@@ -13,11 +13,48 @@ namespace stipple::platform {
 // Key codes: GLFW's values (printable keys are their ASCII capitals).
 enum class Key : uint16_t {
   Space = 32,
-  A = 65, B, C, D, E, F, G, H, I, J, K, L, M, N, O, P, Q, R, S, T, U, V, W, X, Y, Z,
-  Escape = 256, Enter, Tab, Backspace,
-  Right = 262, Left, Down, Up,
+  A = 65,
+  B,
+  C,
+  D,
+  E,
+  F,
+  G,
+  H,
+  I,
+  J,
+  K,
+  L,
+  M,
+  N,
+  O,
+  P,
+  Q,
+  R,
+  S,
+  T,
+  U,
+  V,
+  W,
+  X,
+  Y,
+  Z,
+  Escape = 256,
+  Enter,
+  Tab,
+  Backspace,
+  Right = 262,
+  Left,
+  Down,
+  Up,
   F1 = 290,
-  LeftShift = 340, LeftControl, LeftAlt, LeftSuper, RightShift, RightControl, RightAlt,
+  LeftShift = 340,
+  LeftControl,
+  LeftAlt,
+  LeftSuper,
+  RightShift,
+  RightControl,
+  RightAlt,
 };
 inline constexpr size_t kKeyCount = 349;  // GLFW_KEY_LAST + 1
 
@@ -27,11 +64,11 @@ inline constexpr size_t kMouseButtonCount = 3;
 struct InputEvent {
   enum class Type : uint8_t { Key, MouseButton, CursorMove, Scroll, Resize, Close, Focus };
   Type type = Type::Key;
-  int code = 0;              // key code or mouse button
-  bool down = false;         // key/button pressed (true) or released; focus gained
-  bool repeat = false;       // key auto-repeat
-  glm::dvec2 value{0.0};     // cursor position (window coordinates), scroll offsets, or new size
-  double time = 0;           // seconds (glfwGetTime)
+  int code = 0;           // key code or mouse button
+  bool down = false;      // key/button pressed (true) or released; focus gained
+  bool repeat = false;    // key auto-repeat
+  glm::dvec2 value{0.0};  // cursor position (window coordinates), scroll offsets, or new size
+  double time = 0;        // seconds (glfwGetTime)
 };
 
 struct InputState {

@@ -87,8 +87,8 @@ WindowPtr make_window(const WindowOptions& options) {
   WindowPtr window(new Window);
   window->handle = glfwCreateWindow(int(options.width), int(options.height), options.title.c_str(),
                                     nullptr, nullptr);
-  if (!window->handle) fail("cannot create a {}x{} window: {}", options.width, options.height,
-                            g_init_error);
+  if (!window->handle)
+    fail("cannot create a {}x{} window: {}", options.width, options.height, g_init_error);
   glfwSetWindowUserPointer(window->handle, window.get());
   glfwSetKeyCallback(window->handle, on_key);
   glfwSetMouseButtonCallback(window->handle, on_mouse_button);

@@ -18,14 +18,16 @@ Surface create_x11_surface(Context& ctx, void* x11_display, uint64_t x11_window)
   desc.label = to_view("stipple-window");
   Surface s;
   s.surface = SurfaceHandle(wgpuInstanceCreateSurface(ctx.instance.get(), &desc));
-  if (!s.surface) fail("{}: could not create a surface for the X11 window", ctx.description.backend);
+  if (!s.surface)
+    fail("{}: could not create a surface for the X11 window", ctx.description.backend);
 
   WGPUSurfaceCapabilities caps = WGPU_SURFACE_CAPABILITIES_INIT;
   if (wgpuSurfaceGetCapabilities(s.surface.get(), ctx.adapter.get(), &caps) != WGPUStatus_Success)
     fail("{}: the adapter cannot present to this window", ctx.description.backend);
   std::vector<WGPUTextureFormat> formats;
   for (size_t i = 0; i < caps.formatCount; ++i) formats.push_back(standard_format(caps.formats[i]));
-  for (size_t i = 0; i < caps.presentModeCount; ++i) s.present_modes.push_back(caps.presentModes[i]);
+  for (size_t i = 0; i < caps.presentModeCount; ++i)
+    s.present_modes.push_back(caps.presentModes[i]);
   WGPUTextureUsage usages = caps.usages;
   wgpuSurfaceCapabilitiesFreeMembers(caps);
   if (formats.empty()) fail("{}: the surface offers no texture format", ctx.description.backend);
