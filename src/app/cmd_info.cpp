@@ -189,11 +189,13 @@ void run_info(const InfoArgs& args) {
                     j["depth"].get<uint32_t>(), j["contents"].get<size_t>(),
                     j["content_types"].dump().c_str());
         std::printf("  external tilesets: %u, implicit: %s, subtrees: %u, errors: %zu\n",
-                    j["external_tilesets"].get<uint32_t>(), j["implicit"].get<bool>() ? "yes" : "no",
-                    j["subtrees"].get<uint32_t>(), j["errors"].size());
-        std::printf("  points in the default view: %llu (%u tiles)\n",
-                    static_cast<unsigned long long>(j["points_selected_for_default_view"].get<uint64_t>()),
-                    j["tiles_selected_for_default_view"].get<uint32_t>());
+                    j["external_tilesets"].get<uint32_t>(),
+                    j["implicit"].get<bool>() ? "yes" : "no", j["subtrees"].get<uint32_t>(),
+                    j["errors"].size());
+        std::printf(
+            "  points in the default view: %llu (%u tiles)\n",
+            static_cast<unsigned long long>(j["points_selected_for_default_view"].get<uint64_t>()),
+            j["tiles_selected_for_default_view"].get<uint32_t>());
       }
       continue;
     }

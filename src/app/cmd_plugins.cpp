@@ -8,9 +8,15 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "app/camera_controller.hpp"
 #include "app/commands.hpp"
+#include "app/point_cloud_plugin.hpp"
+#include "app/ui_plugin.hpp"
+#include "app/viewer_plugin.hpp"
+#include "app/window_plugins.hpp"
 #include "core/error.hpp"
 #include "engine/plugins.hpp"
+#include "engine/render_plugins.hpp"
 
 namespace stipple::app {
 namespace {
@@ -19,12 +25,29 @@ std::string join(const std::vector<std::string>& names) {
   return names.empty() ? "-" : fmt::format("{}", fmt::join(names, ", "));
 }
 
+// Every built-in plugin, engine ones first, in an order where dependencies come first.
+std::vector<PluginInfo> builtin_plugins() {
+  return {plugin_info<TimePlugin>(),
+          plugin_info<TransformPlugin>(),
+          plugin_info<CameraPlugin>(),
+          plugin_info<PipelinedRenderingPlugin>(),
+          plugin_info<GpuPlugin>(),
+          plugin_info<RenderGraphPlugin>(),
+          plugin_info<HeadlessTargetPlugin>(),
+          plugin_info<PointCloudPlugin>(),
+          plugin_info<WindowPlugin>(),
+          plugin_info<InputPlugin>(),
+          plugin_info<SurfaceTargetPlugin>(),
+          plugin_info<UiPlugin>(),
+          plugin_info<CameraControllerPlugin>(),
+          plugin_info<ViewerPlugin>()};
+}
+
 void run_plugins(const std::string& dot_path) {
-  // The list comes from an engine composed like an application's, so it cannot drift from code.
-  Engine engine;
-  engine.add_plugins(default_plugins());
-  std::vector<PluginInfo> plugins = engine.plugins();
-  std::printf("Built-in plugins (default_plugins(), in build order):\n");
+  // Listed from the plugin types themselves (building them would open windows and devices), so
+  // names and dependencies cannot drift from the code.
+  std::vector<PluginInfo> plugins = builtin_plugins();
+  std::printf("Built-in plugins (dependencies first):\n");
   for (const auto& p : plugins) {
     std::printf("  %s\n      %s\n", p.name.c_str(), p.description.c_str());
     std::printf("      requires: %s\n", join(p.dependencies).c_str());
@@ -33,6 +56,15 @@ void run_plugins(const std::string& dot_path) {
   std::printf(
       "Engine core (not a plugin): ECS registry, main and render worlds with their stages,"
       " relations, SyncTo<Render>.\n");
+  std::printf(
+      "stipple render: TimePlugin, TransformPlugin, CameraPlugin, [PipelinedRenderingPlugin "
+      "with --pipelined], GpuPlugin, RenderGraphPlugin, PointCloudPlugin, "
+      "HeadlessTargetPlugin\n");
+  std::printf(
+      "stipple view:   TimePlugin, TransformPlugin, CameraPlugin, PipelinedRenderingPlugin "
+      "[not with --single-thread], GpuPlugin, RenderGraphPlugin, PointCloudPlugin, WindowPlugin, "
+      "InputPlugin, SurfaceTargetPlugin, UiPlugin [not with --no-ui], CameraControllerPlugin, "
+      "ViewerPlugin\n");
   if (dot_path.empty()) return;
   std::string dot = plugins_dot(plugins);
   if (dot_path == "-") {

@@ -1,4 +1,5 @@
-// `stipple render`: headless rendering of LAS/LAZ/COPC files (or the built-in scene) to PNG.
+// `stipple render`: headless rendering of LAS/LAZ/COPC files (or the built-in scene) to PNG,
+// composed from engine plugins.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -11,19 +12,18 @@
 #include <nlohmann/json.hpp>
 
 #include "app/commands.hpp"
+#include "app/point_cloud_plugin.hpp"
 #include "app/point_options.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "engine/plugins.hpp"
+#include "engine/render_plugins.hpp"
 #include "io/fetch.hpp"
 #include "math/camera.hpp"
 #include "pointcloud/compute_raster.hpp"
 #include "pointcloud/point_cloud.hpp"
 #include "pointcloud/point_renderer.hpp"
-#include "pointcloud/procedural.hpp"
 #include "renderer/gpu.hpp"
-#include "renderer/png.hpp"
-#include "renderer/render_graph.hpp"
-#include "tiles3d/render_load.hpp"
 
 namespace stipple::app {
 namespace {
@@ -41,37 +41,44 @@ struct RenderArgs {
   uint32_t frames = 1;
   std::string stats;
   std::string dump_graph;
+  bool pipelined = false;
   std::string renderer = "billboard";
   bool hqs = false;
 };
 
+// `render` is a plugin list: the engine's core plugins, the device and frame graph, the point
+// cloud, and an offscreen target that writes the last frame. The app only configures the scene
+// (the camera and the point size, which depend on what was loaded).
 void run_render(const RenderArgs& args) {
   auto start = std::chrono::steady_clock::now();
-  pc::PointCloud cloud;
-  if (args.inputs.empty()) {
-    pc::SceneParams scene;
-    scene.point_count = args.scene_points;
-    scene.seed = args.seed;
-    cloud = pc::generate_scene_cloud(scene);
-    STIPPLE_INFO("built-in scene: {} points", cloud.point_count);
-  } else if (args.inputs.size() == 1 && tiles3d::is_tileset_input(args.inputs[0])) {
-    // 3D Tiles (file or URL): stream what the framing camera selects, then render it.
-    tiles3d::RenderLoadOptions options;
-    options.width = args.width, options.height = args.height;
-    options.azimuth = args.azimuth, options.elevation = args.elevation, options.fov = args.fov;
-    auto loaded = tiles3d::load_tileset_for_render(args.inputs[0], options);
-    for (const auto& e : loaded.errors) STIPPLE_WARN("tile {}: {}", e.tile, e.message);
-    cloud = std::move(loaded.cloud);
-  } else {
-    std::vector<std::filesystem::path> files(args.inputs.begin(), args.inputs.end());
-    cloud = pc::load_point_cloud(files, {});
-  }
-  if (cloud.point_count == 0) fail("nothing to render: the input holds no points");
+  Engine engine;
+  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
+  if (args.pipelined) engine.add_plugin(PipelinedRenderingPlugin{});
+  const bool compute = args.renderer == "compute";
+  GpuPlugin gpu;
+  gpu.options.backend = args.backend;
+  if (compute) gpu.options.optional_features = pc::compute_raster_features();
+  engine.add_plugin(std::move(gpu));
+  RenderGraphPlugin graph;
+  graph.keep_history = true;
+  graph.dump_graph = args.dump_graph;
+  engine.add_plugin(std::move(graph));
+  PointCloudPlugin points;
+  points.inputs.files.assign(args.inputs.begin(), args.inputs.end());
+  points.inputs.scene.point_count = args.scene_points;
+  points.inputs.scene.seed = args.seed;
+  points.settings.render = args.settings;
+  points.settings.compute = compute;
+  points.settings.hqs = args.hqs;
+  engine.add_plugin(std::move(points));
+  engine.add_plugin(HeadlessTargetPlugin{args.width, args.height, args.output, args.frames});
 
+  Registry& main = engine.main();
+  const SceneInfo& scene = main.resource<SceneInfo>();
   double aspect = double(args.width) / args.height;
   Camera camera;
   if (args.camera.empty()) {
-    camera = frame_box(cloud.world_bounds, aspect, args.azimuth, args.elevation, args.fov);
+    camera = frame_box(scene.world_bounds, aspect, args.azimuth, args.elevation, args.fov);
   } else {
     auto v = parse_numbers(args.camera, 6, "--camera");
     camera.fov_y = glm::radians(args.fov);
@@ -81,91 +88,23 @@ void run_render(const RenderArgs& args) {
     camera.look_at(eye, target);
     camera.near_plane = std::max(glm::length(target - eye) * 1e-4, 1e-3);
   }
-
-  gpu::ContextOptions gpu_options;
-  gpu_options.backend = args.backend;
-  const bool compute = args.renderer == "compute";
-  if (compute) gpu_options.optional_features = pc::compute_raster_features();
-  auto ctx = gpu::create_context(gpu_options);
-  pc::GpuPointCloud gpu_cloud;
-  pc::GpuBatchedCloud raster_cloud;
-  if (compute) {
-    raster_cloud =
-        pc::upload_batched_cloud(*ctx, pc::build_batches(cloud, pc::SpatialOrder::Morton));
-    gpu_cloud.point_count = raster_cloud.point_count;
-  } else {
-    gpu_cloud = pc::upload_point_cloud(*ctx, cloud);
-  }
-  // Only the colour target outlives the frame; depth is a transient of the point pass.
-  const WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
-  gpu::Texture color = gpu::create_texture_2d(
-      *ctx, args.width, args.height, color_format,
-      WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc, "render-color");
-  gpu::TextureView color_view = gpu::create_view(color);
-  auto pipelines = pc::create_point_pipelines(*ctx, color_format);
-  pc::PointRenderSettings settings = args.settings;
-  if (settings.point_size <= 0)
-    settings.point_size = pc::auto_point_size(cloud, camera, args.height);
-  const pc::ColorMode color_mode = pc::resolve_color_mode(cloud.attributes, settings.color);
-  pc::ComputeRasterPipeline raster;
-  if (compute) raster = pc::create_compute_raster_pipeline(*ctx, color_format);
+  main.emplace<Camera>(main.create(), camera);
+  auto& settings = main.resource<PointDrawSettings>();
+  main.view<PointCloudData>().each([&](const PointCloudData& data) {
+    if (settings.render.point_size <= 0)
+      settings.render.point_size = pc::auto_point_size(*data.cloud, camera, args.height);
+  });
+  const float point_size = compute ? 1.0f : settings.render.point_size;
+  const std::string color_source =
+      compute
+          ? "rgb"
+          : pc::color_mode_name(pc::resolve_color_mode(scene.attributes, settings.render.color));
   auto load_end = std::chrono::steady_clock::now();
 
-  // The frame's graph, rebuilt every frame as a real-time loop would; transients come from the
-  // pool, so only the first frame allocates them.
-  gpu::TransientPool pool;
-  gpu::PassTimer timer;
-  auto build_graph = [&](gpu::RenderGraph& graph) {
-    graph.import_texture("color", color.get(), color_view.get(),
-                         {args.width, args.height, color_format,
-                          WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc},
-                         gpu::Access::Writable);
-    if (compute) {
-      pc::ComputeRasterOptions raster_options;
-      raster_options.hqs = args.hqs;
-      raster_options.background = settings.background;
-      pc::add_compute_raster_passes(graph, raster, raster_cloud, camera, raster_options, args.width,
-                                    args.height);
-    } else {
-      pc::add_point_cloud_passes(graph, pipelines, gpu_cloud, camera, settings, args.width,
-                                 args.height);
-    }
-    graph.compile();
-  };
-  // Every frame is waited for, so GPU and wall times are per frame, not pipelined.
-  std::map<std::string, std::vector<double>> pass_ms;
-  std::vector<double> gpu_ms, wall_ms;
-  for (uint32_t frame = 0; frame < args.frames; ++frame) {
-    auto t0 = std::chrono::steady_clock::now();
-    gpu::RenderGraph graph;
-    build_graph(graph);
-    if (frame == 0) {
-      timer = gpu::create_pass_timer(*ctx, std::max(1u, graph.plan().timed_passes));
-      // Every surviving pass has its stats keys, timed or not.
-      for (uint32_t p : graph.plan().order) pass_ms[graph.passes()[p].name];
-      if (!args.dump_graph.empty()) {
-        std::ofstream out(args.dump_graph);
-        graph.dump_dot(out);
-        if (!out) fail("{}: cannot write the graph", args.dump_graph);
-      }
-    }
-    graph.execute(*ctx, pool, &timer);
-    auto times = graph.read_pass_times(*ctx, timer);
-    if (times.empty()) {
-      ctx->wait_idle();
-    } else {
-      double total = 0;
-      for (const auto& [name, ms] : times) {
-        pass_ms[name].push_back(ms);
-        total += ms;
-      }
-      gpu_ms.push_back(total);
-    }
-    wall_ms.push_back(
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-  }
-  gpu::Image image = gpu::read_texture(*ctx, color.get(), args.width, args.height, color_format);
-  gpu::write_png(args.output, image);
+  engine.run();
+  engine.shutdown();
+  const auto& stats = engine.render().resource<RenderStats>();
+  const auto& description = engine.main().resource<GpuContext>()->description;
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   auto median = [](std::vector<double> v) {
     if (v.empty()) return 0.0;
@@ -174,32 +113,32 @@ void run_render(const RenderArgs& args) {
   };
   if (!args.stats.empty()) {
     nlohmann::json j;
-    j["backend"] = ctx->description.backend;
-    j["adapter"] = ctx->description.device;
-    j["graphics_api"] = ctx->description.graphics_api;
-    j["points"] = gpu_cloud.point_count;
+    j["backend"] = description.backend;
+    j["adapter"] = description.device;
+    j["graphics_api"] = description.graphics_api;
+    j["points"] = stats.points_total;
     j["width"] = args.width;
     j["height"] = args.height;
-    j["point_size_px"] = settings.point_size;
-    j["splat"] = settings.splat == pc::SplatMode::Blend ? "blend" : "naive";
-    j["edl"] = settings.edl;
-    j["clod_k"] = settings.clod_k;
-    j["color"] = pc::color_mode_name(color_mode);
+    j["point_size_px"] = point_size;
     j["frames"] = args.frames;
+    j["pipelined"] = args.pipelined;
+    j["renderer"] = args.renderer;
     j["load_s"] = std::chrono::duration<double>(load_end - start).count();
     j["passes"] = nlohmann::json::object();
-    for (const auto& [name, ms] : pass_ms) {
+    for (const auto& [name, ms] : stats.history) {
       j["passes"][name]["gpu_ms"] = ms;
       j["passes"][name]["gpu_ms_median"] = median(ms);
     }
-    j["frame_gpu_ms_median"] = median(gpu_ms);
+    const auto& pool = engine.render().resource<FrameGraph>().pool;
+    j["frame_gpu_ms_median"] = median(stats.gpu_ms);
     j["transient_textures_created"] = pool.stats.textures_created;
     j["transient_buffers_created"] = pool.stats.buffers_created;
-    j["frame_wall_ms"] = wall_ms;
-    j["frame_wall_ms_median"] = median(wall_ms);
-    j["gpu_timing"] = !gpu_ms.empty();
-    if (!gpu_ms.empty() && median(gpu_ms) > 0)
-      j["points_per_second"] = double(gpu_cloud.point_count) / (median(gpu_ms) * 1e-3);
+    j["frame_wall_ms"] = stats.wall_ms;
+    j["frame_wall_ms_median"] = median(stats.wall_ms);
+    j["gpu_timing"] = !stats.gpu_ms.empty();
+    auto points_ms = stats.history.find(compute ? "raster-depth" : "points");
+    if (!stats.gpu_ms.empty() && median(stats.gpu_ms) > 0 && points_ms != stats.history.end())
+      j["points_per_second"] = double(stats.points_total) / (median(points_ms->second) * 1e-3);
     std::string tmp = args.stats + ".partial";
     {
       std::ofstream out(tmp);
@@ -210,11 +149,10 @@ void run_render(const RenderArgs& args) {
   }
   if (args.frames > 1)
     std::printf("%u frames: GPU %.3f ms, wall %.3f ms per frame (median)\n", args.frames,
-                median(gpu_ms), median(wall_ms));
+                median(stats.gpu_ms), median(stats.wall_ms));
   std::printf("rendered %llu points (%s colour, %.1f px) with %s on %s to %s (%ux%u) in %.2f s\n",
-              static_cast<unsigned long long>(gpu_cloud.point_count),
-              pc::color_mode_name(color_mode), double(settings.point_size),
-              ctx->description.backend.c_str(), ctx->description.device.c_str(),
+              static_cast<unsigned long long>(stats.points_total), color_source.c_str(),
+              double(point_size), description.backend.c_str(), description.device.c_str(),
               args.output.c_str(), args.width, args.height, seconds);
 }
 
@@ -267,8 +205,10 @@ void add_render_command(CLI::App& cli) {
                   "wall ms per frame) as JSON");
   cmd->add_option("--dump-graph", args->dump_graph,
                   "Write the frame's render graph as Graphviz DOT (culled passes dashed)");
+  cmd->add_flag("--pipelined", args->pipelined,
+                "Run the render world on its own thread (the same images as without)");
   cmd->add_option("--renderer", args->renderer,
-                  "billboard (point quads) or compute (compute rasterizer, 1-pixel points)")
+                  "billboard (the point pipeline) or compute (compute rasterizer, 1-pixel points)")
       ->check(CLI::IsMember({"billboard", "compute"}))
       ->capture_default_str();
   cmd->add_flag("--hqs", args->hqs,

@@ -26,7 +26,8 @@ void add_tile_command(CLI::App& cli) {
                   "without one");
   cmd->add_option("--spacing", args->options.spacing,
                   "Root point spacing in metres (default: cube edge / 128); halves per level");
-  cmd->add_option("--max-memory", args->memory, "Memory budget, e.g. 2G, 512M")->capture_default_str();
+  cmd->add_option("--max-memory", args->memory, "Memory budget, e.g. 2G, 512M")
+      ->capture_default_str();
   cmd->add_option("--threads", args->options.threads, "Worker threads (default: all cores)");
   cmd->add_option("--max-node-points", args->options.max_node_points, "Tile size cap")
       ->check(CLI::Range(size_t(1000), size_t(10'000'000)))
@@ -36,10 +37,11 @@ void add_tile_command(CLI::App& cli) {
     args->options.format = args->format == "pnts" ? tiler::Format::Pnts : tiler::Format::Glb;
     args->options.max_memory = tiler::parse_size(args->memory);
     tiler::TileStats s = tiler::build_tileset(args->options);
-    std::printf("tiled %llu points into %llu tiles (depth %d, %zu chunks, root spacing %.3f m) in "
-                "%.2f s: %.2f M points/s\n",
-                static_cast<unsigned long long>(s.points), static_cast<unsigned long long>(s.tiles),
-                s.depth, s.chunks, s.root_spacing, s.seconds, double(s.points) / s.seconds / 1e6);
+    std::printf(
+        "tiled %llu points into %llu tiles (depth %d, %zu chunks, root spacing %.3f m) in "
+        "%.2f s: %.2f M points/s\n",
+        static_cast<unsigned long long>(s.points), static_cast<unsigned long long>(s.tiles),
+        s.depth, s.chunks, s.root_spacing, s.seconds, double(s.points) / s.seconds / 1e6);
   });
 }
 

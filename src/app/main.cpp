@@ -1,4 +1,4 @@
-// The stipple command line: render, info, generate, bench.
+// The stipple command line: render, view, info, generate, bench, plugins.
 #include <cstdio>
 #include <exception>
 
@@ -9,13 +9,15 @@
 #include "core/log.hpp"
 
 int main(int argc, char** argv) {
-  CLI::App cli{"stipple: a point-cloud engine on WebGPU (LAS/LAZ/COPC, headless rendering)"};
+  CLI::App cli{
+      "stipple: a point-cloud engine on WebGPU (LAS/LAZ/COPC, headless rendering, viewer)"};
   cli.set_version_flag("--version", "stipple 0.1.0");
   cli.require_subcommand(1);
   int verbosity = 0;
   cli.add_flag("-v,--verbose", verbosity, "More log output (repeat for more)");
   cli.parse_complete_callback([&] { stipple::init_logging(verbosity); });
   stipple::app::add_render_command(cli);
+  stipple::app::add_view_command(cli);
   stipple::app::add_info_command(cli);
   stipple::app::add_generate_command(cli);
   stipple::app::add_bench_command(cli);

@@ -174,8 +174,8 @@ void finish_cloud(PointCloud& cloud) {
   cloud.attributes.intensity_percentiles = percentiles(intensity, 0.02, 0.98);
 }
 
-PointCloud generate_scene_cloud(const SceneParams& params) {
-  const uint64_t block = 1 << 20;
+PointCloud generate_scene_cloud(const SceneParams& params, size_t chunk_points) {
+  const uint64_t block = std::max<uint64_t>(1, std::min<uint64_t>(chunk_points, 1 << 20));
   const uint64_t blocks = (params.point_count + block - 1) / block;
   std::vector<PointCloud> parts(blocks);
   ThreadPool pool;

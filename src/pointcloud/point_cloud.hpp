@@ -79,7 +79,8 @@ void finish_cloud(PointCloud& cloud);
 
 // The built-in procedural scene as a cloud, generated in parallel (1M-point chunks).
 struct SceneParams;
-PointCloud generate_scene_cloud(const SceneParams& params);
+// Chunks hold at most chunk_points points (capped at 1M, the generation block).
+PointCloud generate_scene_cloud(const SceneParams& params, size_t chunk_points = 1 << 20);
 
 uint32_t pack_rgba(uint8_t r, uint8_t g, uint8_t b, uint8_t a = 255);
 
