@@ -10,27 +10,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include "test_util.hpp"
+
+using namespace stipple;
+
 namespace fs = std::filesystem;
 
 namespace {
-
-struct Result {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr together
-};
-
-Result run(const std::string& args) {
-  std::string command = std::string(STIPPLE_BINARY) + " " + args + " 2>&1";
-  Result r;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buffer;
-  size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) r.output.append(buffer.data(), n);
-  int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
-}
 
 class Bench : public ::testing::TestWithParam<std::string> {};
 
@@ -43,8 +29,8 @@ TEST_P(Bench, SuballocWritesJson) {
        GetParam());
   fs::create_directories(dir);
   fs::path json_path = dir / "suballoc.json";
-  auto r = run("bench suballoc --count 200 --touch --free-order random --backend " + GetParam() +
-               " --json " + json_path.string());
+  auto r = test::run_stipple("bench suballoc --count 200 --touch --free-order random --backend " +
+                             GetParam() + " --json " + json_path.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("Page (MB)"), std::string::npos) << r.output;
   std::ifstream in(json_path);
@@ -78,8 +64,8 @@ TEST_P(Bench, SuballocWritesJson) {
 }
 
 TEST(BenchArgs, BadArgumentsFail) {
-  EXPECT_NE(run("bench").exit_code, 0);
-  auto r = run("bench suballoc --count 10 --min-kb 512 --max-kb 128");
+  EXPECT_NE(test::run_stipple("bench").exit_code, 0);
+  auto r = test::run_stipple("bench suballoc --count 10 --min-kb 512 --max-kb 128");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("--min-kb"), std::string::npos) << r.output;
 }

@@ -19,24 +19,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Result {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr together
-};
-
-Result run(const std::string& args) {
-  std::string command = std::string(STIPPLE_BINARY) + " " + args + " 2>&1";
-  Result r;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buffer;
-  size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) r.output.append(buffer.data(), n);
-  int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
-}
-
 fs::path temp_dir() {
   fs::path dir =
       fs::temp_directory_path() /
@@ -53,16 +35,17 @@ void write_file(const fs::path& path, const std::string& bytes) {
 }  // namespace
 
 TEST(Cli, HelpListsCommands) {
-  auto r = run("--help");
+  auto r = test::run_stipple("--help");
   EXPECT_EQ(r.exit_code, 0);
   for (const char* cmd : {"render", "info", "generate"})
     EXPECT_NE(r.output.find(cmd), std::string::npos) << cmd;
-  EXPECT_EQ(run("render --help").exit_code, 0);
+  EXPECT_EQ(test::run_stipple("render --help").exit_code, 0);
 }
 
 TEST(Cli, RenderBuiltInScene) {
   fs::path out = temp_dir() / "scene.png";
-  auto r = run("render --scene-points 200000 --width 320 --height 200 -o " + out.string());
+  auto r =
+      test::run_stipple("render --scene-points 200000 --width 320 --height 200 -o " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   auto image = gpu::read_png(out);
   EXPECT_EQ(image.width, 320u);
@@ -80,8 +63,9 @@ TEST(Cli, BackendsAgreeOnAutzen) {
   STIPPLE_REQUIRE_DATA(path, "las/autzen_trim.las");
   fs::path dir = temp_dir();
   for (const char* backend : {"dawn", "wgpu"}) {
-    auto r = run(fmt::format("render {} -o {}/{}.png --width 1280 --height 720 --backend {}",
-                             path.string(), dir.string(), backend, backend));
+    auto r = test::run_stipple(
+        fmt::format("render {} -o {}/{}.png --width 1280 --height 720 --backend {}", path.string(),
+                    dir.string(), backend, backend));
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_NE(r.output.find("rendered 110000 points"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find(std::string("with ") + backend), std::string::npos) << r.output;
@@ -95,7 +79,7 @@ TEST(Cli, BackendsAgreeOnAutzen) {
 
 TEST(Cli, InfoReportsHeaderFacts) {
   STIPPLE_REQUIRE_DATA(autzen, "laz/autzen_trim.laz");
-  auto r = run("info " + autzen.string());
+  auto r = test::run_stipple("info " + autzen.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("LAS 1.2, point format 3"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("110000"), std::string::npos) << r.output;
@@ -105,13 +89,13 @@ TEST(Cli, InfoReportsHeaderFacts) {
   EXPECT_NE(r.output.find("Lambert_Conformal_Conic"), std::string::npos) << r.output;
 
   STIPPLE_REQUIRE_DATA(geographic, "las/epsg_4326.las");
-  r = run("info --json " + geographic.string());
+  r = test::run_stipple("info --json " + geographic.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("\"geographic\": true"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("\"epsg\": 4326"), std::string::npos) << r.output;
 
   STIPPLE_REQUIRE_DATA(copc, "laz/lone-star.copc.laz");
-  r = run("info " + copc.string());
+  r = test::run_stipple("info " + copc.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("LAS 1.4, point format 6"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("COPC"), std::string::npos) << r.output;
@@ -120,7 +104,7 @@ TEST(Cli, InfoReportsHeaderFacts) {
 
 TEST(Cli, GpuInfo) {
   for (const char* backend : {"dawn", "wgpu"}) {
-    auto r = run(std::string("info --gpu --backend ") + backend);
+    auto r = test::run_stipple(std::string("info --gpu --backend ") + backend);
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_NE(r.output.find(std::string("WebGPU implementation: ") + backend), std::string::npos);
     EXPECT_NE(r.output.find("maxStorageBufferBindingSize"), std::string::npos);
@@ -130,15 +114,15 @@ TEST(Cli, GpuInfo) {
 
 TEST(Cli, GenerateWritesReadableLas) {
   fs::path out = temp_dir() / "gen.las";
-  auto r = run("generate -n 300000 -o " + out.string());
+  auto r = test::run_stipple("generate -n 300000 -o " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  r = run("info " + out.string());
+  r = test::run_stipple("info " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("LAS 1.4, point format 7"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("300000"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("32633"), std::string::npos) << r.output;
   fs::path png = out.parent_path() / "gen.png";
-  r = run("render " + out.string() + " --width 200 --height 150 -o " + png.string());
+  r = test::run_stipple("render " + out.string() + " --width 200 --height 150 -o " + png.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("rendered 300000 points"), std::string::npos) << r.output;
 }
@@ -162,19 +146,19 @@ TEST(Cli, BadInputsFailCleanly) {
     for (const char* cmd : {"info", "render"}) {
       std::string args = std::string(cmd) + " " + (dir / c.name).string();
       if (std::string(cmd) == "render") args += " -o " + png.string();
-      auto r = run(args);
+      auto r = test::run_stipple(args);
       EXPECT_EQ(r.exit_code, 1) << cmd << " " << c.name << ": " << r.output;
       EXPECT_NE(r.output.find(c.expect), std::string::npos) << r.output;
       EXPECT_NE(r.output.find("error"), std::string::npos) << r.output;
     }
     EXPECT_FALSE(fs::exists(png)) << c.name;
   }
-  auto r = run("render " + (dir / "missing.las").string());
+  auto r = test::run_stipple("render " + (dir / "missing.las").string());
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("missing.las"), std::string::npos) << r.output;
-  r = run("render --camera 1,2,3 -o " + (dir / "x.png").string());
+  r = test::run_stipple("render --camera 1,2,3 -o " + (dir / "x.png").string());
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("--camera"), std::string::npos) << r.output;
-  r = run("render --backend vulkan");
+  r = test::run_stipple("render --backend vulkan");
   EXPECT_NE(r.exit_code, 0);
 }

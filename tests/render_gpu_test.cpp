@@ -234,20 +234,9 @@ TEST_P(Render, AutzenShowsAllPointsInTheirColours) {
   auto cloud = pc::load_point_cloud({path}, options);
   ASSERT_EQ(cloud.point_count, 110000u);
   // The data's own mean colour (8-bit values stored in 16-bit fields).
-  double data_mean[3] = {0, 0, 0};
-  {
-    io::LasReader reader(path);
-    io::PointBatch batch;
-    while (reader.read(batch, 1 << 16)) {
-    }
-    ASSERT_EQ(batch.rgb.size(), 110000u);
-    for (auto c : batch.rgb) {
-      data_mean[0] += c.r;
-      data_mean[1] += c.g;
-      data_mean[2] += c.b;
-    }
-    for (double& m : data_mean) m /= double(batch.rgb.size());
-  }
+  size_t colored = 0;
+  const auto data_mean = test::mean_rgb(path, &colored);
+  ASSERT_EQ(colored, 110000u);
   const uint32_t w = 640, h = 360;
   Camera camera = frame_box(cloud.world_bounds, double(w) / h);
   auto gpu_cloud = pc::upload_point_cloud(*ctx, cloud);

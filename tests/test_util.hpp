@@ -1,11 +1,16 @@
 #pragma once
 // Shared helpers for tests: where the real LiDAR data lives, image statistics.
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
 
 #include <gtest/gtest.h>
 
+#include "io/las.hpp"
 #include "renderer/gpu.hpp"
 
 namespace stipple::test {
@@ -58,6 +63,47 @@ inline double differing_fraction(const gpu::Image& a, const gpu::Image& b, int t
         break;
       }
   return double(diff) / double(n);
+}
+
+struct CommandResult {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+// Runs a shell command, capturing its output and exit code (128 + signal when killed).
+inline CommandResult run_command(const std::string& command) {
+  CommandResult r;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  std::array<char, 4096> buffer;
+  size_t n;
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) r.output.append(buffer.data(), n);
+  int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+// The `stipple` binary of this build with arguments.
+inline CommandResult run_stipple(const std::string& args) {
+  return run_command(std::string(STIPPLE_BINARY) + " " + args);
+}
+
+// Mean 8-bit RGB of every point of a LAS/LAZ file whose 16-bit fields hold 8-bit values
+// (autzen_trim); the reference that rendered images are compared with.
+inline std::array<double, 3> mean_rgb(const std::filesystem::path& path, size_t* count = nullptr) {
+  io::LasReader reader(path);
+  io::PointBatch batch;
+  while (reader.read(batch, 1 << 16)) {
+  }
+  std::array<double, 3> mean{0, 0, 0};
+  for (auto c : batch.rgb) {
+    mean[0] += c.r;
+    mean[1] += c.g;
+    mean[2] += c.b;
+  }
+  for (double& m : mean) m /= double(std::max<size_t>(1, batch.rgb.size()));
+  if (count) *count = batch.rgb.size();
+  return mean;
 }
 
 }  // namespace stipple::test

@@ -89,8 +89,8 @@ inline Bytes make_subtree(const nlohmann::json& j, Bytes bin) {
 
 inline void write_file(const std::filesystem::path& path, const Bytes& b) {
   std::filesystem::create_directories(path.parent_path());
-  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(b.data()),
-                                              std::streamsize(b.size()));
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(b.data()), std::streamsize(b.size()));
 }
 inline void write_json(const std::filesystem::path& path, const nlohmann::json& j) {
   std::filesystem::create_directories(path.parent_path());
@@ -124,28 +124,28 @@ inline int write_grid_tileset(const std::filesystem::path& dir, int levels, uint
                               double extent = 1000.0) {
   int count = 0;
   std::function<nlohmann::json(int, double, double, double)> tile = [&](int level, double x0,
-                                                                         double y0, double size) {
+                                                                        double y0, double size) {
     std::string name = "t" + std::to_string(count++) + ".pnts";
     double rtc[3] = {x0, y0, 0.0};
     write_file(dir / name, grid_pnts(points, float(size), rtc, uint8_t(40 * level)));
-    nlohmann::json t = {
-        {"boundingVolume",
-         {{"box", {x0 + size / 2, y0 + size / 2, size / 2, size / 2, 0, 0, 0, size / 2, 0, 0, 0,
-                   size / 2}}}},
-        {"geometricError", size / 16.0},
-        {"content", {{"uri", name}}}};
+    nlohmann::json t = {{"boundingVolume",
+                         {{"box",
+                           {x0 + size / 2, y0 + size / 2, size / 2, size / 2, 0, 0, 0, size / 2, 0,
+                            0, 0, size / 2}}}},
+                        {"geometricError", size / 16.0},
+                        {"content", {{"uri", name}}}};
     if (level + 1 < levels) {
       t["children"] = nlohmann::json::array();
       for (int c = 0; c < 4; ++c)
-        t["children"].push_back(tile(level + 1, x0 + (c & 1) * size / 2, y0 + (c >> 1) * size / 2, size / 2));
+        t["children"].push_back(
+            tile(level + 1, x0 + (c & 1) * size / 2, y0 + (c >> 1) * size / 2, size / 2));
     }
     return t;
   };
   nlohmann::json root = tile(0, 0, 0, extent);
   root["refine"] = "REPLACE";
-  write_json(dir / "tileset.json", {{"asset", {{"version", "1.1"}}},
-                                    {"geometricError", extent / 8},
-                                    {"root", root}});
+  write_json(dir / "tileset.json",
+             {{"asset", {{"version", "1.1"}}}, {"geometricError", extent / 8}, {"root", root}});
   return count;
 }
 

@@ -65,8 +65,9 @@ class Nginx {
     port_ = free_port();
     fs::create_directories(dir / "tmp");
     std::string d = dir.string();
-    std::ofstream(dir / "nginx.conf") << "daemon off;\nworker_processes 1;\nerror_log " << d
-        << "/error.log;\npid " << d << "/nginx.pid;\nevents { worker_connections 64; }\n"
+    std::ofstream(dir / "nginx.conf")
+        << "daemon off;\nworker_processes 1;\nerror_log " << d << "/error.log;\npid " << d
+        << "/nginx.pid;\nevents { worker_connections 64; }\n"
         << "http {\n access_log off;\n client_body_temp_path " << d << "/tmp;\n proxy_temp_path "
         << d << "/tmp;\n fastcgi_temp_path " << d << "/tmp;\n uwsgi_temp_path " << d
         << "/tmp;\n scgi_temp_path " << d << "/tmp;\n"
@@ -75,11 +76,16 @@ class Nginx {
         << " server {\n  listen 127.0.0.1:" << port_ << ";\n  root " << d << "/www;\n"
         << "  location /flaky/ { try_files $uri =503; }\n"
         << "  location /slow/ { limit_rate 16k; }\n"
-        << "  location /html/ { default_type text/html; return 200 '<html><body>login</body></html>'; }\n"
+        << "  location /html/ { default_type text/html; return 200 "
+           "'<html><body>login</body></html>'; }\n"
         << " }\n}\n";
     std::string conf = (dir / "nginx.conf").string(), prefix = d + "/";
-    std::vector<char*> argv = {const_cast<char*>(binary.c_str()), const_cast<char*>("-p"),
-                               prefix.data(), const_cast<char*>("-c"), conf.data(), nullptr};
+    std::vector<char*> argv = {const_cast<char*>(binary.c_str()),
+                               const_cast<char*>("-p"),
+                               prefix.data(),
+                               const_cast<char*>("-c"),
+                               conf.data(),
+                               nullptr};
     if (posix_spawn(&pid_, binary.c_str(), nullptr, nullptr, argv.data(), environ) != 0) pid_ = -1;
     for (int i = 0; i < 100 && pid_ > 0 && !can_connect(port_); ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -123,13 +129,15 @@ TEST(TilesHttp, FaultsAreReportedPerTileAndLoadingCompletes) {
   write_file(www / "slow/t/slow.pnts", big);
   Bytes truncated(good.begin(), good.begin() + std::ptrdiff_t(good.size() / 2));
   write_file(www / "t/truncated.pnts", truncated);
-  json root = {{"boundingVolume", {{"box", {30, 5, 5, 30, 0, 0, 0, 5, 0, 0, 0, 5}}}},
-               {"geometricError", 1e6},
-               {"refine", "ADD"},
-               {"children",
-                {leaf(0, "t/good.pnts"), leaf(10, "missing.pnts"), leaf(20, "flaky/late.pnts"),
-                 leaf(30, "slow/t/slow.pnts"), leaf(40, "t/truncated.pnts"), leaf(50, "html/x.pnts")}}};
-  write_json(www / "tileset.json", {{"asset", {{"version", "1.1"}}}, {"geometricError", 1e6}, {"root", root}});
+  json root = {
+      {"boundingVolume", {{"box", {30, 5, 5, 30, 0, 0, 0, 5, 0, 0, 0, 5}}}},
+      {"geometricError", 1e6},
+      {"refine", "ADD"},
+      {"children",
+       {leaf(0, "t/good.pnts"), leaf(10, "missing.pnts"), leaf(20, "flaky/late.pnts"),
+        leaf(30, "slow/t/slow.pnts"), leaf(40, "t/truncated.pnts"), leaf(50, "html/x.pnts")}}};
+  write_json(www / "tileset.json",
+             {{"asset", {{"version", "1.1"}}}, {"geometricError", 1e6}, {"root", root}});
   Nginx server(dir, nginx);
   ASSERT_TRUE(server.running()) << "nginx did not start; see " << (dir / "error.log");
 

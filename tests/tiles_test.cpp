@@ -28,7 +28,8 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path temp_dir(const std::string& name) {
-  fs::path p = fs::temp_directory_path() / ("stipple-tiles-" + name + "-" + std::to_string(::getpid()));
+  fs::path p =
+      fs::temp_directory_path() / ("stipple-tiles-" + name + "-" + std::to_string(::getpid()));
   fs::remove_all(p);
   fs::create_directories(p);
   return p;
@@ -36,7 +37,8 @@ fs::path temp_dir(const std::string& name) {
 
 // Writes a seed for the fuzzer when STIPPLE_WRITE_TILE_SEEDS names a folder.
 void seed(const std::string& name, const Bytes& b) {
-  if (const char* dir = std::getenv("STIPPLE_WRITE_TILE_SEEDS")) write_file(fs::path(dir) / name, b);
+  if (const char* dir = std::getenv("STIPPLE_WRITE_TILE_SEEDS"))
+    write_file(fs::path(dir) / name, b);
 }
 
 uint32_t rgba(uint8_t r, uint8_t g, uint8_t b, uint8_t a = 255) {
@@ -135,7 +137,8 @@ TEST(Pnts, Rgb565ConstantRgbaAndShortBatchIds) {
   EXPECT_EQ(c.rgba[0], rgba(255, 0, 0));
   EXPECT_EQ(c.rgba[1], rgba(0, 255, 0));
   EXPECT_EQ(c.batch_ids, (std::vector<uint32_t>{3, 2}));
-  json ft2 = {{"POINTS_LENGTH", 2}, {"POSITION", {{"byteOffset", 0}}}, {"CONSTANT_RGBA", {9, 8, 7, 6}}};
+  json ft2 = {
+      {"POINTS_LENGTH", 2}, {"POSITION", {{"byteOffset", 0}}}, {"CONSTANT_RGBA", {9, 8, 7, 6}}};
   io::PointContent k = io::decode_pnts(make_pnts(ft2, bin), "k.pnts");
   EXPECT_TRUE(k.constant_color);
   EXPECT_EQ(k.rgba[1], rgba(9, 8, 7, 6));
@@ -204,18 +207,24 @@ TEST(Pnts, MalformedInputIsRejectedClearly) {
   };
   Bytes truncated(good.begin(), good.end() - 4);
   rejects(truncated, "truncated");
-  rejects(make_pnts({{"POINTS_LENGTH", 2}, {"POSITION", {{"byteOffset", 0}}}}, bin), "too many points");
-  rejects(make_pnts({{"POINTS_LENGTH", 1}, {"POSITION", {{"byteOffset", 4000}}}}, bin), "offset outside");
+  rejects(make_pnts({{"POINTS_LENGTH", 2}, {"POSITION", {{"byteOffset", 0}}}}, bin),
+          "too many points");
+  rejects(make_pnts({{"POINTS_LENGTH", 1}, {"POSITION", {{"byteOffset", 4000}}}}, bin),
+          "offset outside");
   rejects(make_pnts({{"POINTS_LENGTH", 1}}, bin), "no positions");
-  rejects(make_pnts({{"POINTS_LENGTH", 4e9}, {"POSITION", {{"byteOffset", 0}}}}, bin), "huge count");
+  rejects(make_pnts({{"POINTS_LENGTH", 4e9}, {"POSITION", {{"byteOffset", 0}}}}, bin),
+          "huge count");
   Bytes bad_json = good;
   bad_json[28] = '[';
   rejects(bad_json, "bad json");
   Bytes ids = bin;
   ids.push_back(5);
-  rejects(make_pnts({{"POINTS_LENGTH", 1}, {"POSITION", {{"byteOffset", 0}}},
+  rejects(make_pnts({{"POINTS_LENGTH", 1},
+                     {"POSITION", {{"byteOffset", 0}}},
                      {"BATCH_ID", {{"byteOffset", 12}, {"componentType", "UNSIGNED_BYTE"}}},
-                     {"BATCH_LENGTH", 2}}, ids), "batch id out of range");
+                     {"BATCH_LENGTH", 2}},
+                    ids),
+          "batch id out of range");
 }
 
 TEST(Glb, InterleavedPointsWithNodeTransformsAndRtc) {
@@ -227,19 +236,26 @@ TEST(Glb, InterleavedPointsWithNodeTransformsAndRtc) {
   };
   vertex(1, 2, 3, {255, 0, 0, 255});
   vertex(-1, 0, 0, {0, 255, 0, 128});
-  json j = {{"asset", {{"version", "2.0"}}},
-            {"extensionsUsed", {"CESIUM_RTC"}},
-            {"extensions", {{"CESIUM_RTC", {{"center", {100.0, 200.0, 300.0}}}}}},
-            {"buffers", {{{"byteLength", bin.size()}}}},
-            {"bufferViews", {{{"buffer", 0}, {"byteLength", bin.size()}, {"byteStride", 16}}}},
-            {"accessors",
-             {{{"bufferView", 0}, {"componentType", 5126}, {"count", 2}, {"type", "VEC3"}},
-              {{"bufferView", 0}, {"byteOffset", 12}, {"componentType", 5121}, {"normalized", true},
-               {"count", 2}, {"type", "VEC4"}}}},
-            {"meshes", {{{"primitives", {{{"mode", 0}, {"attributes", {{"POSITION", 0}, {"COLOR_0", 1}}}}}}}}},
-            {"nodes", {{{"translation", {10.0, 0.0, 0.0}}, {"children", {1}}},
-                       {{"mesh", 0}, {"scale", {2.0, 2.0, 2.0}}}}},
-            {"scenes", {{{"nodes", {0}}}}}};
+  json j = {
+      {"asset", {{"version", "2.0"}}},
+      {"extensionsUsed", {"CESIUM_RTC"}},
+      {"extensions", {{"CESIUM_RTC", {{"center", {100.0, 200.0, 300.0}}}}}},
+      {"buffers", {{{"byteLength", bin.size()}}}},
+      {"bufferViews", {{{"buffer", 0}, {"byteLength", bin.size()}, {"byteStride", 16}}}},
+      {"accessors",
+       {{{"bufferView", 0}, {"componentType", 5126}, {"count", 2}, {"type", "VEC3"}},
+        {{"bufferView", 0},
+         {"byteOffset", 12},
+         {"componentType", 5121},
+         {"normalized", true},
+         {"count", 2},
+         {"type", "VEC4"}}}},
+      {"meshes",
+       {{{"primitives", {{{"mode", 0}, {"attributes", {{"POSITION", 0}, {"COLOR_0", 1}}}}}}}}},
+      {"nodes",
+       {{{"translation", {10.0, 0.0, 0.0}}, {"children", {1}}},
+        {{"mesh", 0}, {"scale", {2.0, 2.0, 2.0}}}}},
+      {"scenes", {{{"nodes", {0}}}}}};
   Bytes data = make_glb(j, bin);
   seed("points.glb", data);
   io::PointContent c = io::decode_glb_points(data, "p.glb");
@@ -268,22 +284,36 @@ TEST(Glb, QuantizedPositionsAndMeshoptCompression) {
   pad(bin, 4, 0);
   size_t color_at = bin.size();
   append(bin, colors);
-  json j = {{"asset", {{"version", "2.0"}}},
-            {"extensionsRequired", {"KHR_mesh_quantization", "EXT_meshopt_compression"}},
-            {"extensionsUsed", {"KHR_mesh_quantization", "EXT_meshopt_compression"}},
-            {"buffers", {{{"byteLength", bin.size()}},
-                         {{"byteLength", 24}, {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}}}},
-            {"bufferViews",
-             {{{"buffer", 1}, {"byteLength", 24}, {"byteStride", 8},
-               {"extensions", {{"EXT_meshopt_compression",
-                                {{"buffer", 0}, {"byteOffset", 0}, {"byteLength", encoded.size()},
-                                 {"byteStride", 8}, {"count", 3}, {"mode", "ATTRIBUTES"}}}}}},
-              {{"buffer", 0}, {"byteOffset", color_at}, {"byteLength", 18}}}},
-            {"accessors",
-             {{{"bufferView", 0}, {"componentType", 5122}, {"count", 3}, {"type", "VEC3"}},
-              {{"bufferView", 1}, {"componentType", 5123}, {"normalized", true}, {"count", 3}, {"type", "VEC3"}}}},
-            {"meshes", {{{"primitives", {{{"mode", 0}, {"attributes", {{"POSITION", 0}, {"COLOR_0", 1}}}}}}}}},
-            {"nodes", {{{"mesh", 0}, {"scale", {0.01, 0.01, 0.01}}}}}};
+  json j = {
+      {"asset", {{"version", "2.0"}}},
+      {"extensionsRequired", {"KHR_mesh_quantization", "EXT_meshopt_compression"}},
+      {"extensionsUsed", {"KHR_mesh_quantization", "EXT_meshopt_compression"}},
+      {"buffers",
+       {{{"byteLength", bin.size()}},
+        {{"byteLength", 24}, {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}}}},
+      {"bufferViews",
+       {{{"buffer", 1},
+         {"byteLength", 24},
+         {"byteStride", 8},
+         {"extensions",
+          {{"EXT_meshopt_compression",
+            {{"buffer", 0},
+             {"byteOffset", 0},
+             {"byteLength", encoded.size()},
+             {"byteStride", 8},
+             {"count", 3},
+             {"mode", "ATTRIBUTES"}}}}}},
+        {{"buffer", 0}, {"byteOffset", color_at}, {"byteLength", 18}}}},
+      {"accessors",
+       {{{"bufferView", 0}, {"componentType", 5122}, {"count", 3}, {"type", "VEC3"}},
+        {{"bufferView", 1},
+         {"componentType", 5123},
+         {"normalized", true},
+         {"count", 3},
+         {"type", "VEC3"}}}},
+      {"meshes",
+       {{{"primitives", {{{"mode", 0}, {"attributes", {{"POSITION", 0}, {"COLOR_0", 1}}}}}}}}},
+      {"nodes", {{{"mesh", 0}, {"scale", {0.01, 0.01, 0.01}}}}}};
   Bytes data = make_glb(j, bin);
   seed("meshopt.glb", data);
   io::PointContent c = io::decode_glb_points(data, "m.glb");
@@ -317,8 +347,9 @@ TEST(Subtree, BitstreamsConstantsAndIndexing) {
   EXPECT_EQ(io::morton_index(0, 0, 1, 8), 4u);
   Bytes bin = {0b00000111, 0, 0b00000001, 0};  // tiles: root + children 0, 1; content: root
   json j = {{"buffers", {{{"byteLength", 4}}}},
-            {"bufferViews", {{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", 1}},
-                             {{"buffer", 0}, {"byteOffset", 2}, {"byteLength", 1}}}},
+            {"bufferViews",
+             {{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", 1}},
+              {{"buffer", 0}, {"byteOffset", 2}, {"byteLength", 1}}}},
             {"tileAvailability", {{"bitstream", 0}, {"availableCount", 3}}},
             {"contentAvailability", {{{"bitstream", 1}}}},
             {"childSubtreeAvailability", {{"constant", 0}}}};
@@ -346,26 +377,30 @@ TEST(Tileset, ImplicitQuadtreeWithChildSubtrees) {
   // Root subtree (2 levels): root + children 0 and 3; content on all three; child subtree
   // under morton 0 of level 2 (tile (2,0,0)) available.
   json root_sub = {{"buffers", {{{"byteLength", 8}}}},
-                   {"bufferViews", {{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", 1}},
-                                    {{"buffer", 0}, {"byteOffset", 1}, {"byteLength", 2}}}},
+                   {"bufferViews",
+                    {{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", 1}},
+                     {{"buffer", 0}, {"byteOffset", 1}, {"byteLength", 2}}}},
                    {"tileAvailability", {{"bitstream", 0}}},
                    {"contentAvailability", {{{"bitstream", 0}}}},
                    {"childSubtreeAvailability", {{"bitstream", 1}}}};
-  write_file(dir / "subtrees/0.0.0.subtree", make_subtree(root_sub, {0b00010011, 0b1, 0, 0, 0, 0, 0, 0}));
+  write_file(dir / "subtrees/0.0.0.subtree",
+             make_subtree(root_sub, {0b00010011, 0b1, 0, 0, 0, 0, 0, 0}));
   json leaf_sub = {{"tileAvailability", {{"constant", 1}}},
                    {"contentAvailability", {{{"constant", 1}}}},
                    {"childSubtreeAvailability", {{"constant", 0}}}};
   write_json(dir / "subtrees/2.0.0.subtree", leaf_sub);  // JSON subtree with the binary name
   json ts = {{"asset", {{"version", "1.1"}}},
              {"geometricError", 100},
-             {"root", {{"boundingVolume", {{"box", {0, 0, 0, 8, 0, 0, 0, 8, 0, 0, 0, 1}}}},
-                       {"geometricError", 64},
-                       {"refine", "ADD"},
-                       {"content", {{"uri", "content/{level}/{x}_{y}.pnts"}}},
-                       {"implicitTiling", {{"subdivisionScheme", "QUADTREE"},
-                                           {"subtreeLevels", 2},
-                                           {"availableLevels", 4},
-                                           {"subtrees", {{"uri", "subtrees/{level}.{x}.{y}.subtree"}}}}}}}};
+             {"root",
+              {{"boundingVolume", {{"box", {0, 0, 0, 8, 0, 0, 0, 8, 0, 0, 0, 1}}}},
+               {"geometricError", 64},
+               {"refine", "ADD"},
+               {"content", {{"uri", "content/{level}/{x}_{y}.pnts"}}},
+               {"implicitTiling",
+                {{"subdivisionScheme", "QUADTREE"},
+                 {"subtreeLevels", 2},
+                 {"availableLevels", 4},
+                 {"subtrees", {{"uri", "subtrees/{level}.{x}.{y}.subtree"}}}}}}}};
   write_json(dir / "tileset.json", ts);
   io::Tileset t = io::load_tileset((dir / "tileset.json").string());
   EXPECT_TRUE(t.errors.empty()) << t.errors.front();
@@ -382,9 +417,10 @@ TEST(Tileset, ImplicitQuadtreeWithChildSubtrees) {
   EXPECT_NEAR(c1.box.half_axes[0].x, 4, 1e-12);
   EXPECT_NEAR(c1.box.half_axes[2].z, 1, 1e-12);  // quadtree: z not split
   EXPECT_EQ(c1.refine, io::Refine::Add);
-  const io::Tile& deep = *std::max_element(t.tiles.begin(), t.tiles.end(), [](const io::Tile& a, const io::Tile& b) {
-    return a.depth != b.depth ? a.depth < b.depth : a.contents < b.contents;
-  });
+  const io::Tile& deep =
+      *std::max_element(t.tiles.begin(), t.tiles.end(), [](const io::Tile& a, const io::Tile& b) {
+        return a.depth != b.depth ? a.depth < b.depth : a.contents < b.contents;
+      });
   EXPECT_EQ(deep.depth, 3u);
   EXPECT_DOUBLE_EQ(deep.geometric_error, 8);
   EXPECT_EQ(deep.contents[0], (dir / "content/3/1_1.pnts").string());
@@ -395,31 +431,34 @@ TEST(Tileset, ExternalTransformsRefineRegionAndCycles) {
   json a = {{"asset", {{"version", "1.0"}}},
             {"geometricError", 50},
             {"extensionsUsed", {"MY_vendor_ext"}},
-            {"root", {{"boundingVolume", {{"sphere", {0, 0, 0, 10}}}},
-                      {"geometricError", 40},
-                      {"refine", "ADD"},
-                      {"transform", {2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0, 100, 0, 0, 1}},
-                      {"children",
-                       {{{"boundingVolume", {{"box", {1, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1}}}},
-                         {"geometricError", 10},
-                         {"transform", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 5, 0, 1}},
-                         {"content", {{"uri", "sub/b.json"}}}},
-                        {{"boundingVolume", {{"region", {-1.3, 0.6, -1.29, 0.61, 0, 100}}}},
-                         {"geometricError", 5},
-                         {"contents", {{{"uri", "x.pnts"}}, {{"uri", "y.glb"}}}}},
-                        {{"boundingVolume", {{"box", {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1}}}},
-                         {"geometricError", 5},
-                         {"content", {{"uri", "cycle.json"}}}}}}}}};
+            {"root",
+             {{"boundingVolume", {{"sphere", {0, 0, 0, 10}}}},
+              {"geometricError", 40},
+              {"refine", "ADD"},
+              {"transform", {2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0, 100, 0, 0, 1}},
+              {"children",
+               {{{"boundingVolume", {{"box", {1, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1}}}},
+                 {"geometricError", 10},
+                 {"transform", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 5, 0, 1}},
+                 {"content", {{"uri", "sub/b.json"}}}},
+                {{"boundingVolume", {{"region", {-1.3, 0.6, -1.29, 0.61, 0, 100}}}},
+                 {"geometricError", 5},
+                 {"contents", {{{"uri", "x.pnts"}}, {{"uri", "y.glb"}}}}},
+                {{"boundingVolume", {{"box", {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1}}}},
+                 {"geometricError", 5},
+                 {"content", {{"uri", "cycle.json"}}}}}}}}};
   json b = {{"asset", {{"version", "1.1"}}},
             {"geometricError", 10},
-            {"root", {{"boundingVolume", {{"box", {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1}}}},
-                      {"geometricError", 2},
-                      {"content", {{"uri", "../c.pnts"}}}}}};
+            {"root",
+             {{"boundingVolume", {{"box", {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1}}}},
+              {"geometricError", 2},
+              {"content", {{"uri", "../c.pnts"}}}}}};
   json cycle = {{"asset", {{"version", "1.0"}}},
                 {"geometricError", 10},
-                {"root", {{"boundingVolume", {{"box", {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1}}}},
-                          {"geometricError", 2},
-                          {"content", {{"uri", "tileset.json"}}}}}};
+                {"root",
+                 {{"boundingVolume", {{"box", {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1}}}},
+                  {"geometricError", 2},
+                  {"content", {{"uri", "tileset.json"}}}}}};
   write_json(dir / "tileset.json", a);
   write_json(dir / "sub/b.json", b);
   write_json(dir / "cycle.json", cycle);
@@ -469,7 +508,8 @@ io::Tileset two_level(io::Refine refine) {
   auto box = [](double cx, double cy, double half) {
     io::Tile t;
     t.box.center = {cx, cy, 5};
-    t.box.half_axes = glm::dmat3(glm::dvec3(half, 0, 0), glm::dvec3(0, half, 0), glm::dvec3(0, 0, 5));
+    t.box.half_axes =
+        glm::dmat3(glm::dvec3(half, 0, 0), glm::dvec3(0, half, 0), glm::dvec3(0, 0, 5));
     t.contents = {"x"};
     return t;
   };

@@ -24,62 +24,35 @@ namespace {
 
 class View : public ::testing::TestWithParam<std::string> {};
 
-struct CommandResult {
-  int exit_code = -1;
-  std::string output;
-};
-
-CommandResult run(const std::string& command) {
-  CommandResult r;
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buffer;
-  size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) r.output.append(buffer.data(), n);
-  int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
-}
-
 }  // namespace
 
 TEST_P(View, WindowShowsAutzenWithThePanel) {
   STIPPLE_REQUIRE_DATA(path, "laz/autzen_trim.laz");
-  if (run("command -v xvfb-run").exit_code != 0) GTEST_SKIP() << "xvfb-run is not installed";
+  if (test::run_command("command -v xvfb-run").exit_code != 0)
+    GTEST_SKIP() << "xvfb-run is not installed";
   fs::path dir =
       fs::temp_directory_path() / fmt::format("stipple_view_{}_{}", GetParam(), ::getpid());
   fs::create_directories(dir);
   auto view = [&](const std::string& name, const std::string& extra) {
-    return run(
+    return test::run_command(
         fmt::format("xvfb-run -a -s '-screen 0 1600x900x24' {} view {} --backend {} --frames 60 "
                     "--screenshot {} {}",
                     STIPPLE_BINARY, path.string(), GetParam(), (dir / name).string(), extra));
   };
-  CommandResult plain = view("plain.png", "--no-ui");
+  test::CommandResult plain = view("plain.png", "--no-ui");
   if (plain.exit_code != 0 && plain.output.find("cannot open a window") != std::string::npos)
     GTEST_SKIP() << "no X display could be made: " << plain.output;
   ASSERT_EQ(plain.exit_code, 0) << plain.output;
-  CommandResult with_ui = view("ui.png", "");
+  test::CommandResult with_ui = view("ui.png", "");
   ASSERT_EQ(with_ui.exit_code, 0) << with_ui.output;
 
   gpu::Image image = gpu::read_png(dir / "plain.png");
   ASSERT_EQ(image.width, 1280u);
   ASSERT_EQ(image.height, 720u);
   // The data's own mean colour (8-bit values stored in 16-bit fields).
-  double data_mean[3] = {0, 0, 0};
-  {
-    io::LasReader reader(path);
-    io::PointBatch batch;
-    while (reader.read(batch, 1 << 16)) {
-    }
-    ASSERT_EQ(batch.rgb.size(), 110000u);
-    for (auto c : batch.rgb) {
-      data_mean[0] += c.r;
-      data_mean[1] += c.g;
-      data_mean[2] += c.b;
-    }
-    for (double& m : data_mean) m /= double(batch.rgb.size());
-  }
+  size_t colored = 0;
+  const auto data_mean = test::mean_rgb(path, &colored);
+  ASSERT_EQ(colored, 110000u);
   const uint8_t bg[3] = {18, 20, 26};  // the default background 0.07, 0.08, 0.1
   auto stats = test::coverage_stats(image, bg, 1);
   EXPECT_GT(stats.coverage, 0.10);

@@ -4,9 +4,9 @@
 #include <cstring>
 #include <set>
 
+#include <meshoptimizer.h>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/mat4x4.hpp>
-#include <meshoptimizer.h>
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
@@ -69,7 +69,7 @@ struct Gltf {
   json j;
   std::string name;
   DecodeLimits limits;
-  std::vector<std::vector<uint8_t>> owned;     // buffers from data: URIs or the resolver
+  std::vector<std::vector<uint8_t>> owned;  // buffers from data: URIs or the resolver
   std::vector<std::span<const uint8_t>> buffers;
   std::vector<std::span<const uint8_t>> views;  // resolved (decompressed) buffer views
   std::vector<uint32_t> view_strides;
@@ -95,14 +95,15 @@ struct Gltf {
         std::string uri = b["uri"].is_string() ? b["uri"].get<std::string>() : "";
         if (uri.rfind("data:", 0) == 0) {
           size_t comma = uri.find(',');
-          if (comma == std::string::npos || uri.substr(0, comma).find(";base64") == std::string::npos)
+          if (comma == std::string::npos ||
+              uri.substr(0, comma).find(";base64") == std::string::npos)
             fail("{}: buffer {} has a data: URI that is not base64", name, i);
           owned.push_back(decode_base64(std::string_view(uri).substr(comma + 1), name));
         } else if (resolver) {
           owned.push_back(resolver(uri));
         } else {
-          fail("{}: buffer {} refers to external file '{}', which this reader does not fetch",
-               name, i, uri);
+          fail("{}: buffer {} refers to external file '{}', which this reader does not fetch", name,
+               i, uri);
         }
         data = owned.back();
       }
@@ -117,7 +118,8 @@ struct Gltf {
     if (!list.is_array()) fail("{}: bufferViews is not an array", name);
     for (size_t i = 0; i < list.size(); ++i) {
       const json& v = list[i];
-      uint32_t stride = uint32_t(std::min<uint64_t>(uint_of(v, "byteStride", 0, name, "bufferView"), 1u << 20));
+      uint32_t stride =
+          uint32_t(std::min<uint64_t>(uint_of(v, "byteStride", 0, name, "bufferView"), 1u << 20));
       auto ext = v.find("extensions");
       if (ext != v.end() && ext->contains("EXT_meshopt_compression")) {
         views.push_back(decode_meshopt((*ext)["EXT_meshopt_compression"], i));
@@ -146,14 +148,15 @@ struct Gltf {
     if (offset > buffers[b].size() || buffers[b].size() - offset < length)
       fail("{}: compressed bufferView {} lies outside buffer {}", name, view, b);
     if (stride == 0 || stride > 256 || count > limits.max_points * 4)
-      fail("{}: compressed bufferView {} has invalid byteStride {} or count {}", name, view,
-           stride, count);
+      fail("{}: compressed bufferView {} has invalid byteStride {} or count {}", name, view, stride,
+           count);
     const uint8_t* src = buffers[b].data() + offset;
     owned.emplace_back(size_t(count * stride));
     auto& out = owned.back();
     int rc = 0;
     if (mode == "ATTRIBUTES") {
-      if (stride % 4 != 0) fail("{}: meshopt ATTRIBUTES stride {} is not a multiple of 4", name, stride);
+      if (stride % 4 != 0)
+        fail("{}: meshopt ATTRIBUTES stride {} is not a multiple of 4", name, stride);
       rc = meshopt_decodeVertexBuffer(out.data(), count, stride, src, length);
       if (rc == 0) {
         if (filter == "OCTAHEDRAL") {
@@ -169,8 +172,10 @@ struct Gltf {
         }
       }
     } else if (mode == "TRIANGLES" || mode == "INDICES") {
-      if (stride != 2 && stride != 4) fail("{}: meshopt index stride {} is not 2 or 4", name, stride);
-      if (mode == "TRIANGLES" && count % 3 != 0) fail("{}: meshopt TRIANGLES count is not a multiple of 3", name);
+      if (stride != 2 && stride != 4)
+        fail("{}: meshopt index stride {} is not 2 or 4", name, stride);
+      if (mode == "TRIANGLES" && count % 3 != 0)
+        fail("{}: meshopt TRIANGLES count is not a multiple of 3", name);
       rc = mode == "TRIANGLES"
                ? meshopt_decodeIndexBuffer(out.data(), count, stride, src, length)
                : meshopt_decodeIndexSequence(out.data(), count, stride, src, length);
@@ -188,25 +193,38 @@ struct Gltf {
     int type_size = 0;
     uint64_t ct = uint_of(a, "componentType", 0, name, "accessor");
     switch (ct) {
-      case 5120: case 5121: type_size = 1; break;
-      case 5122: case 5123: type_size = 2; break;
-      case 5125: case 5126: type_size = 4; break;
-      default: fail("{}: accessor {} has unknown componentType {}", name, index, ct);
+      case 5120:
+      case 5121:
+        type_size = 1;
+        break;
+      case 5122:
+      case 5123:
+        type_size = 2;
+        break;
+      case 5125:
+      case 5126:
+        type_size = 4;
+        break;
+      default:
+        fail("{}: accessor {} has unknown componentType {}", name, index, ct);
     }
     std::string type = a.value("type", "");
     components = detail::type_components(type);
     if (components == 0) fail("{}: accessor {} has unsupported type '{}'", name, index, type);
-    if (a.contains("sparse")) fail("{}: accessor {} is sparse, which is not supported", name, index);
+    if (a.contains("sparse"))
+      fail("{}: accessor {} is sparse, which is not supported", name, index);
     bool normalized = a.value("normalized", false);
     uint64_t count = uint_of(a, "count", 0, name, "accessor");
-    if (count > limits.max_points) fail("{}: accessor {} count {} exceeds the limit", name, index, count);
+    if (count > limits.max_points)
+      fail("{}: accessor {} count {} exceeds the limit", name, index, count);
     std::vector<double> out(count * components, 0.0);
     if (!a.contains("bufferView")) return out;  // all zeros by the specification
     size_t v = index_of(a, "bufferView", views.size(), name, "accessor");
     uint64_t offset = uint_of(a, "byteOffset", 0, name, "accessor");
     uint64_t elem = uint64_t(type_size) * components;
     uint64_t stride = view_strides[v] ? view_strides[v] : elem;
-    if (stride < elem) fail("{}: accessor {} stride {} is smaller than its element", name, index, stride);
+    if (stride < elem)
+      fail("{}: accessor {} stride {} is smaller than its element", name, index, stride);
     if (count > 0 && (offset > views[v].size() || (views[v].size() - offset < elem) ||
                       (views[v].size() - offset - elem) / stride < count - 1))
       fail("{}: accessor {} ({} elements, stride {}, offset {}) runs past bufferView {} ({} bytes)",
@@ -218,12 +236,41 @@ struct Gltf {
         const uint8_t* q = p + k * type_size;
         double x = 0;
         switch (ct) {
-          case 5120: { int8_t t; std::memcpy(&t, q, 1); x = normalized ? std::max(t / 127.0, -1.0) : t; break; }
-          case 5121: { uint8_t t = *q; x = normalized ? t / 255.0 : t; break; }
-          case 5122: { int16_t t; std::memcpy(&t, q, 2); x = normalized ? std::max(t / 32767.0, -1.0) : t; break; }
-          case 5123: { uint16_t t; std::memcpy(&t, q, 2); x = normalized ? t / 65535.0 : t; break; }
-          case 5125: { uint32_t t; std::memcpy(&t, q, 4); x = t; break; }
-          default: { float t; std::memcpy(&t, q, 4); x = t; break; }
+          case 5120: {
+            int8_t t;
+            std::memcpy(&t, q, 1);
+            x = normalized ? std::max(t / 127.0, -1.0) : t;
+            break;
+          }
+          case 5121: {
+            uint8_t t = *q;
+            x = normalized ? t / 255.0 : t;
+            break;
+          }
+          case 5122: {
+            int16_t t;
+            std::memcpy(&t, q, 2);
+            x = normalized ? std::max(t / 32767.0, -1.0) : t;
+            break;
+          }
+          case 5123: {
+            uint16_t t;
+            std::memcpy(&t, q, 2);
+            x = normalized ? t / 65535.0 : t;
+            break;
+          }
+          case 5125: {
+            uint32_t t;
+            std::memcpy(&t, q, 4);
+            x = t;
+            break;
+          }
+          default: {
+            float t;
+            std::memcpy(&t, q, 4);
+            x = t;
+            break;
+          }
         }
         out[i * components + k] = x;
       }
@@ -269,8 +316,11 @@ glm::dmat4 node_matrix(const json& node, const std::string& name) {
 
 }  // namespace
 
-PointContent decode_glb_points(std::span<const uint8_t> data, const std::string& name,
-                               const DecodeLimits& limits, const BufferResolver& resolver) {
+// JSON accessors throw nlohmann exceptions on a wrong type; the public entry point below turns
+// them into stipple::Error naming the file.
+static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
+                                                const std::string& name, const DecodeLimits& limits,
+                                                const BufferResolver& resolver) {
   Gltf g;
   g.name = name;
   g.limits = limits;
@@ -290,8 +340,10 @@ PointContent decode_glb_points(std::span<const uint8_t> data, const std::string&
       if (chunk_length > data.size() - at)
         fail("{}: GLB chunk of {} bytes runs past the end", name, chunk_length);
       auto chunk = data.subspan(at, chunk_length);
-      if (type == kChunkJson && json_chunk.empty()) json_chunk = chunk;
-      else if (type == kChunkBin && bin.empty()) bin = chunk;
+      if (type == kChunkJson && json_chunk.empty())
+        json_chunk = chunk;
+      else if (type == kChunkBin && bin.empty())
+        bin = chunk;
       at += chunk_length;
     }
     if (json_chunk.empty()) fail("{}: GLB has no JSON chunk", name);
@@ -361,7 +413,11 @@ PointContent decode_glb_points(std::span<const uint8_t> data, const std::string&
   size_t skipped_primitives = 0;
   const glm::dmat4 y_up_to_z_up(1, 0, 0, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 0, 0, 1);
 
-  struct Item { size_t node; glm::dmat4 parent; int depth; };
+  struct Item {
+    size_t node;
+    glm::dmat4 parent;
+    int depth;
+  };
   std::vector<Item> stack;
   for (size_t r : roots) stack.push_back({r, glm::dmat4(1.0), 0});
   size_t visits = 0;
@@ -410,23 +466,34 @@ PointContent decode_glb_points(std::span<const uint8_t> data, const std::string&
         any = true;
         return true;
       };
-      auto to_byte = [](double x) { return uint32_t(std::lround(std::clamp(x, 0.0, 1.0) * 255.0)); };
-      per_point("COLOR_0", rgba, [&](const double* v, int k) {
-        if (k != 3 && k != 4) fail("{}: COLOR_0 is not VEC3 or VEC4", name);
-        return to_byte(v[0]) | (to_byte(v[1]) << 8) | (to_byte(v[2]) << 16) |
-               ((k == 4 ? to_byte(v[3]) : 255u) << 24);
-      }, any_color);
-      per_point("NORMAL", normals, [&](const double* v, int k) {
-        if (k != 3) fail("{}: NORMAL is not VEC3", name);
-        glm::dvec3 nrm = normal_matrix * glm::dvec3(v[0], v[1], v[2]);
-        double len = glm::length(nrm);
-        return glm::vec3(len > 0 ? nrm / len : nrm);
-      }, any_normal);
+      auto to_byte = [](double x) {
+        return uint32_t(std::lround(std::clamp(x, 0.0, 1.0) * 255.0));
+      };
+      per_point(
+          "COLOR_0", rgba,
+          [&](const double* v, int k) {
+            if (k != 3 && k != 4) fail("{}: COLOR_0 is not VEC3 or VEC4", name);
+            return to_byte(v[0]) | (to_byte(v[1]) << 8) | (to_byte(v[2]) << 16) |
+                   ((k == 4 ? to_byte(v[3]) : 255u) << 24);
+          },
+          any_color);
+      per_point(
+          "NORMAL", normals,
+          [&](const double* v, int k) {
+            if (k != 3) fail("{}: NORMAL is not VEC3", name);
+            glm::dvec3 nrm = normal_matrix * glm::dvec3(v[0], v[1], v[2]);
+            double len = glm::length(nrm);
+            return glm::vec3(len > 0 ? nrm / len : nrm);
+          },
+          any_normal);
       const char* id_key = attrs.contains("_FEATURE_ID_0") ? "_FEATURE_ID_0" : "_BATCHID";
-      per_point(id_key, batch, [&](const double* v, int) {
-        if (v[0] < 0 || v[0] > 4294967295.0) fail("{}: {} out of range", name, id_key);
-        return uint32_t(v[0]);
-      }, any_batch);
+      per_point(
+          id_key, batch,
+          [&](const double* v, int) {
+            if (v[0] < 0 || v[0] > 4294967295.0) fail("{}: {} out of range", name, id_key);
+            return uint32_t(v[0]);
+          },
+          any_batch);
       for (const auto& [key, index] : attrs.items()) {
         if (key == "POSITION" || key == "COLOR_0" || key == "NORMAL" || key == id_key) continue;
         int k = 0;
@@ -434,7 +501,8 @@ PointContent decode_glb_points(std::span<const uint8_t> data, const std::string&
         if (v.size() / k != n) fail("{}: {} count differs from POSITION", name, key);
         auto& attr = c.attributes[key];
         if (attr.values.empty()) attr.components = k;
-        if (attr.components != k) fail("{}: attribute {} changes type between primitives", name, key);
+        if (attr.components != k)
+          fail("{}: attribute {} changes type between primitives", name, key);
         attr.component_type = "glTF";
         attr.values.resize(first * k);
         attr.values.insert(attr.values.end(), v.begin(), v.end());
@@ -466,6 +534,15 @@ PointContent decode_glb_points(std::span<const uint8_t> data, const std::string&
     c.batch_length = *std::max_element(c.batch_ids.begin(), c.batch_ids.end()) + 1;
   c.warnings.insert(c.warnings.end(), g.warnings.begin(), g.warnings.end());
   return c;
+}
+
+PointContent decode_glb_points(std::span<const uint8_t> data, const std::string& name,
+                               const DecodeLimits& limits, const BufferResolver& resolver) {
+  try {
+    return decode_glb_points_unchecked(data, name, limits, resolver);
+  } catch (const nlohmann::json::exception& e) {
+    fail("{}: malformed JSON: {}", name, e.what());
+  }
 }
 
 }  // namespace stipple::io

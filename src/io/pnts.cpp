@@ -103,9 +103,10 @@ struct Table {
                        uint64_t count) const {
     uint64_t offset = offset_of(ref, key);
     if (offset > body.size() || (body.size() - offset) / elem < count)
-      fail("{}: {} property {} ({} x {} bytes at offset {}) runs past the end of the binary body "
-           "({} bytes)",
-           name, what, key, count, elem, offset, body.size());
+      fail(
+          "{}: {} property {} ({} x {} bytes at offset {}) runs past the end of the binary body "
+          "({} bytes)",
+          name, what, key, count, elem, offset, body.size());
     return body.data() + offset;
   }
   // A global semantic: a JSON number/array, or a binary reference of `n` components.
@@ -229,9 +230,10 @@ void decode_batch_table(PointContent& c, const json& bt, std::span<const uint8_t
       int size = component_size(attr.component_type);
       attr.components = type_components(type);
       if (size == 0 || attr.components == 0)
-        fail("{}: batch table property {} has componentType '{}' / type '{}' that are not "
-             "known",
-             name, key, attr.component_type, type);
+        fail(
+            "{}: batch table property {} has componentType '{}' / type '{}' that are not "
+            "known",
+            name, key, attr.component_type, type);
       const draco::PointAttribute* da =
           draco && draco_props ? draco->attribute(*draco_props, key, name) : nullptr;
       if (da) {
@@ -260,8 +262,10 @@ void decode_batch_table(PointContent& c, const json& bt, std::span<const uint8_t
 
 }  // namespace
 
-PointContent decode_pnts(std::span<const uint8_t> data, const std::string& name,
-                         const DecodeLimits& limits) {
+// JSON accessors throw nlohmann exceptions on a wrong type; the public entry point below turns
+// them into stipple::Error naming the file.
+static PointContent decode_pnts_unchecked(std::span<const uint8_t> data, const std::string& name,
+                                          const DecodeLimits& limits) {
   if (data.size() < 28) fail("{}: {} bytes is too short for a pnts header", name, data.size());
   if (std::memcmp(data.data(), "pnts", 4) != 0) fail("{}: not a pnts file (bad magic)", name);
   uint32_t version = read_u32(data, 4);
@@ -273,8 +277,8 @@ PointContent decode_pnts(std::span<const uint8_t> data, const std::string& name,
     fail("{}: header byteLength {} does not match the {} bytes received (truncated?)", name,
          byte_length, data.size());
   if (28 + ft_json + ft_bin + bt_json + bt_bin > data.size())
-    fail("{}: table lengths ({} + {} + {} + {}) exceed the tile's {} bytes", name, ft_json,
-         ft_bin, bt_json, bt_bin, data.size());
+    fail("{}: table lengths ({} + {} + {} + {}) exceed the tile's {} bytes", name, ft_json, ft_bin,
+         bt_json, bt_bin, data.size());
   if (ft_json > limits.max_json_bytes || bt_json > limits.max_json_bytes)
     fail("{}: JSON header larger than {} bytes", name, limits.max_json_bytes);
   size_t at = 28;
@@ -299,11 +303,22 @@ PointContent decode_pnts(std::span<const uint8_t> data, const std::string& name,
   if (auto rtc = table.global("RTC_CENTER", 3, "FLOAT"); !rtc.empty())
     c.center = {rtc[0], rtc[1], rtc[2]};
 
-  static const std::set<std::string> known = {
-      "POINTS_LENGTH", "RTC_CENTER",     "QUANTIZED_VOLUME_OFFSET", "QUANTIZED_VOLUME_SCALE",
-      "CONSTANT_RGBA", "BATCH_LENGTH",   "POSITION",                "POSITION_QUANTIZED",
-      "RGBA",          "RGB",            "RGB565",                  "NORMAL",
-      "NORMAL_OCT16P", "BATCH_ID",       "extensions",              "extras"};
+  static const std::set<std::string> known = {"POINTS_LENGTH",
+                                              "RTC_CENTER",
+                                              "QUANTIZED_VOLUME_OFFSET",
+                                              "QUANTIZED_VOLUME_SCALE",
+                                              "CONSTANT_RGBA",
+                                              "BATCH_LENGTH",
+                                              "POSITION",
+                                              "POSITION_QUANTIZED",
+                                              "RGBA",
+                                              "RGB",
+                                              "RGB565",
+                                              "NORMAL",
+                                              "NORMAL_OCT16P",
+                                              "BATCH_ID",
+                                              "extensions",
+                                              "extras"};
   for (const auto& [key, value] : ft.items())
     if (!known.count(key)) c.warnings.push_back(fmt::format("unknown semantic {} ignored", key));
 
@@ -316,8 +331,7 @@ PointContent decode_pnts(std::span<const uint8_t> data, const std::string& name,
         c.warnings.push_back(fmt::format("feature table extension {} ignored", key));
         continue;
       }
-      if (!value.is_object() || !value.contains("properties") ||
-          !value["properties"].is_object())
+      if (!value.is_object() || !value.contains("properties") || !value["properties"].is_object())
         fail("{}: 3DTILES_draco_point_compression has no properties", name);
       draco_props = &value["properties"];
       const uint8_t* p = table.bytes(value, "3DTILES_draco_point_compression", 1,
@@ -352,8 +366,7 @@ PointContent decode_pnts(std::span<const uint8_t> data, const std::string& name,
     auto offset = table.global("QUANTIZED_VOLUME_OFFSET", 3, "FLOAT");
     auto scale = table.global("QUANTIZED_VOLUME_SCALE", 3, "FLOAT");
     if (offset.empty() || scale.empty())
-      fail("{}: POSITION_QUANTIZED needs QUANTIZED_VOLUME_OFFSET and QUANTIZED_VOLUME_SCALE",
-           name);
+      fail("{}: POSITION_QUANTIZED needs QUANTIZED_VOLUME_OFFSET and QUANTIZED_VOLUME_SCALE", name);
     // The offset joins the double centre; the floats keep only the in-volume part.
     c.center += glm::dvec3(offset[0], offset[1], offset[2]);
     const uint8_t* p = table.bytes(*q, "POSITION_QUANTIZED", 6, n);
@@ -399,8 +412,8 @@ PointContent decode_pnts(std::span<const uint8_t> data, const std::string& name,
   } else if (auto k = table.global("CONSTANT_RGBA", 4, "UNSIGNED_BYTE"); !k.empty()) {
     for (double v : k)
       if (v < 0 || v > 255) fail("{}: CONSTANT_RGBA value {} is not a byte", name, v);
-    uint32_t packed = uint32_t(k[0]) | (uint32_t(k[1]) << 8) | (uint32_t(k[2]) << 16) |
-                      (uint32_t(k[3]) << 24);
+    uint32_t packed =
+        uint32_t(k[0]) | (uint32_t(k[1]) << 8) | (uint32_t(k[2]) << 16) | (uint32_t(k[3]) << 24);
     c.rgba.assign(n, packed);
     c.constant_color = true;
   }
@@ -418,7 +431,8 @@ PointContent decode_pnts(std::span<const uint8_t> data, const std::string& name,
     const uint8_t* p = table.bytes(*oct, "NORMAL_OCT16P", 2, n);
     c.normals.resize(n);
     for (size_t i = 0; i < n; ++i)
-      c.normals[i] = oct_decode(p[i * 2] / 255.0f * 2.0f - 1.0f, p[i * 2 + 1] / 255.0f * 2.0f - 1.0f);
+      c.normals[i] =
+          oct_decode(p[i * 2] / 255.0f * 2.0f - 1.0f, p[i * 2 + 1] / 255.0f * 2.0f - 1.0f);
   }
 
   // Batch ids.
@@ -449,6 +463,15 @@ PointContent decode_pnts(std::span<const uint8_t> data, const std::string& name,
   }
   decode_batch_table(c, bt, bt_body, draco.cloud ? &draco : nullptr, name);
   return c;
+}
+
+PointContent decode_pnts(std::span<const uint8_t> data, const std::string& name,
+                         const DecodeLimits& limits) {
+  try {
+    return decode_pnts_unchecked(data, name, limits);
+  } catch (const nlohmann::json::exception& e) {
+    fail("{}: malformed JSON: {}", name, e.what());
+  }
 }
 
 }  // namespace stipple::io

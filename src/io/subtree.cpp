@@ -31,8 +31,10 @@ uint64_t morton_index(uint32_t x, uint32_t y, uint32_t z, int branching) {
   return m;
 }
 
-Subtree decode_subtree(std::span<const uint8_t> data, const std::string& name, int branching,
-                       int levels, const BufferResolver& resolver) {
+// JSON accessors throw nlohmann exceptions on a wrong type; the public entry point below turns
+// them into stipple::Error naming the file.
+static Subtree decode_subtree_unchecked(std::span<const uint8_t> data, const std::string& name,
+                                        int branching, int levels, const BufferResolver& resolver) {
   if (branching != 4 && branching != 8) fail("{}: branching factor must be 4 or 8", name);
   // A subtree's bitstreams grow as N^levels; refuse what could not be held.
   if (levels < 1 || (branching == 8 ? levels > 10 : levels > 15))
@@ -82,7 +84,8 @@ Subtree decode_subtree(std::span<const uint8_t> data, const std::string& name, i
   for (const auto& v : j.value("bufferViews", json::array())) {
     if (!v.is_object()) fail("{}: a bufferView is not an object", name);
     int64_t b = v.value("buffer", int64_t(-1));
-    uint64_t offset = v.value("byteOffset", uint64_t(0)), length = v.value("byteLength", uint64_t(0));
+    uint64_t offset = v.value("byteOffset", uint64_t(0)),
+             length = v.value("byteLength", uint64_t(0));
     if (b < 0 || uint64_t(b) >= buffers.size())
       fail("{}: bufferView refers to buffer {} of {}", name, b, buffers.size());
     if (offset > buffers[b].size() || buffers[b].size() - offset < length)
@@ -100,8 +103,9 @@ Subtree decode_subtree(std::span<const uint8_t> data, const std::string& name, i
       return out;
     }
     // "bitstream" in 1.1, "bufferView" in the 1.0 extension.
-    const json* view = a.contains("bitstream") ? &a["bitstream"]
-                       : a.contains("bufferView") ? &a["bufferView"] : nullptr;
+    const json* view = a.contains("bitstream")    ? &a["bitstream"]
+                       : a.contains("bufferView") ? &a["bufferView"]
+                                                  : nullptr;
     if (!view || !view->is_number_integer() || view->get<int64_t>() < 0 ||
         view->get<uint64_t>() >= views.size())
       fail("{}: {} has neither a constant nor a valid bitstream", name, what);
@@ -123,7 +127,8 @@ Subtree decode_subtree(std::span<const uint8_t> data, const std::string& name, i
   s.tiles = availability(j["tileAvailability"], tile_bits, "tileAvailability");
   if (auto it = j.find("contentAvailability"); it != j.end()) {
     if (it->is_array()) {
-      for (const auto& a : *it) s.contents.push_back(availability(a, tile_bits, "contentAvailability"));
+      for (const auto& a : *it)
+        s.contents.push_back(availability(a, tile_bits, "contentAvailability"));
     } else {
       s.contents.push_back(availability(*it, tile_bits, "contentAvailability"));
     }
@@ -133,6 +138,15 @@ Subtree decode_subtree(std::span<const uint8_t> data, const std::string& name, i
   s.child_subtrees =
       availability(j["childSubtreeAvailability"], child_bits, "childSubtreeAvailability");
   return s;
+}
+
+Subtree decode_subtree(std::span<const uint8_t> data, const std::string& name, int branching,
+                       int levels, const BufferResolver& resolver) {
+  try {
+    return decode_subtree_unchecked(data, name, branching, levels, resolver);
+  } catch (const nlohmann::json::exception& e) {
+    fail("{}: malformed JSON: {}", name, e.what());
+  }
 }
 
 }  // namespace stipple::io

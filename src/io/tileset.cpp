@@ -22,7 +22,8 @@ using json = nlohmann::json;
 double Obb::radius() const {
   if (sphere_radius >= 0) return sphere_radius;
   return glm::length(half_axes[0] + half_axes[1] + half_axes[2]) > 0
-             ? std::sqrt(glm::dot(half_axes[0], half_axes[0]) + glm::dot(half_axes[1], half_axes[1]) +
+             ? std::sqrt(glm::dot(half_axes[0], half_axes[0]) +
+                         glm::dot(half_axes[1], half_axes[1]) +
                          glm::dot(half_axes[2], half_axes[2]))
              : 0.0;
 }
@@ -91,7 +92,8 @@ Obb obb_of(const BoundingVolume& v, const glm::dmat4& transform) {
     case BoundingVolume::Kind::Sphere: {
       const auto& s = v.sphere;
       o.center = glm::dvec3(transform * glm::dvec4(s[0], s[1], s[2], 1.0));
-      double scale = std::max({glm::length(linear[0]), glm::length(linear[1]), glm::length(linear[2])});
+      double scale =
+          std::max({glm::length(linear[0]), glm::length(linear[1]), glm::length(linear[2])});
       o.sphere_radius = s[3] * scale;
       o.half_axes = glm::dmat3(o.sphere_radius);
       break;
@@ -156,7 +158,8 @@ BoundingVolume subdivide(const BoundingVolume& root, int level, uint32_t x, uint
     const auto& b = root.box;
     glm::dvec3 c(b[0], b[1], b[2]);
     glm::dvec3 axes[3] = {{b[3], b[4], b[5]}, {b[6], b[7], b[8]}, {b[9], b[10], b[11]}};
-    double t[3] = {(2.0 * x + 1) / n - 1, (2.0 * y + 1) / n - 1, octree ? (2.0 * z + 1) / n - 1 : 0};
+    double t[3] = {(2.0 * x + 1) / n - 1, (2.0 * y + 1) / n - 1,
+                   octree ? (2.0 * z + 1) / n - 1 : 0};
     for (int i = 0; i < 3; ++i) c += axes[i] * t[i];
     v.box[0] = c.x, v.box[1] = c.y, v.box[2] = c.z;
     for (int i = 0; i < 3; ++i) {
@@ -178,7 +181,8 @@ BoundingVolume subdivide(const BoundingVolume& root, int level, uint32_t x, uint
 
 std::string expand_template(std::string t, int level, uint32_t x, uint32_t y, uint32_t z) {
   auto replace = [&t](const std::string& key, uint64_t value) {
-    for (size_t at; (at = t.find(key)) != std::string::npos;) t.replace(at, key.size(), std::to_string(value));
+    for (size_t at; (at = t.find(key)) != std::string::npos;)
+      t.replace(at, key.size(), std::to_string(value));
   };
   replace("{level}", uint64_t(level));
   replace("{x}", x);
@@ -205,7 +209,8 @@ class Builder {
     if (!j.is_object()) fail("{}: a tileset must be a JSON object", uri);
     if (!j.contains("asset") || !j["asset"].is_object() || !j["asset"].contains("version"))
       fail("{}: asset.version is missing", uri);
-    std::string version = j["asset"]["version"].is_string() ? j["asset"]["version"].get<std::string>() : "";
+    std::string version =
+        j["asset"]["version"].is_string() ? j["asset"]["version"].get<std::string>() : "";
     if (version != "1.0" && version != "1.1" && version != "0.0")
       fail("{}: asset.version '{}' is not 1.0 or 1.1", uri, version);
     static const std::set<std::string> supported = {
@@ -218,8 +223,10 @@ class Builder {
     if (auto used = j.find("extensionsUsed"); used != j.end() && used->is_array())
       for (const auto& e : *used)
         if (e.is_string() && !supported.count(e.get<std::string>()))
-          warn(fmt::format("{}: extension {} is not supported and ignored", uri, e.get<std::string>()));
-    if (!j.contains("root") || !j["root"].is_object()) fail("{}: the tileset has no root tile", uri);
+          warn(fmt::format("{}: extension {} is not supported and ignored", uri,
+                           e.get<std::string>()));
+    if (!j.contains("root") || !j["root"].is_object())
+      fail("{}: the tileset has no root tile", uri);
     if (parent < 0) {
       ts_.version = version;
       ts_.geometric_error = j.value("geometricError", 0.0);
@@ -255,8 +262,8 @@ class Builder {
     return index;
   }
 
-  void tile(const json& j, const std::string& uri, int32_t parent, const glm::dmat4& parent_transform,
-            Refine parent_refine, int depth) {
+  void tile(const json& j, const std::string& uri, int32_t parent,
+            const glm::dmat4& parent_transform, Refine parent_refine, int depth) {
     std::string where = fmt::format("{} (tile at depth {})", uri, depth);
     if (depth > 256) fail("{}: tile tree deeper than 256 levels", where);
     if (!j.is_object()) fail("{}: a tile is not a JSON object", where);
@@ -278,16 +285,20 @@ class Builder {
     t.refine = parent_refine;
     if (auto r = j.find("refine"); r != j.end()) {
       std::string s = r->is_string() ? r->get<std::string>() : "";
-      if (s == "ADD" || s == "add") t.refine = Refine::Add;
-      else if (s == "REPLACE" || s == "replace") t.refine = Refine::Replace;
-      else fail("{}: refine '{}' is neither ADD nor REPLACE", where, s);
+      if (s == "ADD" || s == "add")
+        t.refine = Refine::Add;
+      else if (s == "REPLACE" || s == "replace")
+        t.refine = Refine::Replace;
+      else
+        fail("{}: refine '{}' is neither ADD nor REPLACE", where, s);
     }
     // Contents: 1.0 content, 1.1 contents, or the 3DTILES_multiple_contents extension.
     std::vector<const json*> contents;
     if (auto c = j.find("content"); c != j.end()) contents.push_back(&*c);
     if (auto c = j.find("contents"); c != j.end() && c->is_array())
       for (const auto& x : *c) contents.push_back(&x);
-    const json* ext = j.contains("extensions") && j["extensions"].is_object() ? &j["extensions"] : nullptr;
+    const json* ext =
+        j.contains("extensions") && j["extensions"].is_object() ? &j["extensions"] : nullptr;
     if (ext && ext->contains("3DTILES_multiple_contents")) {
       const json& mc = (*ext)["3DTILES_multiple_contents"];
       if (mc.contains("content") && mc["content"].is_array())
@@ -297,14 +308,16 @@ class Builder {
     for (const json* c : contents) {
       if (!c->is_object()) fail("{}: content is not an object", where);
       std::string u = c->contains("uri") && (*c)["uri"].is_string() ? (*c)["uri"].get<std::string>()
-                      : c->contains("url") && (*c)["url"].is_string() ? (*c)["url"].get<std::string>()
-                                                                       : "";
+                      : c->contains("url") && (*c)["url"].is_string()
+                          ? (*c)["url"].get<std::string>()
+                          : "";
       if (u.empty()) fail("{}: content has no uri", where);
       content_uris.push_back(u);
     }
     const json* implicit = j.contains("implicitTiling") ? &j["implicitTiling"]
-                           : ext && ext->contains("3DTILES_implicit_tiling") ? &(*ext)["3DTILES_implicit_tiling"]
-                                                                              : nullptr;
+                           : ext && ext->contains("3DTILES_implicit_tiling")
+                               ? &(*ext)["3DTILES_implicit_tiling"]
+                               : nullptr;
     glm::dmat4 transform = t.transform;
     Refine refine = t.refine;
     uint32_t index = add_tile(std::move(t));
@@ -326,7 +339,8 @@ class Builder {
     }
   }
 
-  void external(uint32_t index, const std::string& uri, const glm::dmat4& transform, Refine refine) {
+  void external(uint32_t index, const std::string& uri, const glm::dmat4& transform,
+                Refine refine) {
     if (std::find(chain_.begin(), chain_.end(), uri) != chain_.end()) {
       std::string cycle;
       for (const auto& c : chain_) cycle += c + " -> ";
@@ -348,7 +362,8 @@ class Builder {
       // A broken external tileset costs its subtree only; a partly added one is rolled back.
       ts_.tiles.resize(std::max(tiles_before, size_t(index + 1)));
       auto& ch = ts_.tiles[index].children;
-      ch.erase(std::remove_if(ch.begin(), ch.end(), [&](uint32_t c) { return c >= tiles_before; }), ch.end());
+      ch.erase(std::remove_if(ch.begin(), ch.end(), [&](uint32_t c) { return c >= tiles_before; }),
+               ch.end());
       tile_error(index, e.what());
     }
     chain_.pop_back();
@@ -359,7 +374,7 @@ class Builder {
     int branching = 4;
     int subtree_levels = 0;
     int available_levels = 0;
-    std::string subtrees;  // resolved template
+    std::string subtrees;               // resolved template
     std::vector<std::string> contents;  // resolved templates
     BoundingVolume root_volume;
     glm::dmat4 transform;
@@ -367,8 +382,9 @@ class Builder {
     Refine refine = Refine::Replace;
   };
 
-  void implicit_root(const json& j, uint32_t index, const std::vector<std::string>& content_templates,
-                     const std::string& uri, const std::string& where) {
+  void implicit_root(const json& j, uint32_t index,
+                     const std::vector<std::string>& content_templates, const std::string& uri,
+                     const std::string& where) {
     ts_.implicit = true;
     Implicit im;
     std::string scheme = j.value("subdivisionScheme", "");
@@ -397,7 +413,8 @@ class Builder {
   }
 
   // Loads the subtree rooted at (level, x, y, z), whose root tile is `root_tile`.
-  void subtree(const Implicit& im, uint32_t root_tile, int level, uint32_t x, uint32_t y, uint32_t z) {
+  void subtree(const Implicit& im, uint32_t root_tile, int level, uint32_t x, uint32_t y,
+               uint32_t z) {
     std::string uri = expand_template(im.subtrees, level, x, y, z);
     Subtree s;
     try {
@@ -414,24 +431,27 @@ class Builder {
     visit(im, s, root_tile, 0, level, x, y, z);
   }
 
-  void set_contents(const Implicit& im, const Subtree& s, uint32_t tile, int local_level, uint64_t morton,
-                    int level, uint32_t x, uint32_t y, uint32_t z) {
+  void set_contents(const Implicit& im, const Subtree& s, uint32_t tile, int local_level,
+                    uint64_t morton, int level, uint32_t x, uint32_t y, uint32_t z) {
     for (size_t c = 0; c < im.contents.size() && c < s.contents.size(); ++c)
       if (s.contents[c].get(availability_index(im.branching, local_level, morton))) {
         std::string u = expand_template(im.contents[c], level, x, y, z);
         if (is_tileset_uri(u)) {
-          tile_error(tile, fmt::format("{}: external tilesets inside implicit tiling are not supported", u));
+          tile_error(
+              tile,
+              fmt::format("{}: external tilesets inside implicit tiling are not supported", u));
         } else {
           ts_.tiles[tile].contents.push_back(u);
         }
       }
   }
 
-  void visit(const Implicit& im, const Subtree& s, uint32_t tile, int local_level, int level, uint32_t x,
-             uint32_t y, uint32_t z) {
+  void visit(const Implicit& im, const Subtree& s, uint32_t tile, int local_level, int level,
+             uint32_t x, uint32_t y, uint32_t z) {
     if (level + 1 >= im.available_levels) return;
     for (int c = 0; c < im.branching; ++c) {
-      uint32_t cx = 2 * x + (c & 1), cy = 2 * y + ((c >> 1) & 1), cz = im.octree ? 2 * z + ((c >> 2) & 1) : 0;
+      uint32_t cx = 2 * x + (c & 1), cy = 2 * y + ((c >> 1) & 1),
+               cz = im.octree ? 2 * z + ((c >> 2) & 1) : 0;
       int child_local = local_level + 1, child_level = level + 1;
       // Coordinates within the subtree: the low bits of the global ones.
       uint32_t mask = (1u << child_local) - 1;
@@ -461,8 +481,10 @@ class Builder {
 
 }  // namespace
 
-Tileset parse_tileset(std::span<const uint8_t> json_bytes, const std::string& uri,
-                      const Fetcher& fetcher, const TilesetOptions& options) {
+// JSON accessors throw nlohmann exceptions on a wrong type; the public entry point below turns
+// them into stipple::Error naming the file.
+static Tileset parse_tileset_unchecked(std::span<const uint8_t> json_bytes, const std::string& uri,
+                                       const Fetcher& fetcher, const TilesetOptions& options) {
   Tileset ts;
   ts.uri = uri;
   Builder builder(ts, fetcher, options);
@@ -472,7 +494,8 @@ Tileset parse_tileset(std::span<const uint8_t> json_bytes, const std::string& ur
   } catch (const Error&) {
     if (ts.tiles.empty()) throw;
     // Past the root, running over max_tiles keeps what was built.
-    ts.errors.push_back(fmt::format("{}: the tile tree was cut off at {} tiles", uri, ts.tiles.size()));
+    ts.errors.push_back(
+        fmt::format("{}: the tile tree was cut off at {} tiles", uri, ts.tiles.size()));
   }
   return ts;
 }
@@ -481,6 +504,15 @@ Tileset load_tileset(const std::string& uri, const TilesetOptions& options) {
   Fetcher fetcher = [&options](const std::string& u) { return fetch(u, options.fetch); };
   auto bytes = fetcher(uri);
   return parse_tileset(bytes, uri, fetcher, options);
+}
+
+Tileset parse_tileset(std::span<const uint8_t> json_bytes, const std::string& uri,
+                      const Fetcher& fetcher, const TilesetOptions& options) {
+  try {
+    return parse_tileset_unchecked(json_bytes, uri, fetcher, options);
+  } catch (const nlohmann::json::exception& e) {
+    fail("{}: malformed JSON: {}", uri, e.what());
+  }
 }
 
 }  // namespace stipple::io
