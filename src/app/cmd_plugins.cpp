@@ -11,6 +11,7 @@
 #include "app/camera_controller.hpp"
 #include "app/commands.hpp"
 #include "app/point_cloud_plugin.hpp"
+#include "app/tileset_plugin.hpp"
 #include "app/ui_plugin.hpp"
 #include "app/viewer_plugin.hpp"
 #include "app/window_plugins.hpp"
@@ -35,6 +36,7 @@ std::vector<PluginInfo> builtin_plugins() {
           plugin_info<RenderGraphPlugin>(),
           plugin_info<HeadlessTargetPlugin>(),
           plugin_info<PointCloudPlugin>(),
+          plugin_info<TilesetPlugin>(),
           plugin_info<WindowPlugin>(),
           plugin_info<InputPlugin>(),
           plugin_info<SurfaceTargetPlugin>(),
@@ -58,11 +60,13 @@ void run_plugins(const std::string& dot_path) {
       " relations, SyncTo<Render>.\n");
   std::printf(
       "stipple render: TimePlugin, TransformPlugin, CameraPlugin, [PipelinedRenderingPlugin "
-      "with --pipelined], GpuPlugin, RenderGraphPlugin, PointCloudPlugin, "
+      "with --pipelined], GpuPlugin, RenderGraphPlugin, PointCloudPlugin (TilesetPlugin for a "
+      "tileset), "
       "HeadlessTargetPlugin\n");
   std::printf(
       "stipple view:   TimePlugin, TransformPlugin, CameraPlugin, PipelinedRenderingPlugin "
-      "[not with --single-thread], GpuPlugin, RenderGraphPlugin, PointCloudPlugin, WindowPlugin, "
+      "[not with --single-thread], GpuPlugin, RenderGraphPlugin, PointCloudPlugin (TilesetPlugin "
+      "for a tileset), WindowPlugin, "
       "InputPlugin, SurfaceTargetPlugin, UiPlugin [not with --no-ui], CameraControllerPlugin, "
       "ViewerPlugin\n");
   if (dot_path.empty()) return;

@@ -14,6 +14,7 @@
 #include "app/commands.hpp"
 #include "app/point_cloud_plugin.hpp"
 #include "app/point_options.hpp"
+#include "app/tileset_plugin.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "engine/plugins.hpp"
@@ -24,6 +25,7 @@
 #include "pointcloud/point_cloud.hpp"
 #include "pointcloud/point_renderer.hpp"
 #include "renderer/gpu.hpp"
+#include "tiles3d/render_load.hpp"
 
 namespace stipple::app {
 namespace {
@@ -44,6 +46,9 @@ struct RenderArgs {
   bool pipelined = false;
   std::string renderer = "billboard";
   bool hqs = false;
+  double max_sse = 16.0;
+  uint64_t memory_mb = 512;
+  uint64_t max_frames = 10000;
 };
 
 // `render` is a plugin list: the engine's core plugins, the device and frame graph, the point
@@ -63,15 +68,31 @@ void run_render(const RenderArgs& args) {
   graph.keep_history = true;
   graph.dump_graph = args.dump_graph;
   engine.add_plugin(std::move(graph));
-  PointCloudPlugin points;
-  points.inputs.files.assign(args.inputs.begin(), args.inputs.end());
-  points.inputs.scene.point_count = args.scene_points;
-  points.inputs.scene.seed = args.seed;
-  points.settings.render = args.settings;
-  points.settings.compute = compute;
-  points.settings.hqs = args.hqs;
-  engine.add_plugin(std::move(points));
-  engine.add_plugin(HeadlessTargetPlugin{args.width, args.height, args.output, args.frames});
+  const bool tileset = args.inputs.size() == 1 && tiles3d::is_tileset_input(args.inputs[0]);
+  if (tileset) {
+    // 3D Tiles: streamed frame by frame with the camera; the PNG is written once the streamer
+    // is idle (everything the view selects is resident), or at --max-frames.
+    if (compute) fail("--renderer compute does not draw tilesets yet");
+    TilesetPlugin tiles;
+    tiles.uri = args.inputs[0];
+    tiles.streamer.traversal.max_sse = args.max_sse;
+    tiles.streamer.traversal.memory_budget = args.memory_mb << 20;
+    tiles.width = args.width;
+    tiles.height = args.height;
+    tiles.render = args.settings;
+    engine.add_plugin(std::move(tiles));
+    engine.add_plugin(HeadlessTargetPlugin{args.width, args.height, "", 0});
+  } else {
+    PointCloudPlugin points;
+    points.inputs.files.assign(args.inputs.begin(), args.inputs.end());
+    points.inputs.scene.point_count = args.scene_points;
+    points.inputs.scene.seed = args.seed;
+    points.settings.render = args.settings;
+    points.settings.compute = compute;
+    points.settings.hqs = args.hqs;
+    engine.add_plugin(std::move(points));
+    engine.add_plugin(HeadlessTargetPlugin{args.width, args.height, args.output, args.frames});
+  }
 
   Registry& main = engine.main();
   const SceneInfo& scene = main.resource<SceneInfo>();
@@ -94,7 +115,60 @@ void run_render(const RenderArgs& args) {
     if (settings.render.point_size <= 0)
       settings.render.point_size = pc::auto_point_size(*data.cloud, camera, args.height);
   });
-  const float point_size = compute ? 1.0f : settings.render.point_size;
+  if (tileset) {
+    // Frames run while tiles stream in (waiting for a load between frames); once idle, the point
+    // size is fitted to what is drawn (unless given), `--frames` more frames run and the last is
+    // written.
+    const bool auto_size = settings.render.point_size <= 0;
+    if (auto_size) settings.render.point_size = 2.0f;
+    engine.add_system(
+        MainStage::Update,
+        [settled = uint64_t(0), last_draw = std::vector<uint32_t>(), stalled = 0,
+         frames = uint64_t(args.frames), max_frames = args.max_frames, output = args.output,
+         height = args.height, auto_size](Registry& r) mutable {
+          auto& s = r.resource<TilesetStream>();
+          const auto& stats = r.resource<TilesetStats>();
+          bool capped = stats.frames >= max_frames;
+          // A view that needs more than the memory budget never goes idle: loads are dropped
+          // or evict each other over and over. Settle when the drawn tiles stop changing.
+          if (s.draw != last_draw) {
+            last_draw = s.draw;
+            stalled = 0;
+          } else {
+            ++stalled;
+          }
+          const bool over_budget =
+              stalled >= 64 && stats.discarded_over_budget + stats.evictions > 0;
+          if (!stats.idle && !capped && !over_budget) {
+            s.streamer->wait_for_progress();
+            return;
+          }
+          if (settled == 0 && !stats.idle) {
+            if (over_budget)
+              STIPPLE_WARN("the view needs more than --memory-mb: {} loads dropped, {} evictions",
+                           stats.discarded_over_budget, stats.evictions);
+            else
+              STIPPLE_WARN("--max-frames {} reached before the tileset was streamed", max_frames);
+          }
+          if (settled++ == 0 && auto_size && stats.drawn_points > 0) {
+            Aabb drawn;
+            for (uint32_t t : s.draw)
+              for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
+            const Camera* camera = nullptr;
+            r.view<Camera>().each([&](const Camera& c) {
+              if (!camera) camera = &c;
+            });
+            if (camera)
+              r.resource<PointDrawSettings>().render.point_size =
+                  pc::auto_point_size(drawn, stats.drawn_points, *camera, height);
+          }
+          if (settled < frames) return;
+          r.resource<ScreenshotRequests>().paths.push_back(output);
+          r.resource<AppExit>().requested = true;
+        },
+        "render_when_streamed");
+  }
+  float point_size = compute ? 1.0f : settings.render.point_size;
   const std::string color_source =
       compute
           ? "rgb"
@@ -103,6 +177,7 @@ void run_render(const RenderArgs& args) {
 
   engine.run();
   engine.shutdown();
+  if (tileset) point_size = engine.main().resource<PointDrawSettings>().render.point_size;
   const auto& stats = engine.render().resource<RenderStats>();
   const auto& description = engine.main().resource<GpuContext>()->description;
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -210,6 +285,19 @@ void add_render_command(CLI::App& cli) {
   cmd->add_option("--renderer", args->renderer,
                   "billboard (the point pipeline) or compute (compute rasterizer, 1-pixel points)")
       ->check(CLI::IsMember({"billboard", "compute"}))
+      ->capture_default_str();
+  cmd->add_option("--max-sse", args->max_sse,
+                  "Tilesets: refine tiles while their screen-space error exceeds this (pixels)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--memory-mb", args->memory_mb,
+                  "Tilesets: resident tile memory budget in MiB (least recently used evicted)")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 20))
+      ->capture_default_str();
+  cmd->add_option("--max-frames", args->max_frames,
+                  "Tilesets: write the image after this many frames even if tiles are still "
+                  "streaming")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))
       ->capture_default_str();
   cmd->add_flag("--hqs", args->hqs,
                 "Compute renderer: high-quality shading (average points within 1% of the "

@@ -9,6 +9,7 @@
 #include "app/commands.hpp"
 #include "app/point_cloud_plugin.hpp"
 #include "app/point_options.hpp"
+#include "app/tileset_plugin.hpp"
 #include "app/ui_plugin.hpp"
 #include "app/viewer_plugin.hpp"
 #include "app/window_plugins.hpp"
@@ -18,6 +19,7 @@
 #include "io/fetch.hpp"
 #include "math/camera.hpp"
 #include "pointcloud/point_renderer.hpp"
+#include "tiles3d/render_load.hpp"
 
 namespace stipple::app {
 namespace {
@@ -35,6 +37,8 @@ struct ViewArgs {
   bool no_vsync = false;
   bool no_ui = false;
   bool single_thread = false;
+  double max_sse = 16.0;     // tilesets: refine while a tile's screen-space error exceeds this
+  uint64_t memory_mb = 512;  // tilesets: resident tile memory budget
 };
 
 void run_view(const ViewArgs& args) {
@@ -45,14 +49,29 @@ void run_view(const ViewArgs& args) {
   gpu.options.backend = args.backend;
   engine.add_plugin(std::move(gpu));
   engine.add_plugin(RenderGraphPlugin{});
-  PointCloudPlugin points;
-  points.inputs.files.assign(args.inputs.begin(), args.inputs.end());
-  points.inputs.scene.point_count = args.scene_points;
-  points.inputs.chunk_points = 1 << 16;  // a finer point budget
-  points.settings.render = args.settings;
-  points.settings.compute = args.compute;
-  points.settings.budget = args.budget;
-  engine.add_plugin(std::move(points));
+  const bool tileset = args.inputs.size() == 1 && tiles3d::is_tileset_input(args.inputs[0]);
+  if (tileset) {
+    // 3D Tiles: streamed while the camera moves (out of core).
+    if (args.compute)
+      fail("--compute does not draw tilesets yet (streamed tiles use the point pipeline)");
+    TilesetPlugin tiles;
+    tiles.uri = args.inputs[0];
+    tiles.streamer.traversal.max_sse = args.max_sse;
+    tiles.streamer.traversal.memory_budget = args.memory_mb << 20;
+    tiles.width = args.width;
+    tiles.height = args.height;
+    tiles.render = args.settings;
+    engine.add_plugin(std::move(tiles));
+  } else {
+    PointCloudPlugin points;
+    points.inputs.files.assign(args.inputs.begin(), args.inputs.end());
+    points.inputs.scene.point_count = args.scene_points;
+    points.inputs.chunk_points = 1 << 16;  // a finer point budget
+    points.settings.render = args.settings;
+    points.settings.compute = args.compute;
+    points.settings.budget = args.budget;
+    engine.add_plugin(std::move(points));
+  }
   platform::WindowOptions window;
   window.title = "stipple";
   window.width = args.width;
@@ -76,6 +95,8 @@ void run_view(const ViewArgs& args) {
     if (settings.render.point_size <= 0)
       settings.render.point_size = pc::auto_point_size(*data.cloud, camera, std::max(size.y, 1u));
   });
+  // Streamed tiles arrive later: a size that suits the default screen-space error.
+  if (tileset && settings.render.point_size <= 0) settings.render.point_size = 2.0f;
   engine.run();
   engine.shutdown();
 }
@@ -91,7 +112,8 @@ void add_view_command(CLI::App& cli) {
       "WASD, Q/E, shift, drag to look. Double click: focus. P screenshot, V vsync, F1 panel, "
       "Esc quit");
   cmd->add_option("inputs", args->inputs,
-                  "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json path or URL")
+                  "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json path or URL "
+                  "(streamed while the camera moves)")
       ->check([](const std::string& in) {
         return io::is_url(in) ? std::string() : CLI::ExistingFile(in);
       });
@@ -119,6 +141,14 @@ void add_view_command(CLI::App& cli) {
                   "With --frames: write the last frame (as shown, panel included) to this PNG");
   cmd->add_flag("--no-vsync", args->no_vsync, "Start with vsync off (Immediate or Mailbox)");
   cmd->add_flag("--no-ui", args->no_ui, "Leave out the ImGui panel (UiPlugin)");
+  cmd->add_option("--max-sse", args->max_sse,
+                  "Tilesets: refine tiles while their screen-space error exceeds this (pixels)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--memory-mb", args->memory_mb,
+                  "Tilesets: resident tile memory budget in MiB (least recently used evicted)")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 20))
+      ->capture_default_str();
   cmd->add_flag("--single-thread", args->single_thread,
                 "Run the render world on the main thread (no PipelinedRenderingPlugin)");
   cmd->callback([args] { run_view(*args); });

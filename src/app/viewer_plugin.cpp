@@ -143,6 +143,11 @@ std::string next_screenshot_name() {
   }
 }
 
+void ViewerPlugin::require(Engine& engine) {
+  if (!engine.has_plugin("PointCloudPlugin") && !engine.has_plugin("TilesetPlugin"))
+    fail("ViewerPlugin needs PointCloudPlugin or TilesetPlugin (the scene it shows)");
+}
+
 void ViewerPlugin::build(Engine& engine) {
   engine.main().insert_resource(ViewerState{exit_after_frames, screenshot});
   engine.add_system(MainStage::PreUpdate, viewer_keys, "viewer_keys");

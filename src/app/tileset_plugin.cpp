@@ -1,0 +1,288 @@
+#include "app/tileset_plugin.hpp"
+
+#include <algorithm>
+#include <limits>
+#include <unordered_map>
+
+#include "app/point_cloud_plugin.hpp"
+#include "app/window_plugins.hpp"
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "engine/camera.hpp"
+#include "engine/engine.hpp"
+#include "engine/render_plugins.hpp"
+#include "pointcloud/point_renderer.hpp"
+#include "tiles3d/render_load.hpp"
+
+namespace stipple::app {
+namespace {
+
+// Render-world resource, replaced in every Extract: what to draw this frame.
+struct TilesetDrawList {
+  std::vector<std::shared_ptr<const TileChunks>> draw;  // traversal order
+  std::vector<uint32_t> resident;                       // sorted tile ids with chunks
+  pc::CloudAttributes attributes;
+};
+
+// Render-world resource: GPU tiles and the per-frame drawn view.
+struct TilesetGpu {
+  struct Tile {
+    std::shared_ptr<const TileChunks> data;  // keeps the CPU chunks as long as the buffers
+    pc::GpuPointCloud gpu;                   // dedicated buffers per tile (upload_chunk)
+  };
+  std::unordered_map<uint32_t, Tile> tiles;
+  // The pass reads this cloud when the graph executes (Draw), so the drawn tiles' chunks are
+  // moved into it in Queue and back in the next Prepare. Boxed: its address must not move.
+  std::unique_ptr<pc::GpuPointCloud> drawn = std::make_unique<pc::GpuPointCloud>();
+  std::vector<std::pair<uint32_t, uint32_t>> drawn_tiles;  // (tile, GPU chunks) in drawn order
+  std::vector<std::pair<uint32_t, uint32_t>> last_drawn;
+  uint32_t clod_capacity = 0;  // chunk slots of drawn->clod_args
+  bool dirty = true;           // bind groups of the drawn view must be rebuilt
+  std::unique_ptr<pc::PointPipelines> pipelines;
+  WGPUTextureFormat format = WGPUTextureFormat_Undefined;
+  uint64_t uploads = 0, frees = 0;
+};
+
+std::shared_ptr<const TileChunks> make_tile_chunks(const TilesetStream& s, uint32_t tile,
+                                                   const std::vector<io::PointContent>& contents) {
+  pc::PointCloud cloud;
+  for (const auto& c : contents)
+    tiles3d::append_content(cloud, c, s.tileset->tiles[tile].transform, s.world_from_tileset);
+  pc::finish_cloud(cloud);  // per-chunk spacing (CLOD, adaptive sizes)
+  auto out = std::make_shared<TileChunks>();
+  out->tile = tile;
+  out->points = cloud.point_count;
+  out->has_rgb = cloud.attributes.has_rgb;
+  out->chunks = std::move(cloud.chunks);
+  return out;
+}
+
+// MainStage::Update: one streamer update with the first camera.
+void update_tileset(Registry& main) {
+  auto& s = main.resource<TilesetStream>();
+  auto& stats = main.resource<TilesetStats>();
+  const Camera* camera = nullptr;
+  main.view<Camera>().each([&](const Camera& c) {
+    if (!camera) camera = &c;
+  });
+  s.draw.clear();
+  if (!camera) return;
+  tiles3d::View view;
+  view.camera = *camera;
+  view.width = s.width;
+  view.height = s.height;
+  if (const auto* window = main.try_resource<WindowState>();
+      window && window->framebuffer_size.x > 0 && window->framebuffer_size.y > 0) {
+    view.width = window->framebuffer_size.x;
+    view.height = window->framebuffer_size.y;
+  }
+  view.world_from_tileset = s.world_from_tileset;
+  const tiles3d::Selection& selection = s.streamer->update(view);
+  for (const auto& e : s.streamer->take_errors()) {
+    STIPPLE_WARN("tile {}: {}", e.tile, e.message);
+    ++stats.errors;
+  }
+
+  // Evicted (or failed) tiles disappear; tiles selected for rendering get chunks once.
+  const auto& states = s.streamer->states();
+  stats.resident_tiles = 0;
+  stats.resident_points = 0;
+  for (size_t t = 0; t < states.size(); ++t) {
+    if (states[t].state != tiles3d::LoadState::Loaded) {
+      s.chunks[t].reset();
+      continue;
+    }
+    ++stats.resident_tiles;
+    if (const auto* contents = s.streamer->content(uint32_t(t)))
+      for (const auto& c : *contents) stats.resident_points += c.point_count;
+  }
+  stats.drawn_tiles = 0;
+  stats.drawn_points = 0;
+  for (uint32_t t : selection.render) {
+    const auto* contents = s.streamer->content(t);
+    if (!contents) continue;
+    if (!s.chunks[t]) s.chunks[t] = make_tile_chunks(s, t, *contents);
+    if (s.chunks[t]->points == 0) continue;
+    s.draw.push_back(t);
+    ++stats.drawn_tiles;
+    stats.drawn_points += s.chunks[t]->points;
+  }
+  const auto streamer_stats = s.streamer->stats();
+  stats.resident_bytes = streamer_stats.resident_bytes;
+  stats.peak_resident_bytes = streamer_stats.peak_resident_bytes;
+  stats.loads_completed = streamer_stats.loads_completed;
+  stats.evictions = streamer_stats.evictions;
+  stats.discarded_over_budget = streamer_stats.discarded_over_budget;
+  stats.idle = s.streamer->idle();
+  ++stats.frames;
+  auto& info = main.resource<SceneInfo>();
+  info.points = std::max(info.points, stats.drawn_points);
+  for (uint32_t t : s.draw)
+    info.attributes.has_rgb = info.attributes.has_rgb || s.chunks[t]->has_rgb;
+}
+
+void extract_tileset(Registry& main) {
+  Registry& render = *main.resource<RenderWorldRef>();
+  render.insert_resource(main.resource<PointDrawSettings>());
+  const auto& s = main.resource<TilesetStream>();
+  TilesetDrawList list;
+  list.attributes = main.resource<SceneInfo>().attributes;
+  list.draw.reserve(s.draw.size());
+  for (uint32_t t : s.draw) list.draw.push_back(s.chunks[t]);
+  for (size_t t = 0; t < s.chunks.size(); ++t)
+    if (s.chunks[t]) list.resident.push_back(uint32_t(t));
+  render.insert_resource(std::move(list));
+}
+
+// Chunks moved into the drawn view last Queue go back to their tiles.
+void return_drawn(TilesetGpu& g) {
+  size_t next = 0;
+  for (auto [tile, count] : g.drawn_tiles) {
+    auto& chunks = g.tiles.at(tile).gpu.chunks;
+    for (uint32_t i = 0; i < count; ++i) chunks[i] = std::move(g.drawn->chunks[next++]);
+  }
+  g.drawn->chunks.clear();
+  g.drawn->point_count = 0;
+  g.last_drawn = std::move(g.drawn_tiles);
+  g.drawn_tiles.clear();
+}
+
+void prepare_tileset(Registry& render) {
+  auto& g = render.resource<TilesetGpu>();
+  return_drawn(g);
+  const auto* list = render.try_resource<TilesetDrawList>();
+  if (!list) return;
+  // Free the GPU data of tiles the main world no longer holds.
+  for (auto it = g.tiles.begin(); it != g.tiles.end();) {
+    if (!std::binary_search(list->resident.begin(), list->resident.end(), it->first)) {
+      it = g.tiles.erase(it);
+      ++g.frees;
+      g.dirty = true;
+    } else {
+      ++it;
+    }
+  }
+  gpu::Context& ctx = *render.resource<GpuContext>();
+  bool uploaded = false;
+  for (const auto& data : list->draw) {
+    auto& tile = g.tiles[data->tile];
+    if (tile.data == data) continue;
+    tile.data = data;
+    tile.gpu = {};
+    for (const auto& chunk : data->chunks)
+      if (!chunk.vertices.empty()) pc::upload_chunk(ctx, tile.gpu, chunk);
+    ++g.uploads;
+    uploaded = true;
+    g.dirty = true;
+  }
+  if (uploaded) ctx.check("uploading tiles");
+}
+
+Camera render_camera(const ExtractedCamera& c) {
+  Camera camera;
+  camera.position = c.position;
+  camera.orientation = c.rotation;
+  camera.fov_y = c.fov_y;
+  camera.near_plane = c.near_plane;
+  return camera;
+}
+
+void queue_tileset(Registry& render) {
+  auto& fg = render.resource<FrameGraph>();
+  if (!fg.active) return;
+  const auto* list = render.try_resource<TilesetDrawList>();
+  if (!list) return;
+  const auto& target = render.resource<RenderTarget>();
+  const ExtractedCamera* extracted = nullptr;
+  render.view<ExtractedCamera>().each([&](const ExtractedCamera& c) {
+    if (!extracted) extracted = &c;
+  });
+  if (!extracted) return;
+  auto& g = render.resource<TilesetGpu>();
+  const auto& settings = render.resource<PointDrawSettings>();
+  gpu::Context& ctx = *render.resource<GpuContext>();
+  if (!g.pipelines || g.format != target.format) {
+    g.pipelines =
+        std::make_unique<pc::PointPipelines>(pc::create_point_pipelines(ctx, target.format));
+    g.format = target.format;
+    g.dirty = true;
+  }
+  // The drawn view: the selected tiles' chunks, in traversal order.
+  pc::GpuPointCloud& drawn = *g.drawn;
+  for (const auto& data : list->draw) {
+    auto& tile = g.tiles.at(data->tile);
+    uint32_t count = uint32_t(tile.gpu.chunks.size());
+    for (auto& chunk : tile.gpu.chunks) {
+      drawn.point_count += chunk.count;
+      drawn.chunks.push_back(std::move(chunk));
+    }
+    g.drawn_tiles.emplace_back(data->tile, count);
+  }
+  // Its own CLOD argument slots, one per chunk: grown to the largest chunk count seen.
+  if (drawn.chunks.size() > g.clod_capacity || !drawn.clod_args) {
+    g.clod_capacity = std::max<uint32_t>(64, uint32_t(drawn.chunks.size()) * 2);
+    drawn.clod_args_stride = std::max<uint32_t>(256, ctx.limits.minStorageBufferOffsetAlignment);
+    drawn.clod_args = gpu::create_buffer(ctx, uint64_t(g.clod_capacity) * drawn.clod_args_stride,
+                                         WGPUBufferUsage_Storage | WGPUBufferUsage_Indirect |
+                                             WGPUBufferUsage_CopyDst | WGPUBufferUsage_CopySrc,
+                                         "clod-args-tiles");
+    g.dirty = true;
+  }
+  // Bind groups name the chunk's CLOD slot: rebuilt when the drawn list changes.
+  if (g.dirty || g.drawn_tiles != g.last_drawn) drawn.bind_groups_for = nullptr;
+  g.dirty = false;
+  drawn.attributes = list->attributes;
+  auto& stats = render.resource<RenderStats>();
+  stats.points_total = 0;
+  for (const auto& [id, tile] : g.tiles) stats.points_total += tile.gpu.point_count;
+  if (drawn.chunks.empty()) return;  // nothing resident yet: the target keeps its clear
+  Camera camera = render_camera(*extracted);
+  pc::add_point_cloud_passes(fg.graph, *g.pipelines, drawn, camera, settings.render, target.width,
+                             target.height);
+  stats.points_drawn += drawn.point_count;
+}
+
+}  // namespace
+
+void TilesetPlugin::build(Engine& engine) {
+  Registry& main = engine.main();
+  io::TilesetOptions ts_options;
+  ts_options.fetch = streamer.fetch;
+  TilesetStream s;
+  s.tileset = std::make_shared<const io::Tileset>(io::load_tileset(uri, ts_options));
+  for (const auto& e : s.tileset->errors) STIPPLE_WARN("{}: {}", uri, e);
+  if (s.tileset->tiles.empty()) fail("{}: the tileset has no tiles", uri);
+  s.world_from_tileset = tiles3d::world_from_tileset(*s.tileset);
+  s.world_bounds = tiles3d::world_bounds(*s.tileset, s.world_from_tileset);
+  s.width = width;
+  s.height = height;
+  s.streamer = std::make_shared<tiles3d::TileStreamer>(s.tileset, streamer);
+  s.chunks.resize(s.tileset->tiles.size());
+
+  SceneInfo info;
+  info.world_bounds = s.world_bounds;
+  info.name = uri.substr(uri.find_last_of("/\\") + 1);
+  if (info.name.empty()) info.name = uri;
+  // Elevation ramp over the root volume (the data arrives later).
+  info.attributes.elevation_percentiles = {s.world_bounds.min.y, s.world_bounds.max.y};
+  TilesetStats stats;
+  stats.memory_budget = streamer.traversal.memory_budget;
+  STIPPLE_INFO("{}: {} tiles, streaming (budget {:.1f} MiB)", uri, s.tileset->tiles.size(),
+               double(streamer.traversal.memory_budget) / (1 << 20));
+  main.insert_resource(std::move(info));
+  main.insert_resource(std::move(s));
+  main.insert_resource(stats);
+  PointDrawSettings settings;
+  settings.render = render;
+  settings.budget = budget;
+  main.insert_resource(settings);
+  engine.render().insert_resource(settings);
+  engine.render().insert_resource(TilesetGpu{});
+
+  engine.add_system(MainStage::Update, update_tileset, "update_tileset");
+  engine.add_system(MainStage::Extract, extract_tileset, "extract_tileset");
+  engine.add_system(RenderStage::Prepare, prepare_tileset, "prepare_tileset");
+  engine.add_system(RenderStage::Queue, queue_tileset, "queue_tileset");
+}
+
+}  // namespace stipple::app

@@ -1,0 +1,83 @@
+#pragma once
+// TilesetPlugin: out-of-core streaming of a 3D Tiles tileset (file or URL) in the engine.
+//
+// Main world, Update: the TileStreamer runs with the current Camera (converted to the tileset's
+// View), so requests follow the view; tiles it selects for rendering are converted once into
+// render-ready chunks (shared, immutable), tiles it evicted are dropped. Extract hands the render
+// world the tiles to draw this frame (ids + shared chunk data) and the ids still resident.
+// Render world, Prepare: uploads newly drawn tiles (dedicated GPU buffers per tile, through
+// pc::upload_chunk), frees the GPU data of tiles no longer resident. Queue: a GpuPointCloud view
+// of the selected tiles' chunks (with its own CLOD argument buffer) goes to
+// add_point_cloud_passes. Parents stay drawn until their children are ready (the traversal).
+//
+// It provides the same main-world resources as PointCloudPlugin (SceneInfo, PointDrawSettings),
+// so the viewer's plugins work over either.
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "math/aabb.hpp"
+#include "pointcloud/point_cloud.hpp"
+#include "pointcloud/point_renderer.hpp"
+#include "tiles3d/streamer.hpp"
+
+namespace stipple {
+class Engine;
+}
+
+namespace stipple::app {
+
+// One tile's content as render-ready chunks (world space, double origins). Never modified once
+// built; the render world holds it while the tile's GPU buffers live.
+struct TileChunks {
+  uint32_t tile = 0;
+  std::vector<pc::PointChunk> chunks;
+  uint64_t points = 0;
+  bool has_rgb = false;
+};
+
+// Main-world resource: the streaming state.
+struct TilesetStream {
+  std::shared_ptr<const io::Tileset> tileset;
+  std::shared_ptr<tiles3d::TileStreamer> streamer;
+  glm::dmat4 world_from_tileset{1.0};
+  Aabb world_bounds;                    // the root volume, world space
+  uint32_t width = 1280, height = 720;  // viewport for screen-space error (a window overrides)
+  // Tiles converted for rendering, by tile id (dropped when the streamer evicts the tile).
+  std::vector<std::shared_ptr<const TileChunks>> chunks;
+  std::vector<uint32_t> draw;  // this frame's tiles to draw (ids with chunks), traversal order
+};
+
+// Main-world resource: what the stream did this frame (tests, the UI, `stipple render`).
+struct TilesetStats {
+  uint64_t frames = 0;
+  uint32_t resident_tiles = 0;   // Loaded in the streamer
+  uint64_t resident_points = 0;  // of those tiles
+  uint64_t resident_bytes = 0, peak_resident_bytes = 0, memory_budget = 0;
+  uint64_t loads_completed = 0, evictions = 0;
+  uint64_t discarded_over_budget = 0;  // loads dropped: even evicting every unused tile was short
+  uint32_t drawn_tiles = 0;
+  uint64_t drawn_points = 0;
+  bool idle = false;  // nothing queued or in flight after this frame's update
+  uint64_t errors = 0;
+};
+
+struct TilesetPlugin {
+  static constexpr std::string_view name = "TilesetPlugin";
+  static constexpr std::string_view description =
+      "streams a 3D Tiles tileset with the camera (worker pool, memory budget, LRU); uploads "
+      "new tiles, frees evicted ones, draws the selection";
+  static constexpr std::array<std::string_view, 4> dependencies{"GpuPlugin", "RenderGraphPlugin",
+                                                                "CameraPlugin", "TransformPlugin"};
+  std::string uri;  // tileset.json path or URL
+  tiles3d::StreamerOptions streamer;
+  uint32_t width = 1280, height = 720;  // viewport for the screen-space error
+  pc::PointRenderSettings render;       // copied into PointDrawSettings
+  uint64_t budget = 0;                  // PointDrawSettings::budget (unused: the traversal is)
+  void build(Engine& engine);
+};
+
+}  // namespace stipple::app

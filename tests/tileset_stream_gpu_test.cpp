@@ -1,0 +1,159 @@
+// TilesetPlugin end to end: a generated 4-level tileset streamed by the engine (headless) while
+// the camera flies from far to near. Finer levels load as it approaches, resident memory stays
+// within the budget, the last frame shows the data, and the render world on its own thread
+// reaches the same final image as on the main thread.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "app/point_cloud_plugin.hpp"
+#include "app/tileset_plugin.hpp"
+#include "engine/plugins.hpp"
+#include "engine/render_plugins.hpp"
+#include "math/camera.hpp"
+#include "test_util.hpp"
+#include "tiles_fixtures.hpp"
+
+using namespace stipple;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr uint32_t kWidth = 160, kHeight = 120;
+constexpr uint64_t kBudget = 1'000'000;  // bytes: about half of the 85 tiles
+
+struct Step {
+  uint32_t resident_tiles = 0, drawn_tiles = 0;
+  uint64_t resident_points = 0, drawn_points = 0;
+};
+
+struct StreamRun {
+  std::vector<Step> steps;  // after each camera position, once the streamer is idle
+  uint64_t max_resident_bytes = 0, peak_resident_bytes = 0, errors = 0, evictions = 0;
+  uint64_t gpu_points = 0;  // resident on the GPU after the last frame
+  std::vector<gpu::Image> frames;
+  bool all_idle = true;
+};
+
+StreamRun stream(const std::string& backend, bool pipelined, const fs::path& tileset) {
+  StreamRun out;
+  Engine engine;
+  TimePlugin time;
+  time.fixed_delta = 1.0 / 30.0;
+  engine.add_plugins(time, TransformPlugin{}, CameraPlugin{});
+  if (pipelined) engine.add_plugin(PipelinedRenderingPlugin{});
+  GpuPlugin gpu;
+  gpu.options.backend = backend;
+  engine.add_plugin(std::move(gpu));
+  engine.add_plugin(RenderGraphPlugin{});
+  app::TilesetPlugin tiles;
+  tiles.uri = tileset.string();
+  tiles.streamer.threads = 2;
+  tiles.streamer.traversal.memory_budget = kBudget;
+  tiles.streamer.traversal.max_sse = 2.0;
+  tiles.width = kWidth;
+  tiles.height = kHeight;
+  tiles.render.point_size = 3.0f;
+  engine.add_plugin(std::move(tiles));
+  engine.add_plugin(HeadlessTargetPlugin{kWidth, kHeight, "", 0});
+  engine.render().insert_resource(
+      FrameCapture{[&out](uint64_t, const gpu::Image& image) { out.frames.push_back(image); }});
+
+  Registry& main = engine.main();
+  Entity camera = main.create();
+  main.emplace<Camera>(camera);
+  // Far to near over (300, 300, 0) of the 1000 m square (Z up), then across to (750, 750, 0)
+  // near the ground: the tiles left behind are evicted to make room.
+  const double path[][3] = {
+      {300, 300, 8000}, {300, 300, 3000}, {300, 300, 1200}, {300, 300, 400}, {750, 750, 400}};
+  for (const auto& p : path) {
+    const double x = p[0], y = p[1], d = p[2];
+    main.get<Camera>(camera).look_at(z_up_to_y_up({x, y - d, d * 0.6}), z_up_to_y_up({x, y, 0}));
+    main.get<Camera>(camera).near_plane = 1.0;
+    bool idle = false;
+    for (int i = 0; i < 500 && !idle; ++i) {
+      engine.update();
+      const auto& stats = main.resource<app::TilesetStats>();
+      out.max_resident_bytes = std::max(out.max_resident_bytes, stats.resident_bytes);
+      idle = stats.idle;
+      if (!idle) main.resource<app::TilesetStream>().streamer->wait_for_progress();
+    }
+    out.all_idle = out.all_idle && idle;
+    const auto& stats = main.resource<app::TilesetStats>();
+    out.steps.push_back(
+        {stats.resident_tiles, stats.drawn_tiles, stats.resident_points, stats.drawn_points});
+  }
+  const auto& stats = main.resource<app::TilesetStats>();
+  out.peak_resident_bytes = stats.peak_resident_bytes;
+  out.errors = stats.errors;
+  out.evictions = stats.evictions;
+  engine.shutdown();
+  out.gpu_points = engine.render().resource<RenderStats>().points_total;
+  return out;
+}
+
+class TilesetStreamGpu : public ::testing::TestWithParam<std::string> {};
+
+}  // namespace
+
+TEST_P(TilesetStreamGpu, FollowsTheCameraWithinTheBudget) {
+  fs::path dir = fs::temp_directory_path() /
+                 ("stipple_tileset_stream_" + std::to_string(::getpid()) + "_" + GetParam());
+  fs::remove_all(dir);
+  int tiles = test::write_grid_tileset(dir, 4, 1000);  // 85 tiles x 1000 points
+  ASSERT_EQ(tiles, 85);
+
+  StreamRun single = stream(GetParam(), false, dir / "tileset.json");
+  StreamRun piped = stream(GetParam(), true, dir / "tileset.json");
+  fs::remove_all(dir);
+
+  for (const StreamRun* run : {&single, &piped}) {
+    SCOPED_TRACE(run == &single ? "single thread" : "pipelined");
+    for (const Step& s : run->steps)
+      std::printf("resident %u tiles %llu points, drawn %u tiles %llu points\n", s.resident_tiles,
+                  (unsigned long long)s.resident_points, s.drawn_tiles,
+                  (unsigned long long)s.drawn_points);
+    std::printf("frames %zu, peak %llu bytes, %llu evictions\n", run->frames.size(),
+                (unsigned long long)run->peak_resident_bytes, (unsigned long long)run->evictions);
+    EXPECT_TRUE(run->all_idle);
+    EXPECT_EQ(run->errors, 0u);
+    ASSERT_EQ(run->steps.size(), 5u);
+    // Finer levels load as the camera approaches (steps 0-3).
+    EXPECT_GE(run->steps[0].drawn_tiles, 1u);
+    for (size_t i = 1; i < 4; ++i) {
+      EXPECT_GT(run->steps[i].drawn_tiles, run->steps[i - 1].drawn_tiles) << "step " << i;
+      EXPECT_GT(run->steps[i].resident_tiles, run->steps[i - 1].resident_tiles) << "step " << i;
+      EXPECT_GT(run->steps[i].resident_points, run->steps[i - 1].resident_points) << "step " << i;
+    }
+    // Moving across (step 4) evicts tiles left behind; the budget holds on every frame.
+    EXPECT_GT(run->evictions, 0u);
+    // GPU data of evicted tiles is freed: the GPU holds at most the resident tiles' points.
+    EXPECT_GT(run->gpu_points, 0u);
+    EXPECT_LE(run->gpu_points, run->steps.back().resident_points);
+    EXPECT_LE(run->max_resident_bytes, kBudget);
+    EXPECT_LE(run->peak_resident_bytes, kBudget);
+    EXPECT_GT(run->peak_resident_bytes, 0u);
+    // The last frame shows the data.
+    ASSERT_FALSE(run->frames.empty());
+    const uint8_t bg[3] = {18, 20, 26};
+    EXPECT_GT(test::coverage_stats(run->frames.back(), bg, 1).coverage, 0.01);
+  }
+  // Both modes settle on the same tiles and the same final image.
+  for (size_t i = 0; i < single.steps.size(); ++i) {
+    EXPECT_EQ(single.steps[i].drawn_tiles, piped.steps[i].drawn_tiles) << "step " << i;
+    EXPECT_EQ(single.steps[i].drawn_points, piped.steps[i].drawn_points) << "step " << i;
+  }
+  ASSERT_FALSE(single.frames.empty());
+  ASSERT_FALSE(piped.frames.empty());
+  EXPECT_EQ(test::differing_fraction(single.frames.back(), piped.frames.back(), 0), 0.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, TilesetStreamGpu, ::testing::Values("dawn", "wgpu"),
+                         [](const auto& info) { return info.param; });
