@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Tiler throughput and peak memory, stipple tile vs py3dtiles convert, same input, same machine.
 #   bench/tiler.sh [POINTS]   (generated input size, default 100000000)
+#   PY3DTILES=path/to/py3dtiles overrides .deps/py3dtiles/bin/py3dtiles (e.g. a worktree)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 stipple="$root/build/stipple"
-py3dtiles="$root/.deps/py3dtiles/bin/py3dtiles"
+py3dtiles="${PY3DTILES:-$root/.deps/py3dtiles/bin/py3dtiles}"
 work="${TMPDIR:-/tmp}/stipple_bench_tiler"
 mkdir -p "$work"
 points="${1:-100000000}"

@@ -19,6 +19,10 @@ size_t grid_select(std::span<const TilePoint> points, const glm::dvec3& origin, 
     float dist2;
   };
   std::vector<Slot> table(capacity, Slot{0, 0, 0});
+  // Fibonacci hashing on the product's high bits: every key bit (x is in the top third) reaches
+  // the slot index. (Bits 20.. of the product ignored x entirely: long probe chains.)
+  int shift = 64 - 10;
+  auto slot_of = [&](uint64_t key) { return size_t((key * 0x9E3779B97F4A7C15ull) >> shift); };
   const double inv = 1.0 / spacing;
   size_t count = 0;
   for (size_t i = 0; i < n; ++i) {
@@ -36,14 +40,15 @@ size_t grid_select(std::span<const TilePoint> points, const glm::dvec3& origin, 
       std::vector<Slot> old(capacity * 2, Slot{0, 0, 0});
       old.swap(table);
       capacity *= 2;
+      --shift;
       for (const Slot& s : old) {
         if (!s.key) continue;
-        size_t h = size_t((s.key * 0x9E3779B97F4A7C15ull) >> 20) & (capacity - 1);
+        size_t h = slot_of(s.key);
         while (table[h].key != 0) h = (h + 1) & (capacity - 1);
         table[h] = s;
       }
     }
-    size_t h = size_t((key * 0x9E3779B97F4A7C15ull) >> 20) & (capacity - 1);
+    size_t h = slot_of(key);
     while (table[h].key != 0 && table[h].key != key) h = (h + 1) & (capacity - 1);
     Slot& s = table[h];
     if (s.key == 0) {

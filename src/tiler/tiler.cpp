@@ -105,6 +105,15 @@ const EcefTransform& thread_transform(const std::string& crs) {
   return *t;
 }
 
+void write_all(int fd, const fs::path& path, const void* data, size_t size) {
+  const char* p = static_cast<const char*>(data);
+  while (size > 0) {
+    ssize_t w = ::write(fd, p, size);
+    if (w <= 0) fail("{}: write failed ({})", path.string(), std::strerror(errno));
+    p += w, size -= size_t(w);
+  }
+}
+
 void write_file(const fs::path& path, const void* data, size_t size) {
   int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   if (fd < 0) fail("{}: cannot create ({})", path.string(), std::strerror(errno));
@@ -170,7 +179,16 @@ class Tiler {
   template <typename Process>
   void read_pass(const char* label, Process process);
   void to_local(const Input& in, io::PointBatch& batch, std::vector<glm::dvec3>& out) const;
+  void make_records(const Input& in, io::PointBatch& batch, TilePoint* out) const;
+  void distribute(const fs::path& staged, uint64_t count);
+  void distribute_in_memory(uint64_t count);
   uint32_t cell_of(const glm::dvec3& p) const;
+  uint32_t cell_of(const TilePoint& p) const { return cell_of(glm::dvec3(p.x, p.y, p.z)); }
+  void phase(const char* name) {
+    auto now = std::chrono::steady_clock::now();
+    STIPPLE_INFO("tile: phase {:<26} {:8.3f} s", name, std::chrono::duration<double>(now - phase_start_).count());
+    phase_start_ = now;
+  }
   void plan_chunks(const std::vector<uint32_t>& counts);
   void split_oversized_chunks();
   void index_chunk(size_t chunk);
@@ -197,13 +215,21 @@ class Tiler {
   int max_level_ = 24;
   std::unique_ptr<ThreadPool> pool_;
   fs::path dir_, tmp_;
+  std::chrono::steady_clock::time_point phase_start_ = std::chrono::steady_clock::now();
 
   struct Chunk {
     NodeKey key;
     uint64_t count = 0;
     fs::path file;
     std::mutex mutex;
+    bool resident = false;           // points held in memory (in-memory mode), not in file
+    std::vector<TilePoint> points;
   };
+  // In-memory mode (the records of every input fit the budget twice over): the reading pass
+  // stages records in memory and the chunks stay resident; no temporary files for them.
+  bool in_memory_ = false;
+  std::unique_ptr<TilePoint[]> staged_mem_;
+  std::atomic<uint64_t> staged_fill_{0};
   std::vector<std::unique_ptr<Chunk>> chunks_;
   std::vector<int32_t> cell_chunk_;
 
@@ -244,6 +270,130 @@ void Tiler::to_local(const Input& in, io::PointBatch& batch, std::vector<glm::dv
   out.assign(batch.positions.begin(), batch.positions.end());
   thread_transform(in.crs).transform(out.data(), out.size());
   for (glm::dvec3& p : out) p = frame_.to_local(p);
+}
+
+void Tiler::make_records(const Input& in, io::PointBatch& batch, TilePoint* out) const {
+  std::vector<glm::dvec3> local;
+  to_local(in, batch, local);
+  const size_t n = batch.size();
+  const bool rgb = !batch.rgb.empty(), gps = !batch.gps_time.empty();
+  const bool inten = !batch.intensity.empty(), cls = !batch.classification.empty();
+  const bool ret = !batch.return_number.empty();
+  const int shift = in.header.rgb_bits == 8 ? 0 : 8;
+  for (size_t i = 0; i < n; ++i) {
+    TilePoint& t = out[i];
+    t.x = local[i].x, t.y = local[i].y, t.z = local[i].z;
+    t.gps_time = gps ? batch.gps_time[i] : 0.0;
+    t.intensity = inten ? batch.intensity[i] : 0;
+    if (rgb) {
+      t.r = uint8_t(std::min(255, batch.rgb[i].x >> shift));
+      t.g = uint8_t(std::min(255, batch.rgb[i].y >> shift));
+      t.b = uint8_t(std::min(255, batch.rgb[i].z >> shift));
+    } else {
+      t.r = t.g = t.b = 255;
+    }
+    t.classification = cls ? batch.classification[i] : 0;
+    t.return_number = ret ? batch.return_number[i] : 0;
+    t.pad = 0;
+  }
+}
+
+// Distribution pass: the staged records, in blocks read in parallel (pread), sorted by chunk and
+// appended to one temporary file per chunk.
+void Tiler::distribute(const fs::path& staged, uint64_t count) {
+  int fd = ::open(staged.c_str(), O_RDONLY);
+  if (fd < 0) fail("{}: cannot open ({})", staged.string(), std::strerror(errno));
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  const uint64_t block = batch_points_;
+  const size_t blocks = size_t((count + block - 1) / block);
+  Progress progress("distributing", count);
+  pool_->parallel_for(blocks, 1, [&](size_t bb, size_t be) {
+    std::vector<TilePoint> recs, sorted;
+    std::vector<int32_t> chunk_of;
+    std::vector<uint32_t> offsets, fill;
+    for (size_t b = bb; b < be; ++b) {
+      const uint64_t first = b * block;
+      const size_t n = size_t(std::min<uint64_t>(block, count - first));
+      recs.resize(n);
+      char* dst = reinterpret_cast<char*>(recs.data());
+      size_t want = n * sizeof(TilePoint);
+      off_t at = off_t(first * sizeof(TilePoint));
+      while (want > 0) {
+        ssize_t r = ::pread(fd, dst, want, at);
+        if (r <= 0) fail("{}: cannot read temporary points", staged.string());
+        dst += r, want -= size_t(r), at += r;
+      }
+      chunk_of.resize(n);
+      offsets.assign(chunks_.size() + 1, 0);
+      for (size_t i = 0; i < n; ++i) {
+        chunk_of[i] = cell_chunk_[cell_of(recs[i])];
+        STIPPLE_ASSERT(chunk_of[i] >= 0, "a counted cell has no chunk");
+        ++offsets[size_t(chunk_of[i]) + 1];
+      }
+      for (size_t c = 0; c < chunks_.size(); ++c) offsets[c + 1] += offsets[c];
+      fill.assign(offsets.begin(), offsets.end() - 1);
+      sorted.resize(n);
+      for (size_t i = 0; i < n; ++i) sorted[fill[size_t(chunk_of[i])]++] = recs[i];
+      for (size_t c = 0; c < chunks_.size(); ++c) {
+        uint32_t s = offsets[c], e = offsets[c + 1];
+        if (s == e) continue;
+        Chunk& ch = *chunks_[c];
+        std::lock_guard lock(ch.mutex);
+        append_file(ch.file, sorted.data() + s, size_t(e - s) * sizeof(TilePoint));
+        ch.count += e - s;
+      }
+      std::lock_guard lock(progress_mutex_);
+      progress.advance(n);
+    }
+  });
+  progress.finish();
+}
+
+// In-memory distribution: chunk of every staged record, per-block histograms, then a parallel
+// scatter straight into each chunk's exact-size vector.
+void Tiler::distribute_in_memory(uint64_t count) {
+  const uint64_t block = batch_points_;
+  const size_t blocks = size_t((count + block - 1) / block), nc = chunks_.size();
+  const TilePoint* recs = staged_mem_.get();
+  std::vector<uint32_t> chunk_of(count);
+  std::vector<uint64_t> offsets(blocks * nc, 0);
+  pool_->parallel_for(blocks, 1, [&](size_t bb, size_t be) {
+    for (size_t b = bb; b < be; ++b) {
+      uint64_t* hist = &offsets[b * nc];
+      const uint64_t end = std::min<uint64_t>(count, (b + 1) * block);
+      for (uint64_t i = b * block; i < end; ++i) {
+        int32_t c = cell_chunk_[cell_of(recs[i])];
+        STIPPLE_ASSERT(c >= 0, "a counted cell has no chunk");
+        chunk_of[i] = uint32_t(c);
+        ++hist[c];
+      }
+    }
+  });
+  for (size_t c = 0; c < nc; ++c) {
+    uint64_t base = 0;
+    for (size_t b = 0; b < blocks; ++b) {
+      uint64_t h = offsets[b * nc + c];
+      offsets[b * nc + c] = base;
+      base += h;
+    }
+    Chunk& ch = *chunks_[c];
+    ch.points.resize(base);
+    ch.count = base;
+    ch.resident = true;
+  }
+  pool_->parallel_for(blocks, 1, [&](size_t bb, size_t be) {
+    for (size_t b = bb; b < be; ++b) {
+      uint64_t* fill = &offsets[b * nc];
+      const uint64_t end = std::min<uint64_t>(count, (b + 1) * block);
+      for (uint64_t i = b * block; i < end; ++i) {
+        const uint32_t c = chunk_of[i];
+        chunks_[c]->points[fill[c]++] = recs[i];
+      }
+    }
+  });
 }
 
 void Tiler::make_frame_and_cube() {
@@ -382,6 +532,11 @@ void Tiler::split_oversized_chunks() {
   for (size_t i = 0; i < chunks_.size(); ++i) {
     Chunk& c = *chunks_[i];
     if (c.count <= chunk_points_ * 3 / 2 || c.key.level >= max_level_ - 2) continue;
+    if (c.resident) {
+      write_file(c.file, c.points.data(), c.points.size() * sizeof(TilePoint));
+      std::vector<TilePoint>().swap(c.points);
+      c.resident = false;
+    }
     std::vector<std::unique_ptr<Chunk>> kids(8);
     for (int k = 0; k < 8; ++k) {
       kids[k] = std::make_unique<Chunk>();
@@ -442,14 +597,21 @@ void Tiler::index_node(const NodeKey& key, std::vector<TilePoint>& pts, bool chu
   } else {
     grid_select(pts, node_min(key), spacing(key.level), opt_.max_node_points, selected);
     glm::dvec3 centre = node_min(key) + glm::dvec3(node_size(key.level + 1));
-    for (size_t i = 0; i < pts.size(); ++i) {
+    // Bucket per point (8: this node), then exact-size copies: no regrowth of 9 vectors.
+    const size_t n = pts.size();
+    std::array<size_t, 9> sizes{};
+    for (size_t i = 0; i < n; ++i) {
       const TilePoint& p = pts[i];
-      if (selected[i]) {
-        mine.push_back(p);
-      } else {
-        kids[(p.x >= centre.x) | ((p.y >= centre.y) << 1) | ((p.z >= centre.z) << 2)].push_back(p);
-      }
+      uint8_t b = selected[i] ? 8 : uint8_t((p.x >= centre.x) | ((p.y >= centre.y) << 1) | ((p.z >= centre.z) << 2));
+      selected[i] = b;
+      ++sizes[b];
     }
+    mine.resize(sizes[8]);
+    for (int k = 0; k < 8; ++k) kids[k].resize(sizes[k]);
+    std::array<TilePoint*, 9> out{};
+    for (int k = 0; k < 8; ++k) out[k] = kids[k].data();
+    out[8] = mine.data();
+    for (size_t i = 0; i < n; ++i) *out[selected[i]]++ = pts[i];
     std::vector<TilePoint>().swap(pts);
   }
   if (chunk_root) {
@@ -472,8 +634,13 @@ void Tiler::index_node(const NodeKey& key, std::vector<TilePoint>& pts, bool chu
 
 void Tiler::index_chunk(size_t i) {
   Chunk& c = *chunks_[i];
-  std::vector<TilePoint> pts = read_points(c.file);
-  fs::remove(c.file);
+  std::vector<TilePoint> pts;
+  if (c.resident) {
+    pts.swap(c.points);
+  } else {
+    pts = read_points(c.file);
+    fs::remove(c.file);
+  }
   if (pts.size() != c.count) fail("temporary chunk {} holds {} points, {} expected", c.key.name(), pts.size(), c.count);
   index_node(c.key, pts, true);
 }
@@ -587,6 +754,7 @@ TileStats Tiler::run() {
   if (out.filename().empty()) out = out.parent_path();
   if (fs::exists(out) && !opt_.force)
     fail("{} exists; pass --force to replace it", out.string());
+  phase_start_ = start;
   open_inputs();
   make_frame_and_cube();
 
@@ -601,6 +769,9 @@ TileStats Tiler::run() {
   count_level_ = 7;
   while (count_level_ > 3 && (uint64_t(1) << (3 * count_level_)) * 8 > budget / 8) --count_level_;
   chunk_points_ = std::max<uint64_t>(budget / 4 / (threads * 120), 20000);
+  // Staged records and resident chunks (2 x 40 bytes a point) within half the budget.
+  in_memory_ = total_points_ * 2 * sizeof(TilePoint) <= budget / 2;
+  if (in_memory_) staged_mem_.reset(new TilePoint[total_points_]);
 
   fs::path parent = out.parent_path();
   if (!fs::is_directory(parent)) fail("{}: no such directory", parent.string());
@@ -615,67 +786,65 @@ TileStats Tiler::run() {
                "batches of {}, count grid {}^3, chunks of <= {} points, {} threads",
                total_points_, inputs_.size(), cube_size_, root_spacing_, content_.precision,
                batch_points_, 1 << count_level_, chunk_points_, threads);
+  phase("headers, frame, cube");
 
-  {  // Counting pass.
+  {  // Reading pass: every point is decoded and transformed exactly once; its record goes to
+     // one staging file (the distribution pass reads records, not LAS) and is counted.
     std::vector<std::atomic<uint32_t>> counts(size_t(1) << (3 * count_level_));
-    read_pass("counting", [&](const Input& in, io::PointBatch& batch) {
-      std::vector<glm::dvec3> local;
-      to_local(in, batch, local);
-      for (const glm::dvec3& p : local) counts[cell_of(p)].fetch_add(1, std::memory_order_relaxed);
-    });
+    const fs::path staged = tmp_ / "staged.bin";
+    std::mutex stage_mutex;
+    uint64_t staged_points = 0;
+    {
+      int fd = ::open(staged.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      if (fd < 0) fail("{}: cannot create ({})", staged.string(), std::strerror(errno));
+      struct Closer {
+        int fd;
+        ~Closer() { ::close(fd); }
+      } closer{fd};
+      read_pass("reading", [&](const Input& in, io::PointBatch& batch) {
+        const size_t n = batch.size();
+        std::vector<TilePoint> local;
+        TilePoint* recs = nullptr;
+        if (in_memory_) {
+          uint64_t at = staged_fill_.fetch_add(n);
+          if (at + n > total_points_)
+            fail("the inputs hold more points than the {} their headers declare", total_points_);
+          recs = staged_mem_.get() + at;
+        } else {
+          local.resize(n);
+          recs = local.data();
+        }
+        make_records(in, batch, recs);
+        for (size_t i = 0; i < n; ++i) counts[cell_of(recs[i])].fetch_add(1, std::memory_order_relaxed);
+        if (in_memory_) return;
+        std::lock_guard lock(stage_mutex);
+        write_all(fd, staged, recs, n * sizeof(TilePoint));
+        staged_points += n;
+      });
+    }
+    if (in_memory_) staged_points = staged_fill_.load();
+    phase("read + transform + count");
     std::vector<uint32_t> plain(counts.size());
     for (size_t i = 0; i < counts.size(); ++i) plain[i] = counts[i].load();
+    std::vector<std::atomic<uint32_t>>().swap(counts);
     plan_chunks(plain);
-  }
-  {  // Distribution pass.
-    read_pass("distributing", [&](const Input& in, io::PointBatch& batch) {
-      std::vector<glm::dvec3> local;
-      to_local(in, batch, local);
-      const size_t n = batch.size();
-      const bool rgb = !batch.rgb.empty(), gps = !batch.gps_time.empty();
-      const int shift = in.header.rgb_bits == 8 ? 0 : 8;
-      std::vector<int32_t> chunk_of(n);
-      std::vector<uint32_t> offsets(chunks_.size() + 1, 0);
-      for (size_t i = 0; i < n; ++i) {
-        chunk_of[i] = cell_chunk_[cell_of(local[i])];
-        STIPPLE_ASSERT(chunk_of[i] >= 0, "a counted cell has no chunk");
-        ++offsets[size_t(chunk_of[i]) + 1];
-      }
-      for (size_t c = 0; c < chunks_.size(); ++c) offsets[c + 1] += offsets[c];
-      std::vector<uint32_t> fill(offsets.begin(), offsets.end() - 1);
-      std::vector<TilePoint> sorted(n);
-      for (size_t i = 0; i < n; ++i) {
-        TilePoint& t = sorted[fill[size_t(chunk_of[i])]++];
-        t.x = local[i].x, t.y = local[i].y, t.z = local[i].z;
-        t.gps_time = gps ? batch.gps_time[i] : 0.0;
-        t.intensity = batch.intensity.empty() ? 0 : batch.intensity[i];
-        if (rgb) {
-          t.r = uint8_t(std::min(255, batch.rgb[i].x >> shift));
-          t.g = uint8_t(std::min(255, batch.rgb[i].y >> shift));
-          t.b = uint8_t(std::min(255, batch.rgb[i].z >> shift));
-        } else {
-          t.r = t.g = t.b = 255;
-        }
-        t.classification = batch.classification.empty() ? 0 : batch.classification[i];
-        t.return_number = batch.return_number.empty() ? 0 : batch.return_number[i];
-        t.pad = 0;
-      }
-      for (size_t c = 0; c < chunks_.size(); ++c) {
-        uint32_t b = offsets[c], e = offsets[c + 1];
-        if (b == e) continue;
-        Chunk& ch = *chunks_[c];
-        std::lock_guard lock(ch.mutex);
-        append_file(ch.file, sorted.data() + b, size_t(e - b) * sizeof(TilePoint));
-        ch.count += e - b;
-      }
-    });
+    phase("plan chunks");
+    if (in_memory_) {
+      distribute_in_memory(staged_points);
+      staged_mem_.reset();
+    } else {
+      distribute(staged, staged_points);
+    }
+    fs::remove(staged);
     std::vector<int32_t>().swap(cell_chunk_);
+    phase("distribute");
   }
   uint64_t distributed = 0;
   for (auto& c : chunks_) distributed += c->count;
   if (distributed != total_points_)
     fail("the inputs hold {} points, not the {} their headers declare", distributed, total_points_);
   split_oversized_chunks();
+  phase("split oversized chunks");
   // Biggest chunks first keeps the pool busy to the end.
   std::sort(chunks_.begin(), chunks_.end(), [](auto& a, auto& b) { return a->count > b->count; });
 
@@ -683,12 +852,15 @@ TileStats Tiler::run() {
   pool_->parallel_for(chunks_.size(), 1, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) index_chunk(i);
   });
+  phase("index chunks");
   build_upper_levels();
   index_progress_->finish();
+  phase("upper levels");
   if (written_ != total_points_)
     fail("internal error: {} points written, {} read", written_.load(), total_points_);
   write_tileset();
   fs::remove_all(tmp_);
+  phase("tileset.json");
 
   // Commit: the finished directory replaces the output in one rename.
   if (fs::exists(out)) {
@@ -701,6 +873,7 @@ TileStats Tiler::run() {
     fs::rename(dir_, out);
   }
   partial.committed = true;
+  phase("commit");
 
   TileStats stats;
   stats.points = total_points_;
