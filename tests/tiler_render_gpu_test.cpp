@@ -22,34 +22,9 @@
 using namespace stipple;
 namespace fs = std::filesystem;
 
-namespace {
+namespace {}  // namespace
 
-struct Result {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr together
-};
-
-Result run(const std::string& args) {
-  std::string command = std::string(STIPPLE_BINARY) + " " + args + " 2>&1";
-  Result r;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buffer;
-  size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) r.output.append(buffer.data(), n);
-  int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
-}
-
-}  // namespace
-
-// Known bug (renderer side, not the tiler): `stipple render tileset.json` loads and counts every
-// point ("rendered 110000 points") but the written image is empty (background only), with the
-// billboard and the compute renderer alike, for glb and pnts tilesets. The image comparison is
-// therefore DISABLED_ until that is fixed; run it with --gtest_also_run_disabled_tests. What
-// works today (tiling, the tileset render's point count, the LAS render's colours) is checked
-// by TilerRender.AutzenTilesetLoadsEveryPoint below.
+// Tiles autzen_trim and renders the tileset and the LAS from the same framing parameters.
 static void tile_and_render(bool compare_images) {
   STIPPLE_REQUIRE_DATA(las, "las/autzen_trim.las");
   fs::path dir = fs::temp_directory_path() / ("stipple_tiler_render_" + std::to_string(::getpid()));
@@ -59,34 +34,26 @@ static void tile_and_render(bool compare_images) {
   // A small tile cap so the tileset has several levels (additive refinement), not one tile; a
   // root spacing of 100 m makes every level's geometric error (100, 50, 25 m) exceed the
   // renderer's screen-space error budget at this image size, so every tile is selected.
-  auto r = run("tile " + las.string() + " -o " + tiles.string() +
-               " --spacing 100 --max-node-points 20000");
+  auto r = test::run_stipple("tile " + las.string() + " -o " + tiles.string() +
+                             " --spacing 100 --max-node-points 20000");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   ASSERT_NE(r.output.find("tiled 110000 points"), std::string::npos) << r.output;
 
   // The data's own mean colour (8-bit values stored in 16-bit fields).
-  double data_mean[3] = {0, 0, 0};
-  {
-    io::LasReader reader(las);
-    io::PointBatch batch;
-    while (reader.read(batch, 1 << 16)) {
-    }
-    ASSERT_EQ(batch.rgb.size(), 110000u);
-    for (auto c : batch.rgb) data_mean[0] += c.r, data_mean[1] += c.g, data_mean[2] += c.b;
-    for (double& m : data_mean) m /= double(batch.rgb.size());
-  }
+  size_t colored = 0;
+  const auto data_mean = test::mean_rgb(las, &colored);
+  ASSERT_EQ(colored, 110000u);
 
-  // --renderer compute: the billboard renderer draws an empty frame for tileset inputs today
-  // (the points are loaded and counted, nothing reaches the image; known bug, reported with the
-  // tiler work), while the compute rasterizer draws both; raw colours either way.
+  // Raw colours: naive splatting, no EDL, on black.
   const std::string common =
-      " --width 640 --height 360 --azimuth 30 --elevation 40 --renderer compute --splat naive "
-      "--no-edl --background 0,0,0";
+      " --width 640 --height 360 --azimuth 30 --elevation 40 --splat naive --no-edl "
+      "--background 0,0,0 --color rgb";
   fs::path las_png = dir / "las.png", tiles_png = dir / "tileset.png";
-  r = run("render " + las.string() + " -o " + las_png.string() + common);
+  r = test::run_stipple("render " + las.string() + " -o " + las_png.string() + common);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("rendered 110000 points"), std::string::npos) << r.output;
-  r = run("render " + (tiles / "tileset.json").string() + " -o " + tiles_png.string() + common);
+  r = test::run_stipple("render " + (tiles / "tileset.json").string() + " -o " +
+                        tiles_png.string() + common);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   // The whole tileset fits the view at this size: every tile down to the finest level is
   // selected, so every point is drawn exactly once (additive refinement, no duplicates).
@@ -97,33 +64,39 @@ static void tile_and_render(bool compare_images) {
   if (!compare_images) {
     // Tolerance: the LAS render's covered pixels within 8 levels of the data's mean colour.
     EXPECT_GT(las_stats.coverage, 0.05);
-    for (int c = 0; c < 3; ++c) EXPECT_NEAR(las_stats.mean[c], data_mean[c], 8.0) << "channel " << c;
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(las_stats.mean[c], data_mean[c], 8.0) << "channel " << c;
     fs::remove_all(dir);
     return;
   }
   auto tiles_stats = test::coverage_stats(gpu::read_png(tiles_png), black, 0);
-  std::printf("coverage: LAS %.4f, tileset %.4f; mean colour LAS (%.1f %.1f %.1f), tileset "
-              "(%.1f %.1f %.1f), data (%.1f %.1f %.1f)\n",
-              las_stats.coverage, tiles_stats.coverage, las_stats.mean[0], las_stats.mean[1],
-              las_stats.mean[2], tiles_stats.mean[0], tiles_stats.mean[1], tiles_stats.mean[2],
-              data_mean[0], data_mean[1], data_mean[2]);
+  std::printf(
+      "coverage: LAS %.4f, tileset %.4f; mean colour LAS (%.1f %.1f %.1f), tileset "
+      "(%.1f %.1f %.1f), data (%.1f %.1f %.1f)\n",
+      las_stats.coverage, tiles_stats.coverage, las_stats.mean[0], las_stats.mean[1],
+      las_stats.mean[2], tiles_stats.mean[0], tiles_stats.mean[1], tiles_stats.mean[2],
+      data_mean[0], data_mean[1], data_mean[2]);
   EXPECT_GT(las_stats.coverage, 0.05);
   EXPECT_GT(tiles_stats.coverage, 0.05);
   // Tolerance: coverage within 25% (relative) of each other. The framings differ (padded root
   // volume vs LAS header box, ~1 degree of grid convergence) and the automatic point size is
   // chosen per cloud, which moves the covered area by a few percent, not by a quarter.
   EXPECT_NEAR(tiles_stats.coverage / las_stats.coverage, 1.0, 0.25);
-  // Tolerance: mean colour of covered pixels within 6 levels per channel of each other and
+  // Tolerance: mean colour of covered pixels within 8 levels per channel of each other and
   // within 8 levels of the data's mean (the bound render_gpu_test uses for the LAS alone):
   // same points, same raw colours, only which points win overlapping pixels differs.
   for (int c = 0; c < 3; ++c) {
-    EXPECT_NEAR(tiles_stats.mean[c], las_stats.mean[c], 6.0) << "channel " << c;
+    EXPECT_NEAR(tiles_stats.mean[c], las_stats.mean[c], 8.0) << "channel " << c;
     EXPECT_NEAR(tiles_stats.mean[c], data_mean[c], 8.0) << "channel " << c;
     EXPECT_NEAR(las_stats.mean[c], data_mean[c], 8.0) << "channel " << c;
   }
   fs::remove_all(dir);
 }
 
-TEST(TilerRender, AutzenTilesetLoadsEveryPoint) { tile_and_render(false); }
+TEST(TilerRender, AutzenTilesetLoadsEveryPoint) {
+  tile_and_render(false);
+}
 
-TEST(TilerRender, DISABLED_AutzenTilesetRendersLikeItsLas) { tile_and_render(true); }
+TEST(TilerRender, AutzenTilesetRendersLikeItsLas) {
+  tile_and_render(true);
+}

@@ -36,6 +36,7 @@ struct RenderPointCloud {
   // into it in Queue and back at the next Queue. Boxed: its address must not move.
   std::unique_ptr<pc::GpuPointCloud> drawn = std::make_unique<pc::GpuPointCloud>();
   std::vector<uint32_t> drawn_ids;
+  std::vector<uint32_t> last_ids;  // the previous frame's selection
   // The compute rasterizer's batches (built on first use), boxed for the same reason.
   std::unique_ptr<pc::GpuBatchedCloud> batched;
   uint64_t batched_generation = std::numeric_limits<uint64_t>::max();
@@ -169,7 +170,13 @@ void queue_point_clouds(Registry& render) {
       drawn_one = true;
       return;
     }
-    r.drawn_ids = select_chunks(r.gpu_bounds, r.gpu_counts, camera.position, settings.budget);
+    std::vector<uint32_t> ids =
+        select_chunks(r.gpu_bounds, r.gpu_counts, camera.position, settings.budget);
+    // Each chunk's bind groups point at its CLOD argument slot (its index in the drawn view):
+    // a different selection or order must rebuild them.
+    if (ids != r.last_ids) r.drawn->bind_groups_for = nullptr;
+    r.last_ids = ids;
+    r.drawn_ids = std::move(ids);
     for (uint32_t id : r.drawn_ids) {
       r.drawn->point_count += r.all.chunks[id].count;
       r.drawn->chunks.push_back(std::move(r.all.chunks[id]));

@@ -22,16 +22,16 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <functional>
-#include <array>
 #include <deque>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <future>
 #include <map>
 #include <mutex>
@@ -65,10 +65,14 @@ uint64_t parse_size(const std::string& text) {
   }
   std::string unit = text.substr(used);
   double mult = 1;
-  if (unit == "k" || unit == "K" || unit == "KB" || unit == "KiB") mult = 1024.0;
-  else if (unit == "m" || unit == "M" || unit == "MB" || unit == "MiB") mult = 1024.0 * 1024;
-  else if (unit == "g" || unit == "G" || unit == "GB" || unit == "GiB") mult = 1024.0 * 1024 * 1024;
-  else if (!unit.empty()) fail("'{}' is not a size (e.g. 2G, 512M)", text);
+  if (unit == "k" || unit == "K" || unit == "KB" || unit == "KiB")
+    mult = 1024.0;
+  else if (unit == "m" || unit == "M" || unit == "MB" || unit == "MiB")
+    mult = 1024.0 * 1024;
+  else if (unit == "g" || unit == "G" || unit == "GB" || unit == "GiB")
+    mult = 1024.0 * 1024 * 1024;
+  else if (!unit.empty())
+    fail("'{}' is not a size (e.g. 2G, 512M)", text);
   if (!(v > 0)) fail("size '{}' must be positive", text);
   return uint64_t(v * mult);
 }
@@ -186,7 +190,8 @@ class Tiler {
   uint32_t cell_of(const TilePoint& p) const { return cell_of(glm::dvec3(p.x, p.y, p.z)); }
   void phase(const char* name) {
     auto now = std::chrono::steady_clock::now();
-    STIPPLE_INFO("tile: phase {:<26} {:8.3f} s", name, std::chrono::duration<double>(now - phase_start_).count());
+    STIPPLE_INFO("tile: phase {:<26} {:8.3f} s", name,
+                 std::chrono::duration<double>(now - phase_start_).count());
     phase_start_ = now;
   }
   void plan_chunks(const std::vector<uint32_t>& counts);
@@ -222,7 +227,7 @@ class Tiler {
     uint64_t count = 0;
     fs::path file;
     std::mutex mutex;
-    bool resident = false;           // points held in memory (in-memory mode), not in file
+    bool resident = false;  // points held in memory (in-memory mode), not in file
     std::vector<TilePoint> points;
   };
   // In-memory mode (the records of every input fit the budget twice over): the reading pass
@@ -426,7 +431,8 @@ void Tiler::make_frame_and_cube() {
   cube_size_ = size;
   root_spacing_ = opt_.spacing > 0 ? opt_.spacing : size / 128.0;
   // Deep enough for any sane data; bounds recursion on duplicate points.
-  max_level_ = std::clamp(int(std::ceil(std::log2(size / std::max(content_.precision, 1e-4)))) + 2, 4, 30);
+  max_level_ =
+      std::clamp(int(std::ceil(std::log2(size / std::max(content_.precision, 1e-4)))) + 2, 4, 30);
 }
 
 uint32_t Tiler::cell_of(const glm::dvec3& p) const {
@@ -448,8 +454,11 @@ void Tiler::read_pass(const char* label, Process process) {
   std::exception_ptr error;
   std::atomic<uint64_t> done{0};
   std::vector<std::future<void>> futures;
-  for (const Input& in : inputs_) {
+  for (Input& in : inputs_) {
     io::LasReader reader(in.path);
+    // The reader detects 8-bit colour stored in 16-bit fields from the first points
+    // (read_las_header cannot): make_records scales by it.
+    in.header.rgb_bits = reader.header().rgb_bits;
     while (true) {
       auto batch = std::make_shared<io::PointBatch>();
       size_t got = reader.read(*batch, batch_points_);
@@ -497,7 +506,8 @@ void Tiler::plan_chunks(const std::vector<uint32_t>& counts) {
     for (uint32_t z = 0; z < 2 * n; ++z)
       for (uint32_t y = 0; y < 2 * n; ++y)
         for (uint32_t x = 0; x < 2 * n; ++x)
-          pyramid[l][((z / 2) * n + y / 2) * n + x / 2] += fine[(size_t(z) * 2 * n + y) * 2 * n + x];
+          pyramid[l][((z / 2) * n + y / 2) * n + x / 2] +=
+              fine[(size_t(z) * 2 * n + y) * 2 * n + x];
   }
   cell_chunk_.assign(counts.size(), -1);
   std::vector<NodeKey> stack{NodeKey{}};
@@ -521,7 +531,8 @@ void Tiler::plan_chunks(const std::vector<uint32_t>& counts) {
       for (uint32_t y = 0; y < span; ++y)
         for (uint32_t x = 0; x < span; ++x) {
           uint32_t cx = (k.x << shift) + x, cy = (k.y << shift) + y, cz = (k.z << shift) + z;
-          cell_chunk_[(cz << (2 * count_level_)) | (cy << count_level_) | cx] = int32_t(chunks_.size());
+          cell_chunk_[(cz << (2 * count_level_)) | (cy << count_level_) | cx] =
+              int32_t(chunks_.size());
         }
     chunks_.push_back(std::move(chunk));
   }
@@ -548,7 +559,8 @@ void Tiler::split_oversized_chunks() {
     std::vector<TilePoint> block(1 << 16);
     std::vector<std::vector<TilePoint>> out(8);
     while (in) {
-      in.read(reinterpret_cast<char*>(block.data()), std::streamsize(block.size() * sizeof(TilePoint)));
+      in.read(reinterpret_cast<char*>(block.data()),
+              std::streamsize(block.size() * sizeof(TilePoint)));
       size_t n = size_t(in.gcount()) / sizeof(TilePoint);
       for (size_t j = 0; j < n; ++j) {
         const TilePoint& p = block[j];
@@ -602,7 +614,10 @@ void Tiler::index_node(const NodeKey& key, std::vector<TilePoint>& pts, bool chu
     std::array<size_t, 9> sizes{};
     for (size_t i = 0; i < n; ++i) {
       const TilePoint& p = pts[i];
-      uint8_t b = selected[i] ? 8 : uint8_t((p.x >= centre.x) | ((p.y >= centre.y) << 1) | ((p.z >= centre.z) << 2));
+      uint8_t b =
+          selected[i]
+              ? 8
+              : uint8_t((p.x >= centre.x) | ((p.y >= centre.y) << 1) | ((p.z >= centre.z) << 2));
       selected[i] = b;
       ++sizes[b];
     }
@@ -641,7 +656,8 @@ void Tiler::index_chunk(size_t i) {
     pts = read_points(c.file);
     fs::remove(c.file);
   }
-  if (pts.size() != c.count) fail("temporary chunk {} holds {} points, {} expected", c.key.name(), pts.size(), c.count);
+  if (pts.size() != c.count)
+    fail("temporary chunk {} holds {} points, {} expected", c.key.name(), pts.size(), c.count);
   index_node(c.key, pts, true);
 }
 
@@ -735,7 +751,8 @@ void Tiler::write_tileset() {
   root["transform"] = {m[0].x, m[0].y, m[0].z, 0, m[1].x, m[1].y, m[1].z, 0,
                        m[2].x, m[2].y, m[2].z, 0, o.x,    o.y,    o.z,    1};
   json tileset = {
-      {"asset", {{"version", opt_.format == Format::Glb ? "1.1" : "1.0"}, {"generator", "stipple tile"}}},
+      {"asset",
+       {{"version", opt_.format == Format::Glb ? "1.1" : "1.0"}, {"generator", "stipple tile"}}},
       {"geometricError", 2 * root_spacing_},
       {"root", root},
       {"extras",
@@ -752,13 +769,13 @@ TileStats Tiler::run() {
   auto start = std::chrono::steady_clock::now();
   fs::path out = fs::absolute(opt_.output).lexically_normal();
   if (out.filename().empty()) out = out.parent_path();
-  if (fs::exists(out) && !opt_.force)
-    fail("{} exists; pass --force to replace it", out.string());
+  if (fs::exists(out) && !opt_.force) fail("{} exists; pass --force to replace it", out.string());
   phase_start_ = start;
   open_inputs();
   make_frame_and_cube();
 
-  unsigned threads = opt_.threads ? opt_.threads : std::max(1u, std::thread::hardware_concurrency());
+  unsigned threads =
+      opt_.threads ? opt_.threads : std::max(1u, std::thread::hardware_concurrency());
   pool_ = std::make_unique<ThreadPool>(threads);
   // Memory plan (bytes per point in flight): a read batch ~170 (PointBatch + local positions +
   // records + sorted copy); a point being indexed ~120 (twice its record + hash slots).
@@ -776,16 +793,18 @@ TileStats Tiler::run() {
   fs::path parent = out.parent_path();
   if (!fs::is_directory(parent)) fail("{}: no such directory", parent.string());
   std::string templ = (parent / (out.filename().string() + ".partial-XXXXXX")).string();
-  if (!::mkdtemp(templ.data())) fail("cannot create a directory beside {} ({})", out.string(), std::strerror(errno));
+  if (!::mkdtemp(templ.data()))
+    fail("cannot create a directory beside {} ({})", out.string(), std::strerror(errno));
   PartialDir partial{templ};
   dir_ = partial.path;
   tmp_ = dir_ / ".tmp";
   fs::create_directories(tmp_);
   fs::create_directories(dir_ / "tiles");
-  STIPPLE_INFO("tile: {} points from {} input(s), cube {:.1f} m, root spacing {:.3f} m, precision {:.4f} m, "
-               "batches of {}, count grid {}^3, chunks of <= {} points, {} threads",
-               total_points_, inputs_.size(), cube_size_, root_spacing_, content_.precision,
-               batch_points_, 1 << count_level_, chunk_points_, threads);
+  STIPPLE_INFO(
+      "tile: {} points from {} input(s), cube {:.1f} m, root spacing {:.3f} m, precision {:.4f} m, "
+      "batches of {}, count grid {}^3, chunks of <= {} points, {} threads",
+      total_points_, inputs_.size(), cube_size_, root_spacing_, content_.precision, batch_points_,
+      1 << count_level_, chunk_points_, threads);
   phase("headers, frame, cube");
 
   {  // Reading pass: every point is decoded and transformed exactly once; its record goes to
@@ -815,7 +834,8 @@ TileStats Tiler::run() {
           recs = local.data();
         }
         make_records(in, batch, recs);
-        for (size_t i = 0; i < n; ++i) counts[cell_of(recs[i])].fetch_add(1, std::memory_order_relaxed);
+        for (size_t i = 0; i < n; ++i)
+          counts[cell_of(recs[i])].fetch_add(1, std::memory_order_relaxed);
         if (in_memory_) return;
         std::lock_guard lock(stage_mutex);
         write_all(fd, staged, recs, n * sizeof(TilePoint));
