@@ -337,6 +337,19 @@ static PointContent decode_pnts_unchecked(std::span<const uint8_t> data, const s
       const uint8_t* p = table.bytes(value, "3DTILES_draco_point_compression", 1,
                                      value.value("byteLength", uint64_t(0)));
       uint64_t length = value.value("byteLength", uint64_t(0));
+      // Draco sizes its allocations from the point count in its own header: check that count
+      // against POINTS_LENGTH before decoding (a corrupt count made it ask for gigabytes).
+      // Layout: "DRACO", major, minor, encoder type, method, flags (u16), then for point clouds
+      // (both sequential and k-d tree methods) the point count as int32; metadata, flagged by
+      // bit 15, would come before it.
+      if (length < 15 || std::memcmp(p, "DRACO", 5) != 0)
+        fail("{}: 3DTILES_draco_point_compression data is not a Draco buffer", name);
+      uint16_t draco_flags = uint16_t(p[9] | p[10] << 8);
+      if (draco_flags & 0x8000) fail("{}: Draco buffers with metadata are not supported", name);
+      int32_t draco_points = 0;
+      std::memcpy(&draco_points, p + 11, 4);
+      if (draco_points < 0 || uint64_t(draco_points) != n)
+        fail("{}: Draco header says {} points, POINTS_LENGTH says {}", name, draco_points, n);
       draco::DecoderBuffer buffer;
       buffer.Init(reinterpret_cast<const char*>(p), size_t(length));
       draco::Decoder decoder;
