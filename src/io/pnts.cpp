@@ -300,6 +300,7 @@ static PointContent decode_pnts_unchecked(std::span<const uint8_t> data, const s
          limits.max_points);
   const size_t n = size_t(points[0]);
   c.point_count = n;
+  if (n == 0) return c;  // an empty tile: nothing to decode (and no zero-length copies)
   if (auto rtc = table.global("RTC_CENTER", 3, "FLOAT"); !rtc.empty())
     c.center = {rtc[0], rtc[1], rtc[2]};
 
