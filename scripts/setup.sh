@@ -20,6 +20,10 @@ apt_pkgs=(build-essential cmake ninja-build ccache pkg-config git curl ca-certif
   libcurl4-openssl-dev libpng-dev libproj-dev proj-data libdraco-dev libmeshoptimizer-dev
   libgtest-dev libgmock-dev libbenchmark-dev libimgui-dev xvfb xauth
   libvulkan1 vulkan-tools clang-14 libclang-rt-14-dev clang-format nginx-light)
+# npm (for Dawn's package and the glTF validator) and venv (for py3dtiles) come from Debian
+# only where the machine has none of its own: a Node.js or Python installed another way stays.
+command -v npm >/dev/null || apt_pkgs+=(npm)
+python3 -c 'import ensurepip, venv' 2>/dev/null || apt_pkgs+=(python3-venv)
 need_apt=0
 for p in "${apt_pkgs[@]}" liblaszip-dev mesa-vulkan-drivers; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || { need_apt=1; break; }
