@@ -2,20 +2,14 @@
 // one workgroup per batch culls it against the frustum, picks the precision from its size on
 // screen, and each thread projects ~80 points, keeping the nearest per pixel with a 64-bit
 // atomicMin of (depth << 32 | point index). Needs ShaderInt64AtomicMinMax (wgpu-native).
-#include "compute_raster_common.wgsl"
+#include "compute_raster_batch.wgsl"
 
-@group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> batches: array<GpuBatch>;
-@group(0) @binding(2) var<storage, read> coarse: array<u32>;
-@group(0) @binding(3) var<storage, read> medium: array<u32>;
-@group(0) @binding(4) var<storage, read> fine: array<u32>;
 @group(0) @binding(5) var<storage, read_write> visibility: array<atomic<u64>>;
 // The same buffer as 32-bit words: only min/max are allowed on 64-bit atomics, so the early
 // depth test loads the depth (high) word through this view.
 @group(0) @binding(6) var<storage, read_write> visibility_words: array<atomic<u32>>;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
 
-var<workgroup> batch_bits: u32;
 
 @compute @workgroup_size(128)
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
@@ -44,16 +38,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index
   }
   for (var i = lid; i < b.count; i += WORKGROUP) {
     let index = b.first + i;
-    let c = coarse[index];
-    var m = 0u;
-    var f = 0u;
-    if (bits >= 20u) {
-      m = medium[index];
-    }
-    if (bits >= 30u) {
-      f = fine[index];
-    }
-    let pr = project(params, b.offset + box_fraction(bits, c, m, f) * b.size);
+    let pr = project(params, load_position(b, bits, index));
     if (!pr.valid) {
       continue;
     }

@@ -2,18 +2,12 @@
 // point within a relative depth tolerance of the pixel's nearest depth adds its colour and a
 // count with 32-bit atomicAdd; the display pass divides. The depth comes from the 32-bit depth
 // buffer or from the high word of the 64-bit visibility buffer (depth_stride / depth_word).
-#include "compute_raster_common.wgsl"
+#include "compute_raster_batch.wgsl"
 
-@group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> batches: array<GpuBatch>;
-@group(0) @binding(2) var<storage, read> coarse: array<u32>;
-@group(0) @binding(3) var<storage, read> medium: array<u32>;
-@group(0) @binding(4) var<storage, read> fine: array<u32>;
 @group(0) @binding(5) var<storage, read> colors: array<u32>;
 @group(0) @binding(6) var<storage, read> depth_buffer: array<u32>;
 @group(0) @binding(7) var<storage, read_write> accum: array<atomic<u32>>;
 
-var<workgroup> batch_bits: u32;
 
 @compute @workgroup_size(128)
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
@@ -31,16 +25,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index
   }
   for (var i = lid; i < b.count; i += WORKGROUP) {
     let index = b.first + i;
-    let c = coarse[index];
-    var m = 0u;
-    var f = 0u;
-    if (bits >= 20u) {
-      m = medium[index];
-    }
-    if (bits >= 30u) {
-      f = fine[index];
-    }
-    let pr = project(params, b.offset + box_fraction(bits, c, m, f) * b.size);
+    let pr = project(params, load_position(b, bits, index));
     if (!pr.valid) {
       continue;
     }

@@ -1,17 +1,11 @@
 // Compute rasterizer fallback without 64-bit atomics (seed 003, section 4.2): the depth pass
 // keeps the nearest depth per pixel with a 32-bit atomicMin; colours follow in the
 // accumulation pass. Same batch culling and precision choice as compute_raster64.wgsl.
-#include "compute_raster_common.wgsl"
+#include "compute_raster_batch.wgsl"
 
-@group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> batches: array<GpuBatch>;
-@group(0) @binding(2) var<storage, read> coarse: array<u32>;
-@group(0) @binding(3) var<storage, read> medium: array<u32>;
-@group(0) @binding(4) var<storage, read> fine: array<u32>;
 @group(0) @binding(5) var<storage, read_write> depth_buffer: array<atomic<u32>>;
 @group(0) @binding(6) var<storage, read_write> counters: array<atomic<u32>>;
 
-var<workgroup> batch_bits: u32;
 
 @compute @workgroup_size(128)
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
@@ -40,16 +34,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index
   }
   for (var i = lid; i < b.count; i += WORKGROUP) {
     let index = b.first + i;
-    let c = coarse[index];
-    var m = 0u;
-    var f = 0u;
-    if (bits >= 20u) {
-      m = medium[index];
-    }
-    if (bits >= 30u) {
-      f = fine[index];
-    }
-    let pr = project(params, b.offset + box_fraction(bits, c, m, f) * b.size);
+    let pr = project(params, load_position(b, bits, index));
     if (!pr.valid) {
       continue;
     }

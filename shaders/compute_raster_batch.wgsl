@@ -1,0 +1,26 @@
+// What the compute rasterizer's geometry passes share: the frame's parameters, the batches and
+// the split positions (bindings 0-4), the batch's precision for the workgroup, and the load of
+// a point at that precision (seed 001, section 3.3: only the needed buffers are read).
+#include "compute_raster_common.wgsl"
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> batches: array<GpuBatch>;
+@group(0) @binding(2) var<storage, read> coarse: array<u32>;
+@group(0) @binding(3) var<storage, read> medium: array<u32>;
+@group(0) @binding(4) var<storage, read> fine: array<u32>;
+
+var<workgroup> batch_bits: u32;
+
+// Point `index` of batch `b` relative to the camera, from 10, 20 or 30 bits per axis.
+fn load_position(b: GpuBatch, bits: u32, index: u32) -> vec3<f32> {
+  let c = coarse[index];
+  var m = 0u;
+  var f = 0u;
+  if (bits >= 20u) {
+    m = medium[index];
+  }
+  if (bits >= 30u) {
+    f = fine[index];
+  }
+  return b.offset + box_fraction(bits, c, m, f) * b.size;
+}
