@@ -286,14 +286,7 @@ void add_render_command(CLI::App& cli) {
                   "billboard (the point pipeline) or compute (compute rasterizer, 1-pixel points)")
       ->check(CLI::IsMember({"billboard", "compute"}))
       ->capture_default_str();
-  cmd->add_option("--max-sse", args->max_sse,
-                  "Tilesets: refine tiles while their screen-space error exceeds this (pixels)")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  cmd->add_option("--memory-mb", args->memory_mb,
-                  "Tilesets: resident tile memory budget in MiB (least recently used evicted)")
-      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 20))
-      ->capture_default_str();
+  add_tileset_options(cmd, args->max_sse, args->memory_mb);
   cmd->add_option("--max-frames", args->max_frames,
                   "Tilesets: write the image after this many frames even if tiles are still "
                   "streaming")

@@ -141,14 +141,7 @@ void add_view_command(CLI::App& cli) {
                   "With --frames: write the last frame (as shown, panel included) to this PNG");
   cmd->add_flag("--no-vsync", args->no_vsync, "Start with vsync off (Immediate or Mailbox)");
   cmd->add_flag("--no-ui", args->no_ui, "Leave out the ImGui panel (UiPlugin)");
-  cmd->add_option("--max-sse", args->max_sse,
-                  "Tilesets: refine tiles while their screen-space error exceeds this (pixels)")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  cmd->add_option("--memory-mb", args->memory_mb,
-                  "Tilesets: resident tile memory budget in MiB (least recently used evicted)")
-      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 20))
-      ->capture_default_str();
+  add_tileset_options(cmd, args->max_sse, args->memory_mb);
   cmd->add_flag("--single-thread", args->single_thread,
                 "Run the render world on the main thread (no PipelinedRenderingPlugin)");
   cmd->callback([args] { run_view(*args); });

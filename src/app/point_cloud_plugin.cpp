@@ -101,15 +101,6 @@ void upload_point_clouds(Registry& render) {
   });
 }
 
-Camera render_camera(const ExtractedCamera& c) {
-  Camera camera;
-  camera.position = c.position;
-  camera.orientation = c.rotation;
-  camera.fov_y = c.fov_y;
-  camera.near_plane = c.near_plane;
-  return camera;
-}
-
 // The one call into the point pipeline.
 void add_scene_passes(gpu::RenderGraph& graph, pc::PointPipelines& pipelines,
                       pc::GpuPointCloud& cloud, const Camera& camera,
@@ -121,10 +112,7 @@ void queue_point_clouds(Registry& render) {
   auto& fg = render.resource<FrameGraph>();
   if (!fg.active) return;
   const auto& target = render.resource<RenderTarget>();
-  const ExtractedCamera* extracted = nullptr;
-  render.view<ExtractedCamera>().each([&](const ExtractedCamera& c) {
-    if (!extracted) extracted = &c;
-  });
+  const ExtractedCamera* extracted = first_extracted_camera(render);
   if (!extracted) return;
   auto& cache = render.resource<PointPipelineCache>();
   const auto& settings = render.resource<PointDrawSettings>();
@@ -150,7 +138,7 @@ void queue_point_clouds(Registry& render) {
     r.drawn->chunks.clear();
     r.drawn->point_count = 0;
     if (drawn_one) return;  // one pass per frame for now: the first cloud
-    Camera camera = render_camera(*extracted);
+    Camera camera = to_camera(*extracted);
     camera.position -= r.translation;  // a translated cloud is the camera moved the other way
     if (settings.compute) {
       // The compute rasterizer draws every batch it does not cull (no budget: it is the path

@@ -120,4 +120,15 @@ void add_point_render_options(CLI::App* cmd, pc::PointRenderSettings& s) {
       ->capture_default_str();
 }
 
+void add_tileset_options(CLI::App* cmd, double& max_sse, uint64_t& memory_mb) {
+  cmd->add_option("--max-sse", max_sse,
+                  "Tilesets: refine tiles while their screen-space error exceeds this (pixels)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--memory-mb", memory_mb,
+                  "Tilesets: resident tile memory budget in MiB (least recently used evicted)")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 20))
+      ->capture_default_str();
+}
+
 }  // namespace stipple::app

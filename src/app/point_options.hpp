@@ -1,6 +1,7 @@
 #pragma once
 // The command-line flags of the point pipeline (PointRenderSettings), shared by `stipple render`
 // and `stipple view` so that both accept the same options with the same meaning.
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,9 @@ void add_point_render_options(CLI::App* cmd, pc::PointRenderSettings& settings);
 
 // "1,2,3" -> {1, 2, 3}; throws stipple::Error naming `what` unless exactly `expected` finite
 // numbers.
+// --max-sse and --memory-mb: how `render` and `view` stream 3D Tiles.
+void add_tileset_options(CLI::App* cmd, double& max_sse, uint64_t& memory_mb);
+
 std::vector<double> parse_numbers(const std::string& text, size_t expected, const char* what);
 
 }  // namespace stipple::app

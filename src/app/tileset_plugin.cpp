@@ -178,25 +178,13 @@ void prepare_tileset(Registry& render) {
   if (uploaded) ctx.check("uploading tiles");
 }
 
-Camera render_camera(const ExtractedCamera& c) {
-  Camera camera;
-  camera.position = c.position;
-  camera.orientation = c.rotation;
-  camera.fov_y = c.fov_y;
-  camera.near_plane = c.near_plane;
-  return camera;
-}
-
 void queue_tileset(Registry& render) {
   auto& fg = render.resource<FrameGraph>();
   if (!fg.active) return;
   const auto* list = render.try_resource<TilesetDrawList>();
   if (!list) return;
   const auto& target = render.resource<RenderTarget>();
-  const ExtractedCamera* extracted = nullptr;
-  render.view<ExtractedCamera>().each([&](const ExtractedCamera& c) {
-    if (!extracted) extracted = &c;
-  });
+  const ExtractedCamera* extracted = first_extracted_camera(render);
   if (!extracted) return;
   auto& g = render.resource<TilesetGpu>();
   const auto& settings = render.resource<PointDrawSettings>();
@@ -236,7 +224,7 @@ void queue_tileset(Registry& render) {
   stats.points_total = 0;
   for (const auto& [id, tile] : g.tiles) stats.points_total += tile.gpu.point_count;
   if (drawn.chunks.empty()) return;  // nothing resident yet: the target keeps its clear
-  Camera camera = render_camera(*extracted);
+  Camera camera = to_camera(*extracted);
   pc::add_point_cloud_passes(fg.graph, *g.pipelines, drawn, camera, settings.render, target.width,
                              target.height);
   stats.points_drawn += drawn.point_count;

@@ -6,6 +6,23 @@
 
 namespace stipple {
 
+const ExtractedCamera* first_extracted_camera(Registry& render) {
+  const ExtractedCamera* first = nullptr;
+  render.view<ExtractedCamera>().each([&](const ExtractedCamera& c) {
+    if (!first) first = &c;
+  });
+  return first;
+}
+
+Camera to_camera(const ExtractedCamera& c) {
+  Camera camera;
+  camera.position = c.position;
+  camera.orientation = c.rotation;
+  camera.fov_y = c.fov_y;
+  camera.near_plane = c.near_plane;
+  return camera;
+}
+
 glm::mat4 camera_relative_model(const glm::dmat4& model, const glm::dvec3& camera_position) {
   glm::dmat4 relative = model;
   relative[3] = glm::dvec4(glm::dvec3(model[3]) - camera_position, 1.0);

@@ -26,6 +26,11 @@ struct ExtractedCamera {
   double near_plane = 0;
 };
 
+// The render world's camera (the first extracted one), or null before any was extracted.
+const ExtractedCamera* first_extracted_camera(Registry& render);
+// An extracted camera as a math::Camera (position and rotation apart, as extracted).
+Camera to_camera(const ExtractedCamera& c);
+
 // The camera-relative model matrix for the GPU: translation minus camera position in double,
 // then cast to float.
 glm::mat4 camera_relative_model(const glm::dmat4& model, const glm::dvec3& camera_position);
