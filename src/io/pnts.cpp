@@ -177,6 +177,11 @@ std::vector<T> draco_values(const draco::PointAttribute* a, size_t count, int co
   if (a->num_components() < components)
     fail("{}: Draco attribute {} has {} components, expected {}", name, key,
          int(a->num_components()), components);
+  // 3D Tiles maps every attribute to a numeric Draco type; Draco's own conversion from DT_BOOL
+  // loads raw bytes as bool, which is undefined for anything but 0 and 1.
+  if (a->data_type() == draco::DT_BOOL || a->data_type() == draco::DT_INVALID ||
+      a->data_type() >= draco::DT_TYPES_COUNT)
+    fail("{}: Draco attribute {} has a non-numeric data type", name, key);
   std::vector<T> out(count * size_t(components));
   for (size_t i = 0; i < count; ++i) {
     auto index = a->mapped_index(draco::PointIndex(uint32_t(i)));
