@@ -16,6 +16,7 @@
 #include <set>
 #include <unordered_map>
 
+#include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
@@ -236,6 +237,7 @@ fs::path generated_las(uint64_t points, const std::string& name) {
   o.scale = glm::dvec3(0.001);
   o.offset = glm::floor(scene.origin / 1000.0) * 1000.0;
   o.wkt = "";
+  o.compress = p.extension() == ".laz";
   io::LasWriter w(p, o);
   for (uint64_t first = 0; first < points; first += 1 << 20) {
     io::PointBatch b;
@@ -286,11 +288,15 @@ TEST(Tiler, AutzenPntsHoldsEveryPoint) {
   EXPECT_EQ(j["asset"]["version"], "1.0");
 }
 
-TEST(Tiler, OutOfCoreChunksLoseAndDuplicateNothing) {
-  fs::path las = generated_las(400000, "gen400k.las");
+// Out of core, uncompressed LAS takes the re-read path (count pass, then distribution pass) and
+// LAZ the staged path (one pass to a staging file): both must place every point exactly once.
+class TilerOutOfCore : public testing::TestWithParam<const char*> {};
+
+TEST_P(TilerOutOfCore, ChunksLoseAndDuplicateNothing) {
+  fs::path las = generated_las(400000, std::string("gen400k.") + GetParam());
   tiler::TileOptions o;
   o.inputs = {las.string()};
-  o.output = (temp_dir() / "gen_chunks").string();
+  o.output = (temp_dir() / (std::string("gen_chunks_") + GetParam())).string();
   o.crs = "EPSG:32633";  // the generated file carries no WKT here: --crs path
   o.max_memory = 4 << 20;
   o.max_node_points = 20000;
@@ -312,6 +318,8 @@ TEST(Tiler, OutOfCoreChunksLoseAndDuplicateNothing) {
   for (size_t i = 0; i < p.size(); ++i) src[i] = {p[i], {}, b.intensity[i], b.classification[i]};
   EXPECT_EQ(count_matched(src, ts.points, 0.001), 400000u);
 }
+
+INSTANTIATE_TEST_SUITE_P(Tiler, TilerOutOfCore, testing::Values("las", "laz"));
 
 TEST(Tiler, InputWithoutCrsIsRefused) {
   fs::path las = generated_las(400000, "gen400k.las");
@@ -420,3 +428,66 @@ TEST(Tiler, PeakMemoryStaysUnderBudget) {
 }
 
 }  // namespace
+
+namespace {
+
+// Largest distance between source_to_local and PROJ point by point, for points spread over
+// `extent` (source units) around `centre` with heights in [zlo, zhi].
+double lattice_error(const std::string& crs, const glm::dvec3& centre, double extent, double zlo,
+                     double zhi, double tolerance, tiler::LatticeStats& stats) {
+  tiler::EcefTransform t(crs);
+  glm::dvec3 c = centre;
+  t.transform(&c, 1);
+  tiler::LocalFrame frame = tiler::make_local_frame(c);
+  std::vector<glm::dvec3> src(200000);
+  uint64_t state = 12345;
+  auto rnd = [&] {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return double(state >> 11) / double(1ull << 53);
+  };
+  for (auto& p : src)
+    p = {centre.x + (rnd() - 0.5) * extent, centre.y + (rnd() - 0.5) * extent,
+         zlo + rnd() * (zhi - zlo)};
+  std::vector<glm::dvec3> fast(src.size()), exact = src;
+  tiler::source_to_local(t, frame, src.data(), src.size(), fast.data(), tolerance, &stats);
+  t.transform(exact.data(), exact.size());
+  double worst = 0;
+  for (size_t i = 0; i < src.size(); ++i)
+    worst = std::max(worst, glm::length(frame.to_local(exact[i]) - fast[i]));
+  return worst;
+}
+
+}  // namespace
+
+// The lattice transform stays within its tolerance of PROJ point by point, in metres, feet and
+// degrees, and really interpolates (PROJ runs on far fewer nodes than points).
+TEST(TilerLattice, MatchesProjWithinTolerance) {
+  struct Case {
+    const char* crs;
+    glm::dvec3 centre;
+    double extent, zlo, zhi;
+  } cases[] = {
+      {"EPSG:32633", {500000, 6650000, 0}, 1000, -100, 2500},  // UTM metres, 60 N
+      {"EPSG:2992", {4235000, 868000, 0}, 3000, 300, 900},     // Oregon Lambert, feet
+      {"EPSG:4326", {10.7, 59.9, 0}, 0.01, 0, 600},            // degrees
+      {"EPSG:32601", {166100, 100000, 0}, 1000, 0, 100},       // UTM zone edge, near equator
+  };
+  for (const Case& c : cases) {
+    tiler::LatticeStats stats;
+    double err = lattice_error(c.crs, c.centre, c.extent, c.zlo, c.zhi, 1e-4, stats);
+    EXPECT_LE(err, 1e-4) << c.crs;
+    EXPECT_EQ(stats.exact_points, 0u) << c.crs;
+    EXPECT_LT(stats.nodes * 4, stats.points) << c.crs;
+  }
+}
+
+// A batch spread too widely for the lattice, or a tolerance the lattice cannot meet, is
+// transformed point by point: exact, never worse.
+TEST(TilerLattice, FallsBackToExact) {
+  tiler::LatticeStats wide;
+  EXPECT_LE(lattice_error("EPSG:32633", {500000, 6650000, 0}, 400000, 0, 100, 1e-4, wide), 1e-6);
+  EXPECT_EQ(wide.exact_points, wide.points);
+  tiler::LatticeStats strict;
+  EXPECT_LE(lattice_error("EPSG:32633", {500000, 6650000, 0}, 3000, 0, 100, 1e-12, strict), 1e-6);
+  EXPECT_EQ(strict.exact_points, strict.points);
+}

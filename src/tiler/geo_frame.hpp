@@ -3,6 +3,7 @@
 // east-north-up frame (metres) for the whole tileset. The octree is built in that frame, so tile
 // boxes are axis-aligned there; the tileset's root transform (ENU -> ECEF) makes them oriented
 // boxes in ECEF.
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -46,5 +47,21 @@ struct LocalFrame {
 
 // Frame anchored at the ellipsoid point under (or above) `ecef_centre`.
 LocalFrame make_local_frame(const glm::dvec3& ecef_centre);
+
+// Source -> local ENU for a batch of points, with PROJ evaluated on a lattice rather than per
+// point. The map is smooth: horizontally its second derivative is about the Earth's curvature
+// (1/R), so bilinear interpolation over cells of edge s errs by at most ~s^2/(4R); vertically it
+// is affine (a height moves a point along the ellipsoid normal, geoid or datum shifts
+// included). Cells are sized for an error of `tolerance` / 8 and a sample of every batch is
+// checked against PROJ point by point: a batch whose sample errs by more than `tolerance` (an
+// odd CRS), or whose extent would need more lattice nodes than it has points, is transformed
+// exactly instead. So results stay within `tolerance` of PROJ's, at a fraction of its cost.
+struct LatticeStats {
+  uint64_t points = 0, exact_points = 0, nodes = 0;
+  double max_sample_error = 0;  // metres, over the checked samples of interpolated batches
+};
+void source_to_local(const EcefTransform& transform, const LocalFrame& frame,
+                     const glm::dvec3* source, size_t count, glm::dvec3* local, double tolerance,
+                     LatticeStats* stats = nullptr);
 
 }  // namespace stipple::tiler

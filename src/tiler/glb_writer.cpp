@@ -34,7 +34,9 @@ struct Builder {
     bin.resize(offset + count * step, 0);
     for (size_t i = 0; i < count; ++i) fill(i, bin.data() + offset + i * step);
     bin.resize((bin.size() + 3) & ~size_t(3), 0);
-    json v = {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", count * step},
+    json v = {{"buffer", 0},
+              {"byteOffset", offset},
+              {"byteLength", count * step},
               {"target", kArrayBuffer}};
     if (stride) v["byteStride"] = stride;
     views.push_back(v);
@@ -67,7 +69,8 @@ std::vector<uint8_t> write_glb(std::span<const TilePoint> points, const ContentO
   if (quantized) {
     // Y-up axes: X = x, Y = z, Z = -y. The quantized cube starts at the Y-up minimum corner.
     glm::dvec3 lo(box.min.x, box.min.z, -box.max.y);
-    glm::dvec3 step = glm::max(glm::dvec3(extent.x, extent.z, extent.y) / 65535.0, glm::dvec3(1e-9));
+    glm::dvec3 step =
+        glm::max(glm::dvec3(extent.x, extent.z, extent.y) / 65535.0, glm::dvec3(1e-9));
     auto q = [](double v, double s) {
       return uint16_t(std::clamp(std::lround(v / s), 0L, 65535L));
     };
@@ -75,7 +78,8 @@ std::vector<uint8_t> write_glb(std::span<const TilePoint> points, const ContentO
     int v = b.view(n, 6, 8, [&](size_t i, uint8_t* dst) {
       const TilePoint& p = points[i];
       uint16_t c[3] = {q(p.x - lo.x, step.x), q(p.z - lo.y, step.y), q(-p.y - lo.z, step.z)};
-      for (int k = 0; k < 3; ++k) qmin[k] = std::min(qmin[k], c[k]), qmax[k] = std::max(qmax[k], c[k]);
+      for (int k = 0; k < 3; ++k)
+        qmin[k] = std::min(qmin[k], c[k]), qmax[k] = std::max(qmax[k], c[k]);
       std::memcpy(dst, c, 6);
     });
     int a = b.accessor(v, kUnsignedShort, n, "VEC3");
@@ -92,7 +96,8 @@ std::vector<uint8_t> write_glb(std::span<const TilePoint> points, const ContentO
     int v = b.view(n, 12, 0, [&](size_t i, uint8_t* dst) {
       const TilePoint& p = points[i];
       float f[3] = {float(p.x - c.x), float(p.z - c.z), float(-(p.y - c.y))};
-      for (int k = 0; k < 3; ++k) fmin[k] = std::min(fmin[k], f[k]), fmax[k] = std::max(fmax[k], f[k]);
+      for (int k = 0; k < 3; ++k)
+        fmin[k] = std::min(fmin[k], f[k]), fmax[k] = std::max(fmax[k], f[k]);
       std::memcpy(dst, f, 12);
     });
     int a = b.accessor(v, kFloat, n, "VEC3");

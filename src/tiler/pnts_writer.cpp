@@ -46,8 +46,7 @@ std::vector<uint8_t> write_pnts(std::span<const TilePoint> points, const Content
     ft["QUANTIZED_VOLUME_SCALE"] = {scale.x, scale.y, scale.z};
     for (const TilePoint& p : points) {
       glm::dvec3 t = (glm::dvec3(p.x, p.y, p.z) - box.min) / scale * 65535.0;
-      for (int k = 0; k < 3; ++k)
-        append(ftb, uint16_t(std::clamp(std::lround(t[k]), 0L, 65535L)));
+      for (int k = 0; k < 3; ++k) append(ftb, uint16_t(std::clamp(std::lround(t[k]), 0L, 65535L)));
     }
   } else {
     ft["POSITION"] = {{"byteOffset", 0}};
@@ -70,11 +69,14 @@ std::vector<uint8_t> write_pnts(std::span<const TilePoint> points, const Content
     bt["GPS_TIME"] = {{"byteOffset", 0}, {"componentType", "DOUBLE"}, {"type", "SCALAR"}};
     for (const TilePoint& p : points) append(btb, p.gps_time);
   }
-  bt["INTENSITY"] = {{"byteOffset", btb.size()}, {"componentType", "UNSIGNED_SHORT"}, {"type", "SCALAR"}};
+  bt["INTENSITY"] = {
+      {"byteOffset", btb.size()}, {"componentType", "UNSIGNED_SHORT"}, {"type", "SCALAR"}};
   for (const TilePoint& p : points) append(btb, p.intensity);
-  bt["CLASSIFICATION"] = {{"byteOffset", btb.size()}, {"componentType", "UNSIGNED_BYTE"}, {"type", "SCALAR"}};
+  bt["CLASSIFICATION"] = {
+      {"byteOffset", btb.size()}, {"componentType", "UNSIGNED_BYTE"}, {"type", "SCALAR"}};
   for (const TilePoint& p : points) btb.push_back(p.classification);
-  bt["RETURN_NUMBER"] = {{"byteOffset", btb.size()}, {"componentType", "UNSIGNED_BYTE"}, {"type", "SCALAR"}};
+  bt["RETURN_NUMBER"] = {
+      {"byteOffset", btb.size()}, {"componentType", "UNSIGNED_BYTE"}, {"type", "SCALAR"}};
   for (const TilePoint& p : points) btb.push_back(p.return_number);
   pad(btb, 8, 0);
 

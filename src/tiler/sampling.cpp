@@ -18,7 +18,8 @@ size_t grid_select(std::span<const TilePoint> points, const glm::dvec3& origin, 
     uint32_t index;
     float dist2;
   };
-  std::vector<Slot> table(capacity, Slot{0, 0, 0});
+  thread_local std::vector<Slot> table;  // reused: no fresh pages per node
+  table.assign(capacity, Slot{0, 0, 0});
   // Fibonacci hashing on the product's high bits: every key bit (x is in the top third) reaches
   // the slot index. (Bits 20.. of the product ignored x entirely: long probe chains.)
   int shift = 64 - 10;
@@ -27,17 +28,21 @@ size_t grid_select(std::span<const TilePoint> points, const glm::dvec3& origin, 
   size_t count = 0;
   for (size_t i = 0; i < n; ++i) {
     const TilePoint& p = points[i];
-    double f[3] = {(p.x - origin.x) * inv, (p.y - origin.y) * inv, (p.z - origin.z) * inv};
+    // Points lie in the node, so cell coordinates are >= 0 (up to rounding): truncation is the
+    // floor, and the clamp only catches rounding and points outside a caller's node.
+    const double f[3] = {(p.x - origin.x) * inv, (p.y - origin.y) * inv, (p.z - origin.z) * inv};
     uint64_t key = 1;
     float d2 = 0;
     for (int k = 0; k < 3; ++k) {
-      double c = std::floor(f[k]);
-      float d = float(f[k] - c - 0.5);
+      const double g = std::clamp(f[k], 0.0, 2097151.0);
+      const uint64_t c = uint64_t(g);
+      const float d = float(g - double(c) - 0.5);
       d2 += d * d;
-      key = key * 2097152 + uint64_t(std::clamp(c + 1048576.0, 0.0, 2097151.0));
+      key = (key << 21) | c;
     }
     if (2 * (count + 1) > capacity) {
-      std::vector<Slot> old(capacity * 2, Slot{0, 0, 0});
+      thread_local std::vector<Slot> old;
+      old.assign(capacity * 2, Slot{0, 0, 0});
       old.swap(table);
       capacity *= 2;
       --shift;

@@ -148,15 +148,20 @@ void append_file(const fs::path& path, const void* data, size_t size) {
   ::close(fd);
 }
 
-std::vector<TilePoint> read_points(const fs::path& path) {
-  std::vector<TilePoint> pts;
+void read_points(const fs::path& path, std::vector<TilePoint>& pts) {
+  pts.clear();
   std::error_code ec;
   uint64_t size = fs::file_size(path, ec);
-  if (ec) return pts;
+  if (ec) return;
   pts.resize(size / sizeof(TilePoint));
   std::ifstream in(path, std::ios::binary);
   in.read(reinterpret_cast<char*>(pts.data()), std::streamsize(pts.size() * sizeof(TilePoint)));
   if (!in) fail("{}: cannot read temporary points", path.string());
+}
+
+std::vector<TilePoint> read_points(const fs::path& path) {
+  std::vector<TilePoint> pts;
+  read_points(path, pts);
   return pts;
 }
 
@@ -182,8 +187,9 @@ class Tiler {
   void make_frame_and_cube();
   template <typename Process>
   void read_pass(const char* label, Process process);
-  void to_local(const Input& in, io::PointBatch& batch, std::vector<glm::dvec3>& out) const;
-  void make_records(const Input& in, io::PointBatch& batch, TilePoint* out) const;
+  void to_local(const Input& in, io::PointBatch& batch, std::vector<glm::dvec3>& out);
+  void make_records(const Input& in, io::PointBatch& batch, TilePoint* out);
+  void append_to_chunks(const TilePoint* recs, size_t n);
   void distribute(const fs::path& staged, uint64_t count);
   void distribute_in_memory(uint64_t count);
   uint32_t cell_of(const glm::dvec3& p) const;
@@ -197,7 +203,7 @@ class Tiler {
   void plan_chunks(const std::vector<uint32_t>& counts);
   void split_oversized_chunks();
   void index_chunk(size_t chunk);
-  void index_node(const NodeKey& key, std::vector<TilePoint>& pts, bool chunk_root);
+  void index_node(const NodeKey& key, std::span<TilePoint> pts, bool chunk_root);
   void build_upper_levels();
   void write_content(const NodeKey& key, std::span<const TilePoint> pts);
   void record(const NodeKey& key, std::span<const TilePoint> pts);
@@ -227,17 +233,20 @@ class Tiler {
     uint64_t count = 0;
     fs::path file;
     std::mutex mutex;
-    bool resident = false;  // points held in memory (in-memory mode), not in file
-    std::vector<TilePoint> points;
+    bool resident = false;  // points at resident_[offset, offset + count), not in file
+    uint64_t offset = 0;
   };
   // In-memory mode (the records of every input fit the budget twice over): the reading pass
   // stages records in memory and the chunks stay resident; no temporary files for them.
   bool in_memory_ = false;
   std::unique_ptr<TilePoint[]> staged_mem_;
+  std::unique_ptr<TilePoint[]> resident_;  // every chunk's points, chunk after chunk
   std::atomic<uint64_t> staged_fill_{0};
   std::vector<std::unique_ptr<Chunk>> chunks_;
   std::vector<int32_t> cell_chunk_;
 
+  std::mutex lattice_mutex_;
+  LatticeStats lattice_;
   std::mutex nodes_mutex_;
   std::map<NodeKey, NodeInfo> nodes_;
   std::map<NodeKey, fs::path> pending_roots_;  // chunk roots waiting for the upper levels
@@ -271,14 +280,21 @@ void Tiler::open_inputs() {
   }
 }
 
-void Tiler::to_local(const Input& in, io::PointBatch& batch, std::vector<glm::dvec3>& out) const {
-  out.assign(batch.positions.begin(), batch.positions.end());
-  thread_transform(in.crs).transform(out.data(), out.size());
-  for (glm::dvec3& p : out) p = frame_.to_local(p);
+void Tiler::to_local(const Input& in, io::PointBatch& batch, std::vector<glm::dvec3>& out) {
+  out.resize(batch.positions.size());
+  LatticeStats stats;
+  // A tenth of the input precision: the interpolation never shows in the output.
+  source_to_local(thread_transform(in.crs), frame_, batch.positions.data(), out.size(), out.data(),
+                  content_.precision / 10, &stats);
+  std::lock_guard lock(lattice_mutex_);
+  lattice_.points += stats.points;
+  lattice_.exact_points += stats.exact_points;
+  lattice_.nodes += stats.nodes;
+  lattice_.max_sample_error = std::max(lattice_.max_sample_error, stats.max_sample_error);
 }
 
-void Tiler::make_records(const Input& in, io::PointBatch& batch, TilePoint* out) const {
-  std::vector<glm::dvec3> local;
+void Tiler::make_records(const Input& in, io::PointBatch& batch, TilePoint* out) {
+  thread_local std::vector<glm::dvec3> local;
   to_local(in, batch, local);
   const size_t n = batch.size();
   const bool rgb = !batch.rgb.empty(), gps = !batch.gps_time.empty();
@@ -303,8 +319,33 @@ void Tiler::make_records(const Input& in, io::PointBatch& batch, TilePoint* out)
   }
 }
 
-// Distribution pass: the staged records, in blocks read in parallel (pread), sorted by chunk and
-// appended to one temporary file per chunk.
+// Sorts a block of records by chunk and appends each run to its chunk's temporary file.
+void Tiler::append_to_chunks(const TilePoint* recs, size_t n) {
+  thread_local std::vector<TilePoint> sorted;
+  thread_local std::vector<int32_t> chunk_of;
+  thread_local std::vector<uint32_t> offsets, fill;
+  chunk_of.resize(n);
+  offsets.assign(chunks_.size() + 1, 0);
+  for (size_t i = 0; i < n; ++i) {
+    chunk_of[i] = cell_chunk_[cell_of(recs[i])];
+    STIPPLE_ASSERT(chunk_of[i] >= 0, "a counted cell has no chunk");
+    ++offsets[size_t(chunk_of[i]) + 1];
+  }
+  for (size_t c = 0; c < chunks_.size(); ++c) offsets[c + 1] += offsets[c];
+  fill.assign(offsets.begin(), offsets.end() - 1);
+  sorted.resize(n);
+  for (size_t i = 0; i < n; ++i) sorted[fill[size_t(chunk_of[i])]++] = recs[i];
+  for (size_t c = 0; c < chunks_.size(); ++c) {
+    uint32_t s = offsets[c], e = offsets[c + 1];
+    if (s == e) continue;
+    Chunk& ch = *chunks_[c];
+    std::lock_guard lock(ch.mutex);
+    append_file(ch.file, sorted.data() + s, size_t(e - s) * sizeof(TilePoint));
+    ch.count += e - s;
+  }
+}
+
+// Distribution pass over staged records, in blocks read in parallel (pread).
 void Tiler::distribute(const fs::path& staged, uint64_t count) {
   int fd = ::open(staged.c_str(), O_RDONLY);
   if (fd < 0) fail("{}: cannot open ({})", staged.string(), std::strerror(errno));
@@ -316,9 +357,7 @@ void Tiler::distribute(const fs::path& staged, uint64_t count) {
   const size_t blocks = size_t((count + block - 1) / block);
   Progress progress("distributing", count);
   pool_->parallel_for(blocks, 1, [&](size_t bb, size_t be) {
-    std::vector<TilePoint> recs, sorted;
-    std::vector<int32_t> chunk_of;
-    std::vector<uint32_t> offsets, fill;
+    thread_local std::vector<TilePoint> recs;
     for (size_t b = bb; b < be; ++b) {
       const uint64_t first = b * block;
       const size_t n = size_t(std::min<uint64_t>(block, count - first));
@@ -331,25 +370,7 @@ void Tiler::distribute(const fs::path& staged, uint64_t count) {
         if (r <= 0) fail("{}: cannot read temporary points", staged.string());
         dst += r, want -= size_t(r), at += r;
       }
-      chunk_of.resize(n);
-      offsets.assign(chunks_.size() + 1, 0);
-      for (size_t i = 0; i < n; ++i) {
-        chunk_of[i] = cell_chunk_[cell_of(recs[i])];
-        STIPPLE_ASSERT(chunk_of[i] >= 0, "a counted cell has no chunk");
-        ++offsets[size_t(chunk_of[i]) + 1];
-      }
-      for (size_t c = 0; c < chunks_.size(); ++c) offsets[c + 1] += offsets[c];
-      fill.assign(offsets.begin(), offsets.end() - 1);
-      sorted.resize(n);
-      for (size_t i = 0; i < n; ++i) sorted[fill[size_t(chunk_of[i])]++] = recs[i];
-      for (size_t c = 0; c < chunks_.size(); ++c) {
-        uint32_t s = offsets[c], e = offsets[c + 1];
-        if (s == e) continue;
-        Chunk& ch = *chunks_[c];
-        std::lock_guard lock(ch.mutex);
-        append_file(ch.file, sorted.data() + s, size_t(e - s) * sizeof(TilePoint));
-        ch.count += e - s;
-      }
+      append_to_chunks(recs.data(), n);
       std::lock_guard lock(progress_mutex_);
       progress.advance(n);
     }
@@ -377,26 +398,25 @@ void Tiler::distribute_in_memory(uint64_t count) {
       }
     }
   });
+  uint64_t base = 0;
   for (size_t c = 0; c < nc; ++c) {
-    uint64_t base = 0;
+    Chunk& ch = *chunks_[c];
+    ch.offset = base;
     for (size_t b = 0; b < blocks; ++b) {
       uint64_t h = offsets[b * nc + c];
       offsets[b * nc + c] = base;
       base += h;
     }
-    Chunk& ch = *chunks_[c];
-    ch.points.resize(base);
-    ch.count = base;
+    ch.count = base - ch.offset;
     ch.resident = true;
   }
+  resident_.reset(new TilePoint[count]);  // uninitialised: every slot is written below
+  TilePoint* out = resident_.get();
   pool_->parallel_for(blocks, 1, [&](size_t bb, size_t be) {
     for (size_t b = bb; b < be; ++b) {
       uint64_t* fill = &offsets[b * nc];
       const uint64_t end = std::min<uint64_t>(count, (b + 1) * block);
-      for (uint64_t i = b * block; i < end; ++i) {
-        const uint32_t c = chunk_of[i];
-        chunks_[c]->points[fill[c]++] = recs[i];
-      }
+      for (uint64_t i = b * block; i < end; ++i) out[fill[chunk_of[i]]++] = recs[i];
     }
   });
 }
@@ -454,13 +474,22 @@ void Tiler::read_pass(const char* label, Process process) {
   std::exception_ptr error;
   std::atomic<uint64_t> done{0};
   std::vector<std::future<void>> futures;
+  // Batches are recycled: a fresh one per read would fault in tens of MB of new pages each time.
+  std::mutex spare_mutex;
+  std::vector<std::shared_ptr<io::PointBatch>> spare;
   for (Input& in : inputs_) {
     io::LasReader reader(in.path);
     // The reader detects 8-bit colour stored in 16-bit fields from the first points
     // (read_las_header cannot): make_records scales by it.
     in.header.rgb_bits = reader.header().rgb_bits;
     while (true) {
-      auto batch = std::make_shared<io::PointBatch>();
+      std::shared_ptr<io::PointBatch> batch;
+      {
+        std::lock_guard lock(spare_mutex);
+        if (!spare.empty()) batch = std::move(spare.back()), spare.pop_back();
+      }
+      if (!batch) batch = std::make_shared<io::PointBatch>();
+      batch->clear();
       size_t got = reader.read(*batch, batch_points_);
       if (got == 0) break;
       slots.acquire();
@@ -476,6 +505,10 @@ void Tiler::read_pass(const char* label, Process process) {
           if (!error) error = std::current_exception();
         }
         done += batch->size();
+        {
+          std::lock_guard lock(spare_mutex);
+          spare.push_back(batch);
+        }
         slots.release();
       }));
       {
@@ -544,8 +577,7 @@ void Tiler::split_oversized_chunks() {
     Chunk& c = *chunks_[i];
     if (c.count <= chunk_points_ * 3 / 2 || c.key.level >= max_level_ - 2) continue;
     if (c.resident) {
-      write_file(c.file, c.points.data(), c.points.size() * sizeof(TilePoint));
-      std::vector<TilePoint>().swap(c.points);
+      write_file(c.file, resident_.get() + c.offset, c.count * sizeof(TilePoint));
       c.resident = false;
     }
     std::vector<std::unique_ptr<Chunk>> kids(8);
@@ -600,34 +632,44 @@ void Tiler::write_content(const NodeKey& key, std::span<const TilePoint> pts) {
   written_ += pts.size();
 }
 
-void Tiler::index_node(const NodeKey& key, std::vector<TilePoint>& pts, bool chunk_root) {
-  std::vector<uint8_t> selected;
-  std::vector<TilePoint> mine;
-  std::array<std::vector<TilePoint>, 8> kids;
-  if (pts.size() <= opt_.max_node_points || key.level >= max_level_) {
-    mine.swap(pts);
-  } else {
-    grid_select(pts, node_min(key), spacing(key.level), opt_.max_node_points, selected);
-    glm::dvec3 centre = node_min(key) + glm::dvec3(node_size(key.level + 1));
-    // Bucket per point (8: this node), then exact-size copies: no regrowth of 9 vectors.
+// Works in place on its span: the points are partitioned into [child 0 .. child 7 | this node]
+// and the children recurse on their sub-spans, so indexing allocates nothing per node.
+void Tiler::index_node(const NodeKey& key, std::span<TilePoint> pts, bool chunk_root) {
+  std::span<TilePoint> mine = pts;
+  std::array<size_t, 9> starts{};
+  if (pts.size() > opt_.max_node_points && key.level < max_level_) {
+    thread_local std::vector<uint8_t> bucket;
+    grid_select(pts, node_min(key), spacing(key.level), opt_.max_node_points, bucket);
+    const glm::dvec3 centre = node_min(key) + glm::dvec3(node_size(key.level + 1));
     const size_t n = pts.size();
     std::array<size_t, 9> sizes{};
     for (size_t i = 0; i < n; ++i) {
       const TilePoint& p = pts[i];
       uint8_t b =
-          selected[i]
+          bucket[i]
               ? 8
               : uint8_t((p.x >= centre.x) | ((p.y >= centre.y) << 1) | ((p.z >= centre.z) << 2));
-      selected[i] = b;
+      bucket[i] = b;
       ++sizes[b];
     }
-    mine.resize(sizes[8]);
-    for (int k = 0; k < 8; ++k) kids[k].resize(sizes[k]);
-    std::array<TilePoint*, 9> out{};
-    for (int k = 0; k < 8; ++k) out[k] = kids[k].data();
-    out[8] = mine.data();
-    for (size_t i = 0; i < n; ++i) *out[selected[i]]++ = pts[i];
-    std::vector<TilePoint>().swap(pts);
+    // American flag sort: each point swapped straight into its bucket's region.
+    std::array<size_t, 9> next{}, ends{};
+    for (size_t b = 0, at = 0; b < 9; ++b) starts[b] = next[b] = at, at += sizes[b], ends[b] = at;
+    for (size_t b = 0; b < 9; ++b) {
+      while (next[b] < ends[b]) {
+        const uint8_t c = bucket[next[b]];
+        if (c == b) {
+          ++next[b];
+        } else {
+          std::swap(pts[next[b]], pts[next[c]]);
+          std::swap(bucket[next[b]], bucket[next[c]]);
+          ++next[c];
+        }
+      }
+    }
+    mine = pts.subspan(starts[8]);
+  } else {
+    starts.fill(pts.size());  // a leaf: no children
   }
   if (chunk_root) {
     // Its final content is known only after the upper levels took their share.
@@ -642,22 +684,25 @@ void Tiler::index_node(const NodeKey& key, std::vector<TilePoint>& pts, bool chu
     std::lock_guard lock(progress_mutex_);
     index_progress_->advance(mine.size());
   }
-  std::vector<TilePoint>().swap(mine);
-  for (int i = 0; i < 8; ++i)
-    if (!kids[i].empty()) index_node(key.child(i), kids[i], false);
+  for (int i = 0; i < 8; ++i) {
+    const size_t b = starts[i], e = i == 7 ? starts[8] : starts[i + 1];
+    if (e > b) index_node(key.child(i), pts.subspan(b, e - b), false);
+  }
 }
 
 void Tiler::index_chunk(size_t i) {
   Chunk& c = *chunks_[i];
-  std::vector<TilePoint> pts;
+  thread_local std::vector<TilePoint> from_file;
+  std::span<TilePoint> pts;
   if (c.resident) {
-    pts.swap(c.points);
+    pts = {resident_.get() + c.offset, c.count};
   } else {
-    pts = read_points(c.file);
+    read_points(c.file, from_file);
     fs::remove(c.file);
+    pts = from_file;
+    if (pts.size() != c.count)
+      fail("temporary chunk {} holds {} points, {} expected", c.key.name(), pts.size(), c.count);
   }
-  if (pts.size() != c.count)
-    fail("temporary chunk {} holds {} points, {} expected", c.key.name(), pts.size(), c.count);
   index_node(c.key, pts, true);
 }
 
@@ -807,22 +852,44 @@ TileStats Tiler::run() {
       1 << count_level_, chunk_points_, threads);
   phase("headers, frame, cube");
 
-  {  // Reading pass: every point is decoded and transformed exactly once; its record goes to
-     // one staging file (the distribution pass reads records, not LAS) and is counted.
+  {
+    // Three ways through the inputs (count cells, plan chunks, distribute to chunks):
+    //  - in memory (the records fit half the budget twice): one reading pass stages records in
+    //    memory; distribution scatters them into one resident array;
+    //  - re-read (out of core, uncompressed LAS): a counting pass decodes and transforms
+    //    positions only, a second pass decodes again and appends records to the chunk files.
+    //    Decoding LAS from the page cache and the lattice transform cost less than writing and
+    //    reading back a staging file of 40-byte records;
+    //  - staged (out of core, LAZ in the inputs: decompressing twice would cost more): one
+    //    reading pass writes records to a staging file, read back in parallel.
+    const bool reread = !in_memory_ && std::none_of(inputs_.begin(), inputs_.end(),
+                                                    [](auto& in) { return in.header.compressed; });
     std::vector<std::atomic<uint32_t>> counts(size_t(1) << (3 * count_level_));
     const fs::path staged = tmp_ / "staged.bin";
     std::mutex stage_mutex;
     uint64_t staged_points = 0;
-    {
-      int fd = ::open(staged.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      if (fd < 0) fail("{}: cannot create ({})", staged.string(), std::strerror(errno));
+    if (reread) {
+      read_pass("counting", [&](const Input& in, io::PointBatch& batch) {
+        thread_local std::vector<glm::dvec3> local;
+        to_local(in, batch, local);
+        for (const glm::dvec3& p : local)
+          counts[cell_of(p)].fetch_add(1, std::memory_order_relaxed);
+      });
+    } else {
+      int fd = -1;
+      if (!in_memory_) {
+        fd = ::open(staged.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        if (fd < 0) fail("{}: cannot create ({})", staged.string(), std::strerror(errno));
+      }
       struct Closer {
         int fd;
-        ~Closer() { ::close(fd); }
+        ~Closer() {
+          if (fd >= 0) ::close(fd);
+        }
       } closer{fd};
       read_pass("reading", [&](const Input& in, io::PointBatch& batch) {
         const size_t n = batch.size();
-        std::vector<TilePoint> local;
+        thread_local std::vector<TilePoint> local;
         TilePoint* recs = nullptr;
         if (in_memory_) {
           uint64_t at = staged_fill_.fetch_add(n);
@@ -843,7 +910,11 @@ TileStats Tiler::run() {
       });
     }
     if (in_memory_) staged_points = staged_fill_.load();
-    phase("read + transform + count");
+    STIPPLE_INFO(
+        "tile: PROJ on {} lattice nodes for {} points ({} transformed point by point), largest "
+        "sampled interpolation error {:.2e} m",
+        lattice_.nodes, lattice_.points, lattice_.exact_points, lattice_.max_sample_error);
+    phase(reread ? "read + transform + count" : "read + transform + stage + count");
     std::vector<uint32_t> plain(counts.size());
     for (size_t i = 0; i < counts.size(); ++i) plain[i] = counts[i].load();
     std::vector<std::atomic<uint32_t>>().swap(counts);
@@ -852,10 +923,17 @@ TileStats Tiler::run() {
     if (in_memory_) {
       distribute_in_memory(staged_points);
       staged_mem_.reset();
+    } else if (reread) {
+      read_pass("distributing", [&](const Input& in, io::PointBatch& batch) {
+        thread_local std::vector<TilePoint> recs;
+        recs.resize(batch.size());
+        make_records(in, batch, recs.data());
+        append_to_chunks(recs.data(), recs.size());
+      });
     } else {
       distribute(staged, staged_points);
+      fs::remove(staged);
     }
-    fs::remove(staged);
     std::vector<int32_t>().swap(cell_chunk_);
     phase("distribute");
   }
@@ -872,6 +950,7 @@ TileStats Tiler::run() {
   pool_->parallel_for(chunks_.size(), 1, [&](size_t b, size_t e) {
     for (size_t i = b; i < e; ++i) index_chunk(i);
   });
+  resident_.reset();
   phase("index chunks");
   build_upper_levels();
   index_progress_->finish();

@@ -12,19 +12,19 @@ struct TileOptions {
   std::vector<std::string> inputs;
   std::string output;
   Format format = Format::Glb;
-  std::string crs;             // e.g. "EPSG:2992": overrides every input's own CRS
-  double spacing = 0;          // root spacing in metres; 0: cube edge / 128 (as Potree)
+  std::string crs;     // e.g. "EPSG:2992": overrides every input's own CRS
+  double spacing = 0;  // root spacing in metres; 0: cube edge / 128 (as Potree)
   uint64_t max_memory = 2ull << 30;
-  unsigned threads = 0;        // 0: every core
-  bool force = false;          // replace an existing output directory
+  unsigned threads = 0;            // 0: every core
+  bool force = false;              // replace an existing output directory
   size_t max_node_points = 60000;  // tile cap: larger nodes are split / subsampled further
 };
 
 struct TileStats {
   uint64_t points = 0;  // points read = points written
   uint64_t tiles = 0;
-  int depth = 0;        // deepest level
-  size_t chunks = 0;    // out-of-core chunks indexed independently
+  int depth = 0;      // deepest level
+  size_t chunks = 0;  // out-of-core chunks indexed independently
   double root_spacing = 0;
   double seconds = 0;
 };
