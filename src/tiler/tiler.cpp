@@ -190,6 +190,7 @@ class Tiler {
   void to_local(const Input& in, io::PointBatch& batch, std::vector<glm::dvec3>& out);
   void make_records(const Input& in, io::PointBatch& batch, TilePoint* out);
   void append_to_chunks(const TilePoint* recs, size_t n);
+  void choose_resident_chunks(const std::vector<uint32_t>& counts);
   void distribute(const fs::path& staged, uint64_t count);
   void distribute_in_memory(uint64_t count);
   uint32_t cell_of(const glm::dvec3& p) const;
@@ -235,6 +236,7 @@ class Tiler {
     std::mutex mutex;
     bool resident = false;  // points at resident_[offset, offset + count), not in file
     uint64_t offset = 0;
+    uint64_t expected = 0;  // points counted in its cells (out-of-core distribution)
   };
   // In-memory mode (the records of every input fit the budget twice over): the reading pass
   // stages records in memory and the chunks stay resident; no temporary files for them.
@@ -340,9 +342,36 @@ void Tiler::append_to_chunks(const TilePoint* recs, size_t n) {
     if (s == e) continue;
     Chunk& ch = *chunks_[c];
     std::lock_guard lock(ch.mutex);
-    append_file(ch.file, sorted.data() + s, size_t(e - s) * sizeof(TilePoint));
+    if (ch.resident) {
+      if (ch.count + (e - s) > ch.expected)
+        fail("internal error: chunk {} receives more points than were counted", ch.key.name());
+      std::memcpy(resident_.get() + ch.offset + ch.count, sorted.data() + s,
+                  size_t(e - s) * sizeof(TilePoint));
+    } else {
+      append_file(ch.file, sorted.data() + s, size_t(e - s) * sizeof(TilePoint));
+    }
     ch.count += e - s;
   }
+}
+
+// Out of core, chunks are kept in memory while their records fit half the budget (the counting
+// pass told their sizes exactly); only the rest go to temporary files. Temporary files cost
+// a kernel copy in and out, and beyond a few hundred MB of dirty pages the kernel throttles
+// writers to the disk's speed.
+void Tiler::choose_resident_chunks(const std::vector<uint32_t>& counts) {
+  for (size_t cell = 0; cell < counts.size(); ++cell)
+    if (cell_chunk_[cell] >= 0) chunks_[size_t(cell_chunk_[cell])]->expected += counts[cell];
+  const uint64_t budget = opt_.max_memory / 2 / sizeof(TilePoint);
+  uint64_t total = 0;
+  for (auto& c : chunks_) {
+    if (total + c->expected > budget) continue;
+    c->resident = true;
+    c->offset = total;
+    total += c->expected;
+  }
+  if (total) resident_.reset(new TilePoint[total]);
+  STIPPLE_INFO("tile: {} of {} points in chunks held in memory, the rest in temporary files", total,
+               total_points_);
 }
 
 // Distribution pass over staged records, in blocks read in parallel (pread).
@@ -919,6 +948,7 @@ TileStats Tiler::run() {
     for (size_t i = 0; i < counts.size(); ++i) plain[i] = counts[i].load();
     std::vector<std::atomic<uint32_t>>().swap(counts);
     plan_chunks(plain);
+    if (!in_memory_) choose_resident_chunks(plain);
     phase("plan chunks");
     if (in_memory_) {
       distribute_in_memory(staged_points);
@@ -938,7 +968,12 @@ TileStats Tiler::run() {
     phase("distribute");
   }
   uint64_t distributed = 0;
-  for (auto& c : chunks_) distributed += c->count;
+  for (auto& c : chunks_) {
+    distributed += c->count;
+    if (!in_memory_ && c->resident && c->count != c->expected)
+      fail("internal error: chunk {} holds {} points, {} were counted", c->key.name(), c->count,
+           c->expected);
+  }
   if (distributed != total_points_)
     fail("the inputs hold {} points, not the {} their headers declare", distributed, total_points_);
   split_oversized_chunks();
