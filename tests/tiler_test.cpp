@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -20,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
+#include "io/glb_points.hpp"
 #include "io/las.hpp"
 #include "pointcloud/procedural.hpp"
 #include "tiler/geo_frame.hpp"
@@ -85,11 +87,28 @@ std::vector<Decoded> decode_glb(const std::vector<uint8_t>& b) {
     stride = v.value("byteStride", elem * (std::string(a["type"]) == "VEC3" ? 3 : 1));
     return bin + size_t(v.value("byteOffset", 0)) + size_t(a.value("byteOffset", 0));
   };
+  // Intensity and classification are found through EXT_structural_metadata, as a client would:
+  // primitive -> property attribute -> attribute name, with the class's component type.
+  const json& meta = g["extensions"]["EXT_structural_metadata"];
+  const json& pa =
+      meta["propertyAttributes"][int(g["meshes"][0]["primitives"][0]["extensions"]
+                                      ["EXT_structural_metadata"]["propertyAttributes"][0])];
+  const json& cls = meta["schema"]["classes"][std::string(pa["class"])]["properties"];
+  auto attribute_of = [&](const char* property, int component_type) {
+    EXPECT_EQ(cls[property]["componentType"], component_type == 5123 ? "UINT16" : "UINT8");
+    return std::string(pa["properties"][property]["attribute"]);
+  };
+  const std::string intensity = attribute_of("intensity", 5123);
+  const std::string classification = attribute_of("classification", 5121);
   size_t stride, count, istride, icount, cstride, ccount;
   int type, itype, ctype;
   size_t off = view_of("POSITION", stride, type, count);
-  size_t ioff = view_of("_INTENSITY", istride, itype, icount);
-  size_t coff = view_of("_CLASSIFICATION", cstride, ctype, ccount);
+  size_t ioff = view_of(intensity.c_str(), istride, itype, icount);
+  size_t coff = view_of(classification.c_str(), cstride, ctype, ccount);
+  EXPECT_EQ(itype, 5123);
+  EXPECT_EQ(ctype, 5121);
+  EXPECT_EQ(icount, count);
+  EXPECT_EQ(ccount, count);
   std::vector<Decoded> out(count);
   for (size_t i = 0; i < count; ++i) {
     glm::dvec3 p;
@@ -490,4 +509,48 @@ TEST(TilerLattice, FallsBackToExact) {
   tiler::LatticeStats strict;
   EXPECT_LE(lattice_error("EPSG:32633", {500000, 6650000, 0}, 3000, 0, 100, 1e-12, strict), 1e-6);
   EXPECT_EQ(strict.exact_points, strict.points);
+}
+
+// The glb output's EXT_structural_metadata property attributes decode (through stipple's own
+// glb reader, as any client would) to the source's intensities and GPS times: gps_time is the
+// float32 _GPS_TIME plus the property's offset.
+TEST(Tiler, GlbMetadataCarriesIntensityAndGpsTime) {
+  fs::path las = generated_las(400000, "gen400k.las");
+  tiler::TileOptions o;
+  o.inputs = {las.string()};
+  o.output = (temp_dir() / "gen_metadata").string();
+  o.crs = "EPSG:32633";
+  o.max_node_points = 20000;
+  tiler::build_tileset(o);
+  io::LasReader reader(las);
+  io::PointBatch src;
+  while (reader.read(src, 1 << 16) > 0) {
+  }
+  ASSERT_FALSE(src.gps_time.empty());
+  std::vector<double> want_gps = src.gps_time, got_gps;
+  std::vector<double> want_int(src.intensity.begin(), src.intensity.end()), got_int;
+  for (const auto& f : fs::directory_iterator(fs::path(o.output) / "tiles")) {
+    std::vector<uint8_t> bytes = slurp(f.path());
+    io::PointContent c = io::decode_glb_points(bytes, f.path().string());
+    for (const char* k : {"intensity", "classification", "return_number", "gps_time"})
+      ASSERT_TRUE(c.attributes.count(k)) << f.path() << " lacks " << k;
+    EXPECT_EQ(c.attributes["intensity"].values, c.attributes["_INTENSITY"].values);
+    got_int.insert(got_int.end(), c.attributes["intensity"].values.begin(),
+                   c.attributes["intensity"].values.end());
+    got_gps.insert(got_gps.end(), c.attributes["gps_time"].values.begin(),
+                   c.attributes["gps_time"].values.end());
+  }
+  std::sort(want_int.begin(), want_int.end());
+  std::sort(got_int.begin(), got_int.end());
+  EXPECT_EQ(got_int, want_int);
+  ASSERT_EQ(got_gps.size(), want_gps.size());
+  std::sort(want_gps.begin(), want_gps.end());
+  std::sort(got_gps.begin(), got_gps.end());
+  // Float32 relative to a tile's earliest time: at most 2^-23 of the span per value, and sorting
+  // two sequences whose elements differ by at most e keeps them within e.
+  const double tol = std::max(1e-6, (want_gps.back() - want_gps.front()) * std::ldexp(1.0, -23));
+  double worst = 0;
+  for (size_t i = 0; i < want_gps.size(); ++i)
+    worst = std::max(worst, std::abs(got_gps[i] - want_gps[i]));
+  EXPECT_LE(worst, tol);
 }

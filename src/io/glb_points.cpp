@@ -357,8 +357,8 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
 
   PointContent c;
   c.format = "glb";
-  static const std::set<std::string> supported = {"KHR_mesh_quantization",
-                                                  "EXT_meshopt_compression", "CESIUM_RTC"};
+  static const std::set<std::string> supported = {
+      "KHR_mesh_quantization", "EXT_meshopt_compression", "CESIUM_RTC", "EXT_structural_metadata"};
   if (auto req = j.find("extensionsRequired"); req != j.end() && req->is_array())
     for (const auto& e : *req)
       if (!e.is_string() || !supported.count(e.get<std::string>()))
@@ -380,6 +380,49 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
         !center[1].is_number() || !center[2].is_number())
       fail("{}: CESIUM_RTC center is not three numbers", name);
     rtc = {center[0].get<double>(), center[1].get<double>(), center[2].get<double>()};
+  }
+
+  // EXT_structural_metadata property attributes: named, typed views of vertex attributes (with
+  // the class's or the property's offset and scale). They are exposed under the property name.
+  struct MetaProperty {
+    std::string name, attribute;
+    double offset = 0, scale = 1;
+  };
+  std::vector<std::vector<MetaProperty>> property_attributes;
+  if (auto e = j.find("extensions"); e != j.end() && e->is_object()) {
+    if (auto m = e->find("EXT_structural_metadata"); m != e->end()) {
+      if (!m->is_object()) fail("{}: EXT_structural_metadata is not an object", name);
+      const json schema = m->value("schema", json::object());
+      const json classes = schema.value("classes", json::object());
+      auto number_or = [](const json& o, const char* key, double fallback) {
+        auto it = o.find(key);
+        return it != o.end() && it->is_number() ? it->get<double>() : fallback;
+      };
+      for (const auto& pa : m->value("propertyAttributes", json::array())) {
+        if (!pa.is_object()) fail("{}: a property attribute is not an object", name);
+        const std::string cls = pa.value("class", std::string());
+        const json class_props =
+            classes.is_object() && classes.contains(cls) && classes[cls].is_object()
+                ? classes[cls].value("properties", json::object())
+                : json::object();
+        std::vector<MetaProperty> props;
+        const json properties = pa.value("properties", json::object());
+        for (const auto& [pname, p] : properties.items()) {
+          if (!p.is_object() || !p.contains("attribute") || !p["attribute"].is_string())
+            fail("{}: property attribute property '{}' names no attribute", name, pname);
+          MetaProperty mp{pname, p["attribute"].get<std::string>()};
+          if (class_props.is_object() && class_props.contains(pname) &&
+              class_props[pname].is_object()) {
+            mp.offset = number_or(class_props[pname], "offset", 0.0);
+            mp.scale = number_or(class_props[pname], "scale", 1.0);
+          }
+          mp.offset = number_or(p, "offset", mp.offset);
+          mp.scale = number_or(p, "scale", mp.scale);
+          props.push_back(std::move(mp));
+        }
+        property_attributes.push_back(std::move(props));
+      }
+    }
   }
 
   const json nodes = j.value("nodes", json::array());
@@ -506,6 +549,30 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
         attr.component_type = "glTF";
         attr.values.resize(first * k);
         attr.values.insert(attr.values.end(), v.begin(), v.end());
+      }
+      const json prim_ext = prim.value("extensions", json::object());
+      if (prim_ext.is_object() && prim_ext.contains("EXT_structural_metadata")) {
+        const json& sm = prim_ext["EXT_structural_metadata"];
+        for (const auto& idx : sm.value("propertyAttributes", json::array())) {
+          if (!idx.is_number_unsigned() || idx.get<uint64_t>() >= property_attributes.size())
+            fail("{}: a primitive names a property attribute that does not exist", name);
+          for (const MetaProperty& mp : property_attributes[idx.get<size_t>()]) {
+            if (mp.name == mp.attribute || attrs.contains(mp.name)) continue;
+            auto src = c.attributes.find(mp.attribute);
+            if (!attrs.contains(mp.attribute) || src == c.attributes.end())
+              fail("{}: property '{}' names attribute {}, which the primitive lacks", name, mp.name,
+                   mp.attribute);
+            const int k = src->second.components;
+            auto& dst = c.attributes[mp.name];
+            if (dst.values.empty()) dst.components = k;
+            if (dst.components != k)
+              fail("{}: property {} changes type between primitives", name, mp.name);
+            dst.component_type = "metadata";
+            dst.values.resize(first * k);
+            for (size_t i = first * k; i < (first + n) * k; ++i)
+              dst.values.push_back(src->second.values[i] * mp.scale + mp.offset);
+          }
+        }
       }
     }
   }

@@ -65,7 +65,7 @@ std::vector<uint8_t> write_glb(std::span<const TilePoint> points, const ContentO
   Builder b;
   json attributes, node;
   bool quantized = quantization_keeps(std::max({extent.x, extent.y, extent.z}), options.precision);
-  std::vector<std::string> extensions;
+  std::vector<std::string> extensions, extensions_used;
   if (quantized) {
     // Y-up axes: X = x, Y = z, Z = -y. The quantized cube starts at the Y-up minimum corner.
     glm::dvec3 lo(box.min.x, box.min.z, -box.max.y);
@@ -119,6 +119,14 @@ std::vector<uint8_t> write_glb(std::span<const TilePoint> points, const ContentO
   int vr = b.view(n, 1, 4, [&](size_t i, uint8_t* d) { d[0] = points[i].return_number; });
   attributes["_RETURN_NUMBER"] = b.accessor(vr, kUnsignedByte, n, "SCALAR");
   json primitive = {{"attributes", attributes}, {"mode", 0}};
+  // The same attributes described as EXT_structural_metadata property attributes, so that
+  // clients (CesiumJS styling and picking) know their names and types.
+  json properties = {{"intensity", {{"type", "SCALAR"}, {"componentType", "UINT16"}}},
+                     {"classification", {{"type", "SCALAR"}, {"componentType", "UINT8"}}},
+                     {"return_number", {{"type", "SCALAR"}, {"componentType", "UINT8"}}}};
+  json bound = {{"intensity", {{"attribute", "_INTENSITY"}}},
+                {"classification", {{"attribute", "_CLASSIFICATION"}}},
+                {"return_number", {{"attribute", "_RETURN_NUMBER"}}}};
   if (options.gps_time && n > 0) {
     double t0 = points[0].gps_time;
     for (const TilePoint& p : points) t0 = std::min(t0, p.gps_time);
@@ -129,7 +137,12 @@ std::vector<uint8_t> write_glb(std::span<const TilePoint> points, const ContentO
     attributes["_GPS_TIME"] = b.accessor(vg, kFloat, n, "SCALAR");
     primitive["attributes"] = attributes;
     primitive["extras"] = {{"gpsTimeOffset", t0}};
+    // Float32 seconds relative to the tile's earliest time; the offset restores GPS time.
+    properties["gps_time"] = {{"type", "SCALAR"}, {"componentType", "FLOAT32"}};
+    bound["gps_time"] = {{"attribute", "_GPS_TIME"}, {"offset", t0}};
   }
+  primitive["extensions"] = {{"EXT_structural_metadata", {{"propertyAttributes", {0}}}}};
+  extensions_used.push_back("EXT_structural_metadata");
   node["mesh"] = 0;
   json gltf = {{"asset", {{"version", "2.0"}, {"generator", "stipple tile"}}},
                {"scene", 0},
@@ -139,10 +152,14 @@ std::vector<uint8_t> write_glb(std::span<const TilePoint> points, const ContentO
                {"accessors", b.accessors},
                {"bufferViews", b.views},
                {"buffers", json::array({{{"byteLength", b.bin.size()}}})}};
-  if (!extensions.empty()) {
-    gltf["extensionsUsed"] = extensions;
-    gltf["extensionsRequired"] = extensions;
-  }
+  gltf["extensions"] = {
+      {"EXT_structural_metadata",
+       {{"schema",
+         {{"id", "stipple_points"}, {"classes", {{"point", {{"properties", properties}}}}}}},
+        {"propertyAttributes", json::array({{{"class", "point"}, {"properties", bound}}})}}}};
+  if (!extensions.empty()) gltf["extensionsRequired"] = extensions;
+  extensions_used.insert(extensions_used.end(), extensions.begin(), extensions.end());
+  gltf["extensionsUsed"] = extensions_used;
   std::string text = gltf.dump();
   text.resize((text.size() + 3) & ~size_t(3), ' ');
   std::vector<uint8_t> out;
