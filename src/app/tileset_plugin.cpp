@@ -27,8 +27,8 @@ struct TilesetDrawList {
 // Render-world resource: GPU tiles and the per-frame drawn view.
 struct TilesetGpu {
   struct Tile {
-    std::shared_ptr<const TileChunks> data;  // keeps the CPU chunks as long as the buffers
-    pc::GpuPointCloud gpu;                   // dedicated buffers per tile (upload_chunk)
+    std::shared_ptr<const TileChunks> data;  // keeps the CPU chunks as long as the GPU data
+    pc::GpuPointCloud gpu;                   // chunks in page ranges (or dedicated buffers)
   };
   std::unordered_map<uint32_t, Tile> tiles;
   // The pass reads this cloud when the graph executes (Draw), so the drawn tiles' chunks are
@@ -40,14 +40,25 @@ struct TilesetGpu {
   bool dirty = true;           // bind groups of the drawn view must be rebuilt
   std::unique_ptr<pc::PointPipelines> pipelines;
   WGPUTextureFormat format = WGPUTextureFormat_Undefined;
-  uint64_t uploads = 0, frees = 0;
+  uint64_t page_bytes = 0;
+  std::unique_ptr<pc::PagedPoints> pages;  // created on first upload; null: dedicated buffers
 };
 
-std::shared_ptr<const TileChunks> make_tile_chunks(const TilesetStream& s, uint32_t tile,
+}  // namespace
+
+uint64_t TileChunks::memory_bytes() const {
+  uint64_t bytes = sizeof(TileChunks);
+  for (const auto& c : chunks)
+    bytes += sizeof(pc::PointChunk) + c.vertices.capacity() * sizeof(pc::PointChunk::Vertex);
+  return bytes;
+}
+
+std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dmat4& tile_transform,
+                                                   const glm::dmat4& world_from_tileset,
                                                    const std::vector<io::PointContent>& contents) {
   pc::PointCloud cloud;
   for (const auto& c : contents)
-    tiles3d::append_content(cloud, c, s.tileset->tiles[tile].transform, s.world_from_tileset);
+    tiles3d::append_content(cloud, c, tile_transform, world_from_tileset);
   pc::finish_cloud(cloud);  // per-chunk spacing (CLOD, adaptive sizes)
   auto out = std::make_shared<TileChunks>();
   out->tile = tile;
@@ -56,6 +67,8 @@ std::shared_ptr<const TileChunks> make_tile_chunks(const TilesetStream& s, uint3
   out->chunks = std::move(cloud.chunks);
   return out;
 }
+
+namespace {
 
 // MainStage::Update: one streamer update with the first camera.
 void update_tileset(Registry& main) {
@@ -83,26 +96,26 @@ void update_tileset(Registry& main) {
     ++stats.errors;
   }
 
-  // Evicted (or failed) tiles disappear; tiles selected for rendering get chunks once.
+  // Evicted (or failed) tiles disappear; loaded ones come with the chunks their worker made.
   const auto& states = s.streamer->states();
+  if (s.chunks.size() < states.size()) s.chunks.resize(states.size());
   stats.resident_tiles = 0;
   stats.resident_points = 0;
   for (size_t t = 0; t < states.size(); ++t) {
-    if (states[t].state != tiles3d::LoadState::Loaded) {
+    const tiles3d::PreparedTile* prepared = s.streamer->prepared(uint32_t(t));
+    if (!prepared) {
       s.chunks[t].reset();
       continue;
     }
+    if (s.chunks[t].get() != prepared->data.get())
+      s.chunks[t] = std::static_pointer_cast<const TileChunks>(prepared->data);
     ++stats.resident_tiles;
-    if (const auto* contents = s.streamer->content(uint32_t(t)))
-      for (const auto& c : *contents) stats.resident_points += c.point_count;
+    stats.resident_points += s.chunks[t]->points;
   }
   stats.drawn_tiles = 0;
   stats.drawn_points = 0;
   for (uint32_t t : selection.render) {
-    const auto* contents = s.streamer->content(t);
-    if (!contents) continue;
-    if (!s.chunks[t]) s.chunks[t] = make_tile_chunks(s, t, *contents);
-    if (s.chunks[t]->points == 0) continue;
+    if (t >= s.chunks.size() || !s.chunks[t] || s.chunks[t]->points == 0) continue;
     s.draw.push_back(t);
     ++stats.drawn_tiles;
     stats.drawn_points += s.chunks[t]->points;
@@ -150,32 +163,62 @@ void return_drawn(TilesetGpu& g) {
 void prepare_tileset(Registry& render) {
   auto& g = render.resource<TilesetGpu>();
   return_drawn(g);
-  const auto* list = render.try_resource<TilesetDrawList>();
-  if (!list) return;
-  // Free the GPU data of tiles the main world no longer holds.
-  for (auto it = g.tiles.begin(); it != g.tiles.end();) {
-    if (!std::binary_search(list->resident.begin(), list->resident.end(), it->first)) {
-      it = g.tiles.erase(it);
-      ++g.frees;
-      g.dirty = true;
-    } else {
-      ++it;
-    }
-  }
   gpu::Context& ctx = *render.resource<GpuContext>();
-  bool uploaded = false;
-  for (const auto& data : list->draw) {
-    auto& tile = g.tiles[data->tile];
-    if (tile.data == data) continue;
-    tile.data = data;
-    tile.gpu = {};
-    for (const auto& chunk : data->chunks)
-      if (!chunk.vertices.empty()) pc::upload_chunk(ctx, tile.gpu, chunk);
-    ++g.uploads;
-    uploaded = true;
-    g.dirty = true;
+  auto& stats = render.resource<TilesetGpuStats>();
+  if (g.pages) pc::collect_frees(ctx, *g.pages);
+  const auto* list = render.try_resource<TilesetDrawList>();
+  if (list) {
+    // Free the GPU data of tiles the main world no longer holds (page ranges once the frames
+    // that may read them are done).
+    for (auto it = g.tiles.begin(); it != g.tiles.end();) {
+      if (!std::binary_search(list->resident.begin(), list->resident.end(), it->first)) {
+        if (g.pages) pc::free_chunks_deferred(*g.pages, it->second.gpu.chunks);
+        it = g.tiles.erase(it);
+        ++stats.frees;
+        g.dirty = true;
+      } else {
+        ++it;
+      }
+    }
+    bool uploaded = false;
+    for (const auto& data : list->draw) {
+      auto& tile = g.tiles[data->tile];
+      if (tile.data == data) continue;
+      if (g.page_bytes > 0 && !g.pages)
+        g.pages = std::make_unique<pc::PagedPoints>(pc::create_paged_points(ctx, g.page_bytes));
+      // A tile reloaded under the same id: its old data goes first.
+      if (g.pages) pc::free_chunks_deferred(*g.pages, tile.gpu.chunks);
+      tile.data = data;
+      tile.gpu = {};
+      for (const auto& chunk : data->chunks) {
+        if (chunk.vertices.empty()) continue;
+        if (g.pages)
+          pc::upload_chunk_paged(ctx, *g.pages, tile.gpu, chunk);
+        else
+          pc::upload_chunk(ctx, tile.gpu, chunk);
+      }
+      ++stats.uploads;
+      uploaded = true;
+      g.dirty = true;
+    }
+    if (uploaded) ctx.check("uploading tiles");
   }
-  if (uploaded) ctx.check("uploading tiles");
+  stats.gpu_tiles = uint32_t(g.tiles.size());
+  stats.gpu_points = 0;
+  for (const auto& [id, tile] : g.tiles) stats.gpu_points += tile.gpu.point_count;
+  stats.paged = g.page_bytes > 0;
+  if (g.pages) {
+    stats.pages = *g.pages->stats;
+    stats.allocator = g.pages->allocator->stats();
+    stats.pending_frees = g.pages->pending.size();
+  }
+}
+
+// PostDraw: the frame's work is submitted; ranges freed from now on wait for it.
+void mark_tileset_frame(Registry& render) {
+  auto& g = render.resource<TilesetGpu>();
+  if (g.pages && render.resource<FrameGraph>().executed)
+    pc::mark_frame_submitted(*render.resource<GpuContext>(), *g.pages);
 }
 
 void queue_tileset(Registry& render) {
@@ -221,8 +264,7 @@ void queue_tileset(Registry& render) {
   g.dirty = false;
   drawn.attributes = list->attributes;
   auto& stats = render.resource<RenderStats>();
-  stats.points_total = 0;
-  for (const auto& [id, tile] : g.tiles) stats.points_total += tile.gpu.point_count;
+  stats.points_total = render.resource<TilesetGpuStats>().gpu_points;
   if (drawn.chunks.empty()) return;  // nothing resident yet: the target keeps its clear
   Camera camera = to_camera(*extracted);
   pc::add_point_cloud_passes(fg.graph, *g.pipelines, drawn, camera, settings.render, target.width,
@@ -244,7 +286,16 @@ void TilesetPlugin::build(Engine& engine) {
   s.world_bounds = tiles3d::world_bounds(*s.tileset, s.world_from_tileset);
   s.width = width;
   s.height = height;
-  s.streamer = std::make_shared<tiles3d::TileStreamer>(s.tileset, streamer);
+  // Workers convert each decoded tile to world-space chunks and drop the decoded form.
+  tiles3d::StreamerOptions options = streamer;
+  options.prepare = [world = s.world_from_tileset](uint32_t tile, const glm::dmat4& transform,
+                                                   std::vector<io::PointContent>& contents) {
+    auto chunks = make_tile_chunks(tile, transform, world, contents);
+    std::vector<io::PointContent>().swap(contents);
+    const uint64_t bytes = chunks->memory_bytes();
+    return tiles3d::PreparedTile{std::move(chunks), bytes};
+  };
+  s.streamer = std::make_shared<tiles3d::TileStreamer>(s.tileset, std::move(options));
   s.chunks.resize(s.tileset->tiles.size());
 
   SceneInfo info;
@@ -265,12 +316,16 @@ void TilesetPlugin::build(Engine& engine) {
   settings.budget = budget;
   main.insert_resource(settings);
   engine.render().insert_resource(settings);
-  engine.render().insert_resource(TilesetGpu{});
+  TilesetGpu g;
+  g.page_bytes = gpu_page_bytes;
+  engine.render().insert_resource(std::move(g));
+  engine.render().insert_resource(TilesetGpuStats{});
 
   engine.add_system(MainStage::Update, update_tileset, "update_tileset");
   engine.add_system(MainStage::Extract, extract_tileset, "extract_tileset");
   engine.add_system(RenderStage::Prepare, prepare_tileset, "prepare_tileset");
   engine.add_system(RenderStage::Queue, queue_tileset, "queue_tileset");
+  engine.add_system(RenderStage::PostDraw, mark_tileset_frame, "mark_tileset_frame");
 }
 
 }  // namespace stipple::app

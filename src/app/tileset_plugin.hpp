@@ -2,13 +2,17 @@
 // TilesetPlugin: out-of-core streaming of a 3D Tiles tileset (file or URL) in the engine.
 //
 // Main world, Update: the TileStreamer runs with the current Camera (converted to the tileset's
-// View), so requests follow the view; tiles it selects for rendering are converted once into
-// render-ready chunks (shared, immutable), tiles it evicted are dropped. Extract hands the render
-// world the tiles to draw this frame (ids + shared chunk data) and the ids still resident.
-// Render world, Prepare: uploads newly drawn tiles (dedicated GPU buffers per tile, through
-// pc::upload_chunk), frees the GPU data of tiles no longer resident. Queue: a GpuPointCloud view
-// of the selected tiles' chunks (with its own CLOD argument buffer) goes to
-// add_point_cloud_passes. Parents stay drawn until their children are ready (the traversal).
+// View), so requests follow the view. Its workers decode each tile and convert it into
+// render-ready chunks (StreamerOptions::prepare: shared, immutable, counted in the memory
+// budget), so the main thread never touches points; tiles it evicted are dropped. Extract hands
+// the render world the tiles to draw this frame (ids + shared chunk data) and the ids still
+// resident.
+// Render world, Prepare: uploads newly drawn tiles into ranges of shared suballocator pages
+// (pc::PagedPoints: writeBuffer, no buffer per tile), and frees the ranges of tiles no longer
+// resident once the frames that may still read them have completed (a FrameFence marked after
+// each Draw). Queue: a GpuPointCloud view of the selected tiles' chunks (with its own CLOD
+// argument buffer) goes to add_point_cloud_passes. Parents stay drawn until their children are
+// ready (the traversal).
 //
 // It provides the same main-world resources as PointCloudPlugin (SceneInfo, PointDrawSettings),
 // so the viewer's plugins work over either.
@@ -20,6 +24,7 @@
 #include <vector>
 
 #include "math/aabb.hpp"
+#include "pointcloud/paged_points.hpp"
 #include "pointcloud/point_cloud.hpp"
 #include "pointcloud/point_renderer.hpp"
 #include "tiles3d/streamer.hpp"
@@ -37,7 +42,13 @@ struct TileChunks {
   std::vector<pc::PointChunk> chunks;
   uint64_t points = 0;
   bool has_rgb = false;
+  uint64_t memory_bytes() const;
 };
+
+// A tile's decoded contents as chunks in the engine's world frame (on a streamer worker).
+std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dmat4& tile_transform,
+                                                   const glm::dmat4& world_from_tileset,
+                                                   const std::vector<io::PointContent>& contents);
 
 // Main-world resource: the streaming state.
 struct TilesetStream {
@@ -65,6 +76,17 @@ struct TilesetStats {
   uint64_t errors = 0;
 };
 
+// Render-world resource: the tiles' GPU memory (tests, the UI).
+struct TilesetGpuStats {
+  uint64_t uploads = 0, frees = 0;  // tiles
+  uint32_t gpu_tiles = 0;
+  uint64_t gpu_points = 0;
+  bool paged = false;
+  pc::PagedPointStats pages;  // when paged
+  gpu::SuballocatorStats allocator;
+  uint64_t pending_frees = 0;  // ranges waiting for their frame to complete
+};
+
 struct TilesetPlugin {
   static constexpr std::string_view name = "TilesetPlugin";
   static constexpr std::string_view description =
@@ -77,6 +99,9 @@ struct TilesetPlugin {
   uint32_t width = 1280, height = 720;  // viewport for the screen-space error
   pc::PointRenderSettings render;       // copied into PointDrawSettings
   uint64_t budget = 0;                  // PointDrawSettings::budget (unused: the traversal is)
+  // Size of the suballocator pages that hold the tiles on the GPU; 0: two dedicated buffers per
+  // chunk instead (the path before pages, kept for comparison).
+  uint64_t gpu_page_bytes = uint64_t(32) << 20;
   void build(Engine& engine);
 };
 

@@ -140,12 +140,16 @@ gpu::RenderPipeline make_draw_pipeline(gpu::Context& ctx, const PointPipelines& 
 
 }  // namespace
 
-void upload_chunk(gpu::Context& ctx, GpuPointCloud& gpu_cloud, const PointChunk& chunk) {
+uint64_t max_gpu_chunk_points(const gpu::Context& ctx) {
   const uint64_t binding_limit = ctx.limits.maxStorageBufferBindingSize;
   const uint64_t buffer_limit = ctx.limits.maxBufferSize;
-  const uint64_t max_points = std::max<uint64_t>(
+  return std::max<uint64_t>(
       1, std::min<uint64_t>({binding_limit / sizeof(PointChunk::Vertex),
                              buffer_limit / sizeof(PointChunk::Vertex), kMaxChunkPoints}));
+}
+
+void upload_chunk(gpu::Context& ctx, GpuPointCloud& gpu_cloud, const PointChunk& chunk) {
+  const uint64_t max_points = max_gpu_chunk_points(ctx);
   // Chunks larger than one storage binding are split; the pieces share the origin.
   for (size_t first = 0; first < chunk.vertices.size(); first += max_points) {
     GpuPointCloud::Chunk c;
@@ -157,6 +161,8 @@ void upload_chunk(gpu::Context& ctx, GpuPointCloud& gpu_cloud, const PointChunk&
                                   chunk.vertices.data() + first);
     c.survivors =
         gpu::create_buffer(ctx, uint64_t(c.count) * 4, WGPUBufferUsage_Storage, "clod-survivors");
+    c.points_buffer = c.points.get();
+    c.survivors_buffer = c.survivors.get();
     gpu_cloud.point_count += c.count;
     gpu_cloud.chunks.push_back(std::move(c));
   }
@@ -313,12 +319,14 @@ void ensure_cloud_groups(gpu::Context& ctx, const PointPipelines& p, GpuPointClo
   for (size_t i = 0; i < cloud.chunks.size(); ++i) {
     auto& c = cloud.chunks[i];
     uint64_t bytes = uint64_t(c.count) * sizeof(PointChunk::Vertex);
-    c.points_group = buffer_group(ctx, p.points_layout.get(), {{c.points.get(), {0, bytes}}});
-    c.survivors_group = buffer_group(ctx, p.survivors_layout.get(),
-                                     {{c.survivors.get(), {0, uint64_t(c.count) * 4}}});
+    const std::pair<uint64_t, uint64_t> survivors{c.survivors_offset, uint64_t(c.count) * 4};
+    c.points_group =
+        buffer_group(ctx, p.points_layout.get(), {{c.points_buffer, {c.points_offset, bytes}}});
+    c.survivors_group =
+        buffer_group(ctx, p.survivors_layout.get(), {{c.survivors_buffer, survivors}});
     c.clod_group =
         buffer_group(ctx, p.clod_layout.get(),
-                     {{c.survivors.get(), {0, uint64_t(c.count) * 4}},
+                     {{c.survivors_buffer, survivors},
                       {cloud.clod_args.get(), {uint64_t(i) * cloud.clod_args_stride, 16}}});
   }
   cloud.bind_groups_for = &p;

@@ -32,6 +32,7 @@
 #include "renderer/gpu.hpp"
 #include "renderer/gpu_timer.hpp"
 #include "renderer/render_graph.hpp"
+#include "renderer/suballocator.hpp"
 
 namespace stipple::pc {
 
@@ -73,11 +74,16 @@ PointSizeMode parse_point_size_mode(const std::string& name);
 
 struct GpuPointCloud {
   struct Chunk {
-    gpu::Buffer points;  // array<Point> (PointChunk::Vertex), storage
+    // Where the passes bind the points (array<Point>, PointChunk::Vertex) and the CLOD output
+    // (u32 indices into the points): the chunk's own buffers below (upload_chunk), or ranges of
+    // suballocator pages (upload_chunk_paged). Offsets are storage-binding aligned. Not owned.
+    WGPUBuffer points_buffer = nullptr, survivors_buffer = nullptr;
+    uint64_t points_offset = 0, survivors_offset = 0;
+    gpu::Buffer points, survivors;  // upload_chunk's own buffers; empty for paged chunks
+    gpu::SubAllocation range, survivors_range;  // a paged chunk's ranges
     uint32_t count = 0;
     glm::dvec3 origin{0.0};
-    double spacing = 0.0;   // s_native of CLOD
-    gpu::Buffer survivors;  // CLOD output: indices into `points`
+    double spacing = 0.0;  // s_native of CLOD
     // Created on first draw, for the pipelines' layouts.
     gpu::BindGroup points_group, survivors_group, clod_group;
   };
@@ -97,6 +103,8 @@ struct GpuPointCloud {
 // Incremental upload (streaming, benchmarks): chunks one at a time, then finish_upload() once
 // to size the per-chunk CLOD arguments.
 void upload_chunk(gpu::Context& ctx, GpuPointCloud& gpu_cloud, const PointChunk& chunk);
+// The most points one GPU chunk holds on this device (larger chunks are split).
+uint64_t max_gpu_chunk_points(const gpu::Context& ctx);
 void finish_upload(gpu::Context& ctx, GpuPointCloud& gpu_cloud);
 GpuPointCloud upload_point_cloud(gpu::Context& ctx, const PointCloud& cloud);
 

@@ -29,6 +29,7 @@ struct TileStreamer::Job {
   uint32_t tile;
   std::atomic<bool> cancelled{false};
   std::vector<io::PointContent> result;
+  PreparedTile prepared;
   std::string error;
 };
 
@@ -39,7 +40,9 @@ struct TileStreamer::Shared {
 };
 
 TileStreamer::TileStreamer(std::shared_ptr<const io::Tileset> tileset, StreamerOptions options)
-    : tileset_(std::move(tileset)), options_(options), shared_(std::make_shared<Shared>()),
+    : tileset_(std::move(tileset)),
+      options_(options),
+      shared_(std::make_shared<Shared>()),
       pool_(std::make_unique<ThreadPool>(std::max(1u, options.threads))) {
   states_.resize(tileset_->tiles.size());
   contents_.resize(tileset_->tiles.size());
@@ -74,7 +77,7 @@ void TileStreamer::integrate() {
       STIPPLE_WARN("tile {}: {}", t, job->error);
       continue;
     }
-    uint64_t bytes = 0;
+    uint64_t bytes = job->prepared.bytes;
     for (const auto& c : job->result) bytes += c.memory_bytes();
     bool fits = false;
     auto evict = make_room(states_, bytes, options_.traversal.memory_budget, frame_, &fits);
@@ -87,11 +90,16 @@ void TileStreamer::integrate() {
     for (uint32_t e : evict) {
       contents_[e].clear();
       contents_[e].shrink_to_fit();
+      release_prepared(e);
       stats_.resident_bytes -= states_[e].bytes;
       states_[e] = TileState{};
       ++stats_.evictions;
     }
     contents_[t] = std::move(job->result);
+    if (job->prepared.data) {
+      if (t >= prepared_.size()) prepared_.resize(size_t(t) + 1);
+      prepared_[t] = std::move(job->prepared);
+    }
     states_[t].state = LoadState::Loaded;
     states_[t].bytes = bytes;
     states_[t].last_used = frame_;
@@ -109,6 +117,7 @@ const Selection& TileStreamer::update(const View& view) {
   for (uint32_t e : selection_.evict) {
     contents_[e].clear();
     contents_[e].shrink_to_fit();
+    release_prepared(e);
     stats_.resident_bytes -= states_[e].bytes;
     states_[e] = TileState{};
     ++stats_.evictions;
@@ -133,7 +142,8 @@ void TileStreamer::start_jobs() {
     states_[t].state = LoadState::Loading;
     ++in_flight_;
     std::vector<std::string> uris = tileset_->tiles[t].contents;
-    pool_->submit([job, uris, shared = shared_, fetch = options_.fetch, limits = options_.limits] {
+    pool_->submit([job, uris, transform = tileset_->tiles[t].transform, shared = shared_,
+                   fetch = options_.fetch, limits = options_.limits, prepare = options_.prepare] {
       try {
         for (const auto& uri : uris) {
           if (job->cancelled) break;
@@ -141,9 +151,11 @@ void TileStreamer::start_jobs() {
           if (job->cancelled) break;
           job->result.push_back(decode_content(bytes, uri, limits, fetch));
         }
+        if (prepare && !job->cancelled) job->prepared = prepare(job->tile, transform, job->result);
       } catch (const std::exception& e) {
         job->error = e.what();
         job->result.clear();
+        job->prepared = {};
       }
       std::lock_guard lock(shared->mutex);
       shared->done.push_back(job);
@@ -159,11 +171,23 @@ void TileStreamer::wait_for_progress() {
   shared_->done_cv.wait(lock, [&] { return !shared_->done.empty(); });
 }
 
-bool TileStreamer::idle() const { return in_flight_ == 0 && queue_.empty(); }
+bool TileStreamer::idle() const {
+  return in_flight_ == 0 && queue_.empty();
+}
 
 const std::vector<io::PointContent>* TileStreamer::content(uint32_t tile) const {
   if (tile >= states_.size() || states_[tile].state != LoadState::Loaded) return nullptr;
   return &contents_[tile];
+}
+
+const PreparedTile* TileStreamer::prepared(uint32_t tile) const {
+  if (tile >= states_.size() || states_[tile].state != LoadState::Loaded) return nullptr;
+  if (tile >= prepared_.size() || !prepared_[tile].data) return nullptr;
+  return &prepared_[tile];
+}
+
+void TileStreamer::release_prepared(uint32_t tile) {
+  if (tile < prepared_.size()) prepared_[tile] = {};
 }
 
 std::vector<TileError> TileStreamer::take_errors() {

@@ -4,6 +4,7 @@
 // resident content within a memory budget by evicting least recently used tiles.
 #include <atomic>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -17,12 +18,26 @@
 
 namespace stipple::tiles3d {
 
+// What StreamerOptions::prepare made of a tile: the client's own type (its owner casts it back)
+// and its size, which counts towards the memory budget like decoded content.
+struct PreparedTile {
+  std::shared_ptr<const void> data;
+  uint64_t bytes = 0;
+};
+// Runs on a worker right after a tile's contents are decoded (conversion to render-ready data),
+// so the thread calling update() never does it. It may consume `contents` (move from or clear
+// them: what it leaves stays resident and counted). `transform` is the tile's, copied when the
+// load started (the tile array may grow meanwhile). Throwing fails the tile like a decode error.
+using PrepareTile = std::function<PreparedTile(uint32_t tile, const glm::dmat4& transform,
+                                               std::vector<io::PointContent>& contents)>;
+
 struct StreamerOptions {
   TraversalOptions traversal;
   io::FetchOptions fetch;
   io::DecodeLimits limits;
-  unsigned threads = 4;         // worker threads (I/O bound: more than cores is fine)
-  unsigned max_in_flight = 8;   // tiles fetched or decoded at once
+  unsigned threads = 4;        // worker threads (I/O bound: more than cores is fine)
+  unsigned max_in_flight = 8;  // tiles fetched or decoded at once
+  PrepareTile prepare;         // optional post-decode step on the worker
 };
 
 struct TileError {
@@ -58,6 +73,8 @@ class TileStreamer {
   const io::Tileset& tileset() const { return *tileset_; }
   // Content of a Loaded tile (all of its contents merged); nullptr otherwise.
   const std::vector<io::PointContent>* content(uint32_t tile) const;
+  // What StreamerOptions::prepare made of a Loaded tile; nullptr otherwise (or without a hook).
+  const PreparedTile* prepared(uint32_t tile) const;
   const std::vector<TileState>& states() const { return states_; }
   std::vector<TileError> take_errors();
   const std::vector<TileError>& errors() const { return all_errors_; }
@@ -70,6 +87,7 @@ class TileStreamer {
   StreamerOptions options_;
   std::vector<TileState> states_;
   std::vector<std::vector<io::PointContent>> contents_;
+  std::vector<PreparedTile> prepared_;      // by tile, grown on demand (see release_prepared)
   std::vector<std::shared_ptr<Job>> jobs_;  // by tile, while Loading
   std::vector<LoadRequest> queue_;          // wanted, not started; most important first
   std::shared_ptr<Shared> shared_;
@@ -82,6 +100,7 @@ class TileStreamer {
 
   void integrate();
   void start_jobs();
+  void release_prepared(uint32_t tile);
 };
 
 }  // namespace stipple::tiles3d
