@@ -76,7 +76,7 @@ TEST_P(PagedPointsGpu, DrawsLikeDedicatedBuffersAndFreesAfterTheFrame) {
   EXPECT_EQ(store.allocator->stats().dedicated_buffers, 0u);
 
   // Same chunks, same order, same uniforms: only where the points are bound differs, so the
-  // images must be identical (tolerance: no channel differs at all), with and without CLOD.
+  // images must be identical, with and without CLOD (tolerances below).
   pc::PointRenderSettings settings;
   settings.point_size = 3.0f;
   for (float k : {0.0f, 0.5f}) {
@@ -94,7 +94,10 @@ TEST_P(PagedPointsGpu, DrawsLikeDedicatedBuffersAndFreesAfterTheFrame) {
     }
     const uint8_t bg[3] = {18, 20, 26};
     EXPECT_GT(test::coverage_stats(a, bg).coverage, k > 0 ? 0.05 : 0.2);
-    EXPECT_EQ(test::differing_fraction(a, b, 0), 0.0);
+    // Tolerance: all points, none; CLOD, at most 0.1% of pixels. The CLOD pass appends
+    // survivors with an atomic counter, so their draw order (and which of two points at the
+    // same depth wins a pixel) varies from run to run on either path.
+    EXPECT_LE(test::differing_fraction(a, b, 0), k > 0 ? 0.001 : 0.0);
   }
 
   // The last frame drew every paged chunk: mark it, then free them all.

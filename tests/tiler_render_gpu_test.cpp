@@ -45,9 +45,10 @@ static void tile_and_render(bool compare_images) {
   ASSERT_EQ(colored, 110000u);
 
   // Raw colours: naive splatting, no EDL, on black.
-  const std::string common =
+  const std::string framing =
       " --width 640 --height 360 --azimuth 30 --elevation 40 --splat naive --no-edl "
-      "--background 0,0,0 --color rgb";
+      "--background 0,0,0";
+  const std::string common = framing + " --color rgb";
   fs::path las_png = dir / "las.png", tiles_png = dir / "tileset.png";
   r = test::run_stipple("render " + las.string() + " -o " + las_png.string() + common);
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -89,6 +90,32 @@ static void tile_and_render(bool compare_images) {
     EXPECT_NEAR(tiles_stats.mean[c], las_stats.mean[c], 8.0) << "channel " << c;
     EXPECT_NEAR(tiles_stats.mean[c], data_mean[c], 8.0) << "channel " << c;
     EXPECT_NEAR(las_stats.mean[c], data_mean[c], 8.0) << "channel " << c;
+  }
+  // The tiles' intensity and classification attributes drive the same colour modes as the LAS
+  // fields (a tileset without them falls back to elevation colours: a blue-to-red ramp, not
+  // grey). Tolerance: mean colour of covered pixels within 10 levels per channel for the
+  // classification palette; 15 for the intensity ramp, whose percentiles come from 128-point
+  // samples per tile and whose covered pixels favour the coarse levels' larger splats.
+  for (const char* mode : {"classification", "intensity"}) {
+    fs::path a = dir / (std::string("las_") + mode + ".png"),
+             b = dir / (std::string("tiles_") + mode + ".png");
+    r = test::run_stipple("render " + las.string() + " -o " + a.string() + framing + " --color " +
+                          mode);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    r = test::run_stipple("render " + (tiles / "tileset.json").string() + " -o " + b.string() +
+                          framing + " --color " + mode);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    auto sa = test::coverage_stats(gpu::read_png(a), black, 0);
+    auto sb = test::coverage_stats(gpu::read_png(b), black, 0);
+    std::printf("%s: LAS (%.1f %.1f %.1f), tileset (%.1f %.1f %.1f)\n", mode, sa.mean[0],
+                sa.mean[1], sa.mean[2], sb.mean[0], sb.mean[1], sb.mean[2]);
+    const bool grey = std::string(mode) == "intensity";
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(sb.mean[c], sa.mean[c], grey ? 15.0 : 10.0) << mode << " " << c;
+    if (grey) {  // the intensity ramp is grey: every channel equal
+      EXPECT_NEAR(sb.mean[0], sb.mean[1], 0.5);
+      EXPECT_NEAR(sb.mean[1], sb.mean[2], 0.5);
+    }
   }
   fs::remove_all(dir);
 }

@@ -63,8 +63,15 @@ std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dma
   auto out = std::make_shared<TileChunks>();
   out->tile = tile;
   out->points = cloud.point_count;
-  out->has_rgb = cloud.attributes.has_rgb;
+  out->attributes = cloud.attributes;
   out->chunks = std::move(cloud.chunks);
+  if (cloud.attributes.has_intensity && cloud.point_count > 0) {
+    const uint64_t stride = std::max<uint64_t>(1, cloud.point_count / 128);
+    uint64_t i = 0;
+    for (const auto& chunk : out->chunks)
+      for (const auto& v : chunk.vertices)
+        if (i++ % stride == 0) out->intensity_sample.push_back(uint16_t(v.attributes & 0xffffu));
+  }
   return out;
 }
 
@@ -130,8 +137,43 @@ void update_tileset(Registry& main) {
   ++stats.frames;
   auto& info = main.resource<SceneInfo>();
   info.points = std::max(info.points, stats.drawn_points);
-  for (uint32_t t : s.draw)
-    info.attributes.has_rgb = info.attributes.has_rgb || s.chunks[t]->has_rgb;
+  pc::CloudAttributes& scene = info.attributes;
+  uint64_t signature = 0;
+  for (uint32_t t : s.draw) {
+    const pc::CloudAttributes& a = s.chunks[t]->attributes;
+    scene.has_rgb = scene.has_rgb || a.has_rgb;
+    scene.has_intensity = scene.has_intensity || a.has_intensity;
+    scene.has_classification = scene.has_classification || a.has_classification;
+    scene.has_returns = scene.has_returns || a.has_returns;
+    if (a.has_intensity) signature = signature * 1000003u + t + 1;
+  }
+  // Intensity ramp: 2nd and 98th percentiles of the drawn tiles' samples, each weighted by the
+  // points it stands for (as LAS input's ramp is over all its points); recomputed only when the
+  // drawn set changes.
+  if (signature != 0 && signature != s.intensity_signature) {
+    // (A tile with intensities has a non-empty sample.)
+    s.intensity_signature = signature;
+    std::vector<std::pair<uint16_t, double>> samples;
+    double total = 0;
+    for (uint32_t t : s.draw) {
+      const TileChunks& tile = *s.chunks[t];
+      if (tile.intensity_sample.empty()) continue;
+      const double w = double(tile.points) / double(tile.intensity_sample.size());
+      for (uint16_t v : tile.intensity_sample) samples.push_back({v, w});
+      total += double(tile.points);
+    }
+    std::sort(samples.begin(), samples.end());
+    if (samples.empty()) samples.push_back({0, 1.0});
+    auto quantile = [&](double q) {
+      double seen = 0;
+      for (const auto& [v, w] : samples)
+        if ((seen += w) >= q * total) return double(v);
+      return double(samples.back().first);
+    };
+    glm::dvec2 r(quantile(0.02), quantile(0.98));
+    if (r.y <= r.x) r.y = r.x + 1.0;
+    scene.intensity_percentiles = r;
+  }
 }
 
 void extract_tileset(Registry& main) {

@@ -41,7 +41,10 @@ struct TileChunks {
   uint32_t tile = 0;
   std::vector<pc::PointChunk> chunks;
   uint64_t points = 0;
-  bool has_rgb = false;
+  pc::CloudAttributes attributes;  // which attributes the tile has
+  // Up to 128 intensities strided evenly through the tile: the drawn tiles' samples, weighted by
+  // their point counts, give the intensity ramp's percentiles.
+  std::vector<uint16_t> intensity_sample;
   uint64_t memory_bytes() const;
 };
 
@@ -60,6 +63,7 @@ struct TilesetStream {
   // Tiles converted for rendering, by tile id (dropped when the streamer evicts the tile).
   std::vector<std::shared_ptr<const TileChunks>> chunks;
   std::vector<uint32_t> draw;  // this frame's tiles to draw (ids with chunks), traversal order
+  uint64_t intensity_signature = 0;  // of the drawn tiles the intensity ramp was computed from
 };
 
 // Main-world resource: what the stream did this frame (tests, the UI, `stipple render`).

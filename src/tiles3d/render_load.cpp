@@ -1,5 +1,8 @@
 #include "tiles3d/render_load.hpp"
 
+#include <algorithm>
+#include <initializer_list>
+
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "core/error.hpp"
@@ -36,9 +39,40 @@ Aabb world_bounds(const io::Tileset& ts, const glm::dmat4& m) {
   return box;
 }
 
+namespace {
+
+// A per-point scalar attribute under any of the names writers use (pnts batch tables: INTENSITY;
+// glb: _INTENSITY, or the EXT_structural_metadata property name); null when absent.
+const std::vector<double>* scalar_attribute(const io::PointContent& content,
+                                            std::initializer_list<const char*> names) {
+  for (const char* name : names) {
+    auto it = content.attributes.find(name);
+    if (it != content.attributes.end() && it->second.components == 1 &&
+        it->second.values.size() == content.point_count)
+      return &it->second.values;
+  }
+  return nullptr;
+}
+
+uint32_t clamp_to(double v, uint32_t max) {
+  return v > 0 ? uint32_t(std::min(v, double(max))) : 0u;
+}
+
+}  // namespace
+
 void append_content(pc::PointCloud& cloud, const io::PointContent& content,
                     const glm::dmat4& tile_transform, const glm::dmat4& world_from_tileset) {
   if (content.point_count == 0) return;
+  // LAS attributes carried by the tile drive the intensity, classification and return colour
+  // modes, as for LAS input.
+  const auto* intensity =
+      scalar_attribute(content, {"intensity", "INTENSITY", "_INTENSITY", "Intensity"});
+  const auto* classification = scalar_attribute(
+      content, {"classification", "CLASSIFICATION", "_CLASSIFICATION", "Classification"});
+  const auto* returns = scalar_attribute(
+      content, {"return_number", "RETURN_NUMBER", "_RETURN_NUMBER", "ReturnNumber"});
+  const auto* return_count = scalar_attribute(
+      content, {"number_of_returns", "NUMBER_OF_RETURNS", "_NUMBER_OF_RETURNS", "NumberOfReturns"});
   glm::dmat4 m = world_from_tileset * tile_transform;
   pc::PointChunk chunk;
   chunk.origin = glm::dvec3(m * glm::dvec4(content.center, 1.0));
@@ -47,7 +81,12 @@ void append_content(pc::PointCloud& cloud, const io::PointContent& content,
   for (size_t i = 0; i < content.point_count; ++i) {
     glm::dvec3 p = linear * glm::dvec3(content.positions[i]);
     uint32_t rgba = content.rgba.empty() ? pc::pack_rgba(220, 220, 220) : content.rgba[i];
-    chunk.vertices.push_back({float(p.x), float(p.y), float(p.z), rgba | 0xff000000u, 0u});
+    const uint32_t attributes =
+        pc::pack_attributes(uint16_t(intensity ? clamp_to((*intensity)[i], 65535) : 0),
+                            uint8_t(classification ? clamp_to((*classification)[i], 255) : 0),
+                            uint8_t(returns ? clamp_to((*returns)[i], 15) : 0),
+                            uint8_t(return_count ? clamp_to((*return_count)[i], 15) : 0));
+    chunk.vertices.push_back({float(p.x), float(p.y), float(p.z), rgba | 0xff000000u, attributes});
     glm::dvec3 world = chunk.origin + p;
     chunk.bounds.extend(world);
     cloud.world_bounds.extend(world);
@@ -55,7 +94,11 @@ void append_content(pc::PointCloud& cloud, const io::PointContent& content,
         tile_transform * glm::dvec4(content.center + glm::dvec3(content.positions[i]), 1.0)));
   }
   cloud.point_count += content.point_count;
-  cloud.attributes.has_rgb = cloud.attributes.has_rgb || !content.rgba.empty();
+  pc::CloudAttributes& a = cloud.attributes;
+  a.has_rgb = a.has_rgb || !content.rgba.empty();
+  a.has_intensity = a.has_intensity || intensity;
+  a.has_classification = a.has_classification || classification;
+  a.has_returns = a.has_returns || returns;
   cloud.chunks.push_back(std::move(chunk));
 }
 
