@@ -640,3 +640,32 @@ TEST(LasCorrupt, MissingFile) {
   }
   EXPECT_THROW(read_las_header(temp_dir()), Error);
 }
+
+// seek(i) then read gives exactly the points a sequential read gives from i on, for LAS and LAZ
+// (LASzip restarts at the chunk holding i), in any order of seeks; seeking past the end fails.
+TEST(LasRead, SeekThenReadMatchesSequentialReading) {
+  REQUIRE_DATA("las/autzen_trim.las");
+  std::vector<fs::path> files = {file};
+  if (fs::exists(data_dir() / "laz/autzen_trim.laz"))
+    files.push_back(data_dir() / "laz/autzen_trim.laz");
+  for (const fs::path& f : files) {
+    SCOPED_TRACE(f.string());
+    LasReader all(f);
+    const PointBatch whole = read_all(all, 1 << 16);
+    LasReader r(f);
+    for (uint64_t first : {uint64_t(70001), uint64_t(0), uint64_t(50000), uint64_t(109999),
+                           uint64_t(123), uint64_t(110000)}) {
+      r.seek(first);
+      PointBatch b;
+      const size_t got = r.read(b, 3000);
+      ASSERT_EQ(got, std::min<uint64_t>(3000, 110000 - first));
+      for (size_t i = 0; i < got; ++i) {
+        ASSERT_EQ(b.positions[i], whole.positions[first + i]) << "point " << first + i;
+        ASSERT_EQ(b.gps_time[i], whole.gps_time[first + i]);
+        ASSERT_EQ(b.rgb[i], whole.rgb[first + i]);
+        ASSERT_EQ(b.intensity[i], whole.intensity[first + i]);
+      }
+    }
+    EXPECT_THROW(r.seek(110001), Error);
+  }
+}

@@ -80,8 +80,7 @@ std::vector<uint8_t> read_file(const std::string& path, const FetchOptions& opti
   auto size = std::filesystem::file_size(path, ec);
   if (ec) fail("{}: cannot open ({})", path, ec.message());
   if (size > options.max_bytes)
-    fail("{}: {} bytes is more than the limit of {} bytes per file", path, size,
-         options.max_bytes);
+    fail("{}: {} bytes is more than the limit of {} bytes per file", path, size, options.max_bytes);
   std::ifstream in(path, std::ios::binary);
   if (!in) fail("{}: cannot open", path);
   std::vector<uint8_t> data(size);
@@ -138,8 +137,8 @@ std::string resolve_uri(const std::string& base_document, const std::string& rel
     size_t start = 0;
     while (start <= path.size()) {
       size_t next = path.find('/', start);
-      std::string seg = path.substr(start, next == std::string::npos ? std::string::npos
-                                                                     : next - start);
+      std::string seg =
+          path.substr(start, next == std::string::npos ? std::string::npos : next - start);
       if (seg == "..") {
         if (!parts.empty()) parts.pop_back();
       } else if (seg != "." && !(seg.empty() && next != std::string::npos)) {
@@ -165,8 +164,7 @@ bool looks_like_html(const uint8_t* data, size_t size) {
          starts_with_ci(head, "<head") || starts_with_ci(head, "<body");
 }
 
-std::vector<uint8_t> fetch(const std::string& uri, const FetchOptions& options,
-                           FetchStats* stats) {
+std::vector<uint8_t> fetch(const std::string& uri, const FetchOptions& options, FetchStats* stats) {
   if (!is_url(uri)) {
     if (stats) stats->attempts = 1;
     return read_file(uri, options);
@@ -216,9 +214,8 @@ std::vector<uint8_t> fetch(const std::string& uri, const FetchOptions& options,
     } else {
       const char* type = nullptr;
       curl_easy_getinfo(curl, CURLINFO_CONTENT_TYPE, &type);
-      if (options.reject_html &&
-          ((type && starts_with_ci(type, "text/html")) ||
-           looks_like_html(body.data(), body.size())))
+      if (options.reject_html && ((type && starts_with_ci(type, "text/html")) ||
+                                  looks_like_html(body.data(), body.size())))
         fail("{}: the server answered with an HTML page, not tile data", uri);
       return body;
     }

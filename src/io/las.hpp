@@ -112,6 +112,9 @@ class LasReader {
   const LasHeader& header() const;
   // Appends up to max_points points to batch; returns how many, 0 at the end.
   size_t read(PointBatch& batch, size_t max_points);
+  // The next read() starts at point `index` (<= the point count). LAZ decoding restarts at the
+  // chunk holding it, so readers seeking to chunk-aligned ranges can decode a file in parallel.
+  void seek(uint64_t index);
   uint64_t points_read() const;
 
  private:

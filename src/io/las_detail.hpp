@@ -51,6 +51,8 @@ class LazDecoder {
  public:
   virtual ~LazDecoder() = default;
   virtual void read(uint8_t* out, size_t n) = 0;  // throws Error "<name>: ..." on failure
+  // Positions before point `index` (LASzip jumps to its chunk through the chunk table).
+  virtual void seek(uint64_t index) = 0;
 };
 // Exactly one of path / memory is used (path when non-null).
 std::unique_ptr<LazDecoder> open_laz_decoder(const std::string& name,

@@ -396,6 +396,17 @@ struct LasReader::Impl {
     fetched += n;
   }
 
+  void seek(uint64_t index) {
+    if (index > header.point_count)
+      fail("{}: cannot seek to point {} of {}", header.path, index, header.point_count);
+    if (index == next) return;
+    // The RGB probe's records only serve sequential reading from the start.
+    std::vector<uint8_t>().swap(prefix);
+    prefix_points = prefix_used = 0;
+    if (laz) laz->seek(index);
+    next = fetched = index;
+  }
+
   size_t read(PointBatch& batch, size_t max_points) {
     const uint64_t left = header.point_count - next;
     size_t want = static_cast<size_t>(std::min<uint64_t>(max_points, left));
@@ -450,6 +461,9 @@ const LasHeader& LasReader::header() const {
 }
 size_t LasReader::read(PointBatch& batch, size_t max_points) {
   return impl_->read(batch, max_points);
+}
+void LasReader::seek(uint64_t index) {
+  impl_->seek(index);
 }
 uint64_t LasReader::points_read() const {
   return impl_->next;

@@ -87,6 +87,12 @@ class LaszipDecoder : public LazDecoder {
     }
   }
 
+  void seek(uint64_t index) override {
+    if (laszip_seek_point(zip_, static_cast<laszip_I64>(index)) != 0)
+      fail("{}: cannot seek to point {}: {}", name_, index, laszip_message(zip_));
+    count_ = index;
+  }
+
   void read(uint8_t* out, size_t n) override {
     const size_t eb = layout_.extra_bytes();
     for (size_t i = 0; i < n; ++i, ++count_) {

@@ -13,8 +13,8 @@ namespace stipple::io {
 
 struct Availability {
   bool constant = true;
-  bool value = false;          // when constant
-  std::vector<uint8_t> bits;   // when a bitstream
+  bool value = false;         // when constant
+  std::vector<uint8_t> bits;  // when a bitstream
   uint64_t bit_count = 0;
   bool get(uint64_t index) const {
     if (constant) return value;

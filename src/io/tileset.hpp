@@ -39,9 +39,9 @@ struct Obb {
 Obb obb_of(const BoundingVolume& volume, const glm::dmat4& transform);
 
 struct Tile {
-  BoundingVolume volume;        // as declared, in the tile's frame
-  Obb box;                      // in the tileset frame (transforms applied)
-  glm::dmat4 transform{1.0};    // tile frame -> tileset frame (the chain of transforms)
+  BoundingVolume volume;      // as declared, in the tile's frame
+  Obb box;                    // in the tileset frame (transforms applied)
+  glm::dmat4 transform{1.0};  // tile frame -> tileset frame (the chain of transforms)
   double geometric_error = 0.0;
   Refine refine = Refine::Replace;
   std::vector<std::string> contents;  // resolved URIs of renderable content (pnts, glb, ...)
@@ -60,9 +60,9 @@ struct TilesetOptions {
 
 struct Tileset {
   std::string uri;
-  std::string version;          // asset.version
+  std::string version;           // asset.version
   double geometric_error = 0.0;  // the tileset's own
-  std::vector<Tile> tiles;      // tiles[0] is the root; parents come before children
+  std::vector<Tile> tiles;       // tiles[0] is the root; parents come before children
   std::vector<std::string> warnings;
   std::vector<std::string> errors;  // per-tile failures, also in Tile::error
   uint32_t external_tilesets = 0;
