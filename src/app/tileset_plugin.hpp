@@ -55,6 +55,7 @@ std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dma
 
 // Main-world resource: the streaming state.
 struct TilesetStream {
+  // Grows inside streamer->update() as external tilesets and subtrees are read: main thread only.
   std::shared_ptr<const io::Tileset> tileset;
   std::shared_ptr<tiles3d::TileStreamer> streamer;
   glm::dmat4 world_from_tileset{1.0};

@@ -103,9 +103,12 @@ void append_content(pc::PointCloud& cloud, const io::PointContent& content,
 }
 
 RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoadOptions& options) {
-  io::TilesetOptions ts_options;
+  io::TilesetOptions ts_options = options.streamer.tileset;
   ts_options.fetch = options.streamer.fetch;
-  auto tileset = std::make_shared<const io::Tileset>(io::load_tileset(uri, ts_options));
+  auto tileset = std::make_shared<io::Tileset>(
+      options.streamer.fetcher ? io::parse_tileset(options.streamer.fetcher(uri), uri,
+                                                   options.streamer.fetcher, ts_options)
+                               : io::load_tileset(uri, ts_options));
   RenderLoadResult out;
   for (const auto& e : tileset->errors) out.errors.push_back({0, e});
   View view;
@@ -136,8 +139,11 @@ RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoa
     ++out.tiles_rendered;
   }
   pc::finish_cloud(out.cloud);
-  STIPPLE_INFO("{}: {} tiles, {} rendered, {} points, {} errors", uri, tileset->tiles.size(),
-               out.tiles_rendered, out.cloud.point_count, out.errors.size());
+  STIPPLE_INFO(
+      "{}: {} tiles read ({} external tilesets, {} subtrees), {} rendered, {} points, "
+      "{} errors",
+      uri, tileset->tiles.size(), tileset->external_tilesets, tileset->subtrees, out.tiles_rendered,
+      out.cloud.point_count, out.errors.size());
   return out;
 }
 

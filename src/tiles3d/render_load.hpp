@@ -1,6 +1,7 @@
 #pragma once
 // One-shot loading of a tileset for headless rendering (`stipple render tileset.json`): frame
-// the root volume, stream until the selection for that camera is resident, convert to chunks.
+// the root volume, stream until the selection for that camera is resident (reading external
+// tilesets and subtrees as the traversal reaches them), convert to chunks.
 #include <string>
 #include <vector>
 

@@ -53,7 +53,11 @@ class Traversal {
  public:
   Traversal(const io::Tileset& ts, const View& view, const std::vector<TileState>& states,
             const TraversalOptions& options, Selection& out)
-      : ts_(ts), view_(view), states_(states), options_(options), out_(out),
+      : ts_(ts),
+        view_(view),
+        states_(states),
+        options_(options),
+        out_(out),
         planes_(frustum(view)),
         tileset_from_world_(glm::inverse(view.world_from_tileset)),
         eye_(glm::dvec3(tileset_from_world_ * glm::dvec4(view.camera.position, 1.0))) {
@@ -71,25 +75,39 @@ class Traversal {
     }
     double d = t.box.distance(eye_) * scale_;
     double sse = screen_space_error(t.geometric_error, d, view_);
+    if (t.pending && t.pending->kind == io::PendingChildren::Kind::Subtree) {
+      // The root of a subtree not read yet: its content and children come with it.
+      expand(index, sse, d);
+      return false;
+    }
     const bool has_content = !t.contents.empty();
     const LoadState state = states_[index].state;
     const bool ready = !has_content || state == LoadState::Loaded || state == LoadState::Failed;
-    const bool refine = !t.children.empty() && sse > options_.max_sse;
+    const bool refinable = !t.children.empty() || t.pending != nullptr;
+    const bool refine = refinable && sse > options_.max_sse;
     if (!refine) {
       want(index, sse, d);
       return ready;
     }
+    // External tilesets not read yet are children that are not ready.
+    auto visit_children = [&] {
+      bool all = true;
+      for (uint32_t c : t.children) all &= visit(c);
+      if (t.pending) {
+        expand(index, sse, d);
+        all = false;
+      }
+      return all;
+    };
     if (t.refine == io::Refine::Add) {
       want(index, sse, d);
-      bool children_ready = true;
-      for (uint32_t c : t.children) children_ready &= visit(c);
+      bool children_ready = visit_children();
       return ready && children_ready;
     }
     // REPLACE: children replace this tile only once all of them are ready; until then this
     // tile (if resident) is drawn instead and the children keep loading.
     size_t render_mark = out_.render.size();
-    bool children_ready = true;
-    for (uint32_t c : t.children) children_ready &= visit(c);
+    bool children_ready = visit_children();
     if (children_ready) return true;
     if (has_content && state == LoadState::Loaded) {
       out_.render.resize(render_mark);  // drop the partial children
@@ -135,7 +153,22 @@ class Traversal {
     out_.loads.push_back({index, sse, d});
     out_.used.push_back(index);
   }
+  void expand(uint32_t index, double sse, double d) { out_.expands.push_back({index, sse, d}); }
 };
+
+// Most important first (SSE, then distance); a tile listed twice keeps its first entry.
+void order(std::vector<LoadRequest>& requests, size_t tiles) {
+  std::sort(requests.begin(), requests.end(), [](const LoadRequest& a, const LoadRequest& b) {
+    if (a.sse != b.sse) return a.sse > b.sse;
+    return a.distance < b.distance;
+  });
+  std::vector<bool> seen(tiles);
+  std::erase_if(requests, [&](const LoadRequest& r) {
+    if (seen[r.tile]) return true;
+    seen[r.tile] = true;
+    return false;
+  });
+}
 
 }  // namespace
 
@@ -151,17 +184,8 @@ Selection select_tiles(const io::Tileset& tileset, const View& view,
   Selection out;
   if (tileset.tiles.empty() || states.size() != tileset.tiles.size()) return out;
   Traversal(tileset, view, states, options, out).visit(0);
-  std::sort(out.loads.begin(), out.loads.end(), [](const LoadRequest& a, const LoadRequest& b) {
-    if (a.sse != b.sse) return a.sse > b.sse;
-    return a.distance < b.distance;
-  });
-  // A tile requested twice (ADD parent kept as REPLACE fallback) keeps its first entry.
-  std::vector<bool> seen(states.size());
-  std::erase_if(out.loads, [&](const LoadRequest& r) {
-    if (seen[r.tile]) return true;
-    seen[r.tile] = true;
-    return false;
-  });
+  order(out.loads, states.size());
+  order(out.expands, states.size());
   std::vector<bool> wanted(states.size());
   for (uint32_t t : out.used) wanted[t] = true;
   for (uint32_t i = 0; i < states.size(); ++i)
