@@ -1,6 +1,8 @@
-// Lazy reading of the 3D Tiles tree: external tilesets are fetched only when the traversal
-// refines into them, child subtrees of implicit tiling only when it reaches their root tiles,
-// and a broken one costs its tile only. Requests are counted through the streamer's Fetcher.
+// Lazy reading of the 3D Tiles tree and the memory budget as a bound on the selection: external
+// tilesets are fetched only when the traversal refines into them, child subtrees of implicit
+// tiling only when it reaches their root tiles, a broken one costs its tile only, and a view
+// that wants more than the budget settles on coarser tiles instead of loading and evicting
+// forever. Requests are counted through the streamer's Fetcher.
 #include <algorithm>
 #include <filesystem>
 #include <map>
@@ -11,6 +13,7 @@
 
 #include "core/error.hpp"
 #include "io/fetch.hpp"
+#include "io/pnts.hpp"
 #include "io/tileset.hpp"
 #include "tiles3d/render_load.hpp"
 #include "tiles3d/streamer.hpp"
@@ -356,6 +359,136 @@ TEST(TilesLazy, TraversalAsksForPendingChildrenOnlyWhenRefining) {
   EXPECT_EQ(near.expands[0].tile, 1u);
   EXPECT_EQ(near.render, (std::vector<uint32_t>{0}));
   EXPECT_TRUE(near.loads.empty());
+}
+
+TEST(TilesLazy, TraversalRaisesTheThresholdToFitTheBudget) {
+  // Root (loaded, 100 bytes) over 4 children never loaded (assumed as large as the root).
+  io::Tileset ts;
+  auto box = [](double cx, double cy, double half) {
+    io::Tile t;
+    t.box.center = {cx, cy, 5};
+    t.box.half_axes =
+        glm::dmat3(glm::dvec3(half, 0, 0), glm::dvec3(0, half, 0), glm::dvec3(0, 0, 5));
+    t.contents = {"x"};
+    return t;
+  };
+  ts.tiles.push_back(box(50, 50, 50));
+  ts.tiles[0].geometric_error = 100;
+  for (int c = 0; c < 4; ++c) {
+    io::Tile t = box(25 + 50 * (c & 1), 25 + 50 * (c >> 1), 25);
+    t.parent = 0;
+    t.depth = 1;
+    ts.tiles[0].children.push_back(uint32_t(ts.tiles.size()));
+    ts.tiles.push_back(t);
+  }
+  std::vector<tiles3d::TileState> st(ts.tiles.size());
+  st[0] = {tiles3d::LoadState::Loaded, 100, 0};
+  auto v = look({50, 40, 60}, {50, 50, 0}, 50);
+  tiles3d::TraversalOptions opt;
+  // Room for the children while the root is kept: they are requested.
+  opt.memory_budget = 500;
+  auto fits = tiles3d::select_tiles(ts, v, st, opt, 1);
+  EXPECT_FALSE(fits.budget_limited);
+  EXPECT_EQ(fits.loads.size(), 4u);
+  EXPECT_EQ(fits.footprint, 500u);
+  EXPECT_EQ(fits.sse_threshold, opt.max_sse);
+  // No room: the root is drawn and nothing is requested that could not be kept.
+  opt.memory_budget = 499;
+  auto starved = tiles3d::select_tiles(ts, v, st, opt, 2);
+  EXPECT_TRUE(starved.budget_limited);
+  EXPECT_GT(starved.sse_threshold, opt.max_sse);
+  EXPECT_EQ(starved.render, (std::vector<uint32_t>{0}));
+  EXPECT_TRUE(starved.loads.empty());
+  EXPECT_EQ(starved.footprint, 100u);
+  EXPECT_TRUE(starved.evict.empty());
+  // Children whose size is known are planned with it: two of 150 bytes fit beside the root when
+  // the other two are known to be small.
+  st[1].bytes = st[2].bytes = 150;
+  st[3].bytes = st[4].bytes = 10;
+  opt.memory_budget = 420;
+  auto known = tiles3d::select_tiles(ts, v, st, opt, 3);
+  EXPECT_FALSE(known.budget_limited);
+  EXPECT_EQ(known.footprint, 420u);
+  // Not even the root fits: nothing at all.
+  opt.memory_budget = 50;
+  auto none = tiles3d::select_tiles(ts, v, st, opt, 4);
+  EXPECT_TRUE(none.budget_limited);
+  EXPECT_TRUE(none.render.empty());
+  EXPECT_TRUE(none.loads.empty());
+}
+
+TEST(TilesLazy, BudgetStarvedViewConvergesWithoutChurn) {
+  fs::path dir = temp_dir("starved");
+  write_grid_tileset(dir, 4, 2000);  // 85 tiles x 2000 points
+  double rtc[3] = {0, 0, 0};
+  const uint64_t tile_bytes =
+      io::decode_pnts(grid_pnts(2000, 1.0f, rtc, 0), "t.pnts").memory_bytes();
+  CountingFetcher counter;
+  auto ts = load(dir / "tileset.json", counter);
+  tiles3d::StreamerOptions opt;
+  opt.threads = 2;
+  opt.fetcher = counter.fetcher();
+  opt.traversal.max_sse = 0.5;  // the view wants all 64 leaves
+  opt.traversal.memory_budget = 12 * tile_bytes;
+  tiles3d::TileStreamer streamer(ts, opt);
+  auto v = look({500, 400, 1500}, {500, 500, 0}, 50);
+  uint64_t worst = 0;
+  ASSERT_TRUE(stream_until_idle(streamer, v, 500, [&](const tiles3d::Selection&) {
+    worst = std::max(worst, streamer.stats().resident_bytes);
+  }));
+  EXPECT_LE(worst, opt.traversal.memory_budget);
+  auto settled = streamer.stats();
+  EXPECT_TRUE(settled.budget_limited);
+  EXPECT_GT(settled.sse_threshold, opt.traversal.max_sse);
+  EXPECT_LE(settled.peak_resident_bytes, opt.traversal.memory_budget);
+  const int fetches = counter.total();
+  // Settled: more frames of the same view load, cancel and evict nothing.
+  for (int i = 0; i < 50; ++i) {
+    const auto& sel = streamer.update(v);
+    ASSERT_TRUE(streamer.idle());
+    ASSERT_TRUE(sel.loads.empty() ||
+                std::all_of(sel.loads.begin(), sel.loads.end(), [&](const tiles3d::LoadRequest& r) {
+                  return streamer.states()[r.tile].state == tiles3d::LoadState::Failed;
+                }));
+    ASSERT_TRUE(sel.cancel.empty());
+    ASSERT_TRUE(sel.evict.empty());
+    ASSERT_LE(sel.footprint, opt.traversal.memory_budget);
+  }
+  auto after = streamer.stats();
+  EXPECT_EQ(counter.total(), fetches);
+  EXPECT_EQ(after.loads_completed, settled.loads_completed);
+  EXPECT_EQ(after.evictions, settled.evictions);
+  EXPECT_EQ(after.discarded_over_budget, settled.discarded_over_budget);
+  // No tile was fetched twice on the way there, and detail went past the root where it fitted.
+  int most = 0;
+  counter.count_containing(".pnts", &most);
+  EXPECT_EQ(most, 1);
+  const auto& sel = streamer.update(v);
+  ASSERT_FALSE(sel.render.empty());
+  uint32_t deepest = 0;
+  for (uint32_t t : sel.render) {
+    ASSERT_NE(streamer.content(t), nullptr);
+    deepest = std::max(deepest, ts->tiles[t].depth);
+  }
+  EXPECT_GE(deepest, 1u);
+  EXPECT_LT(deepest, 3u);  // the leaves (64 of them) cannot fit
+  std::printf(
+      "settled after %d fetches: %zu tiles drawn, threshold %.2f px, %llu evictions, "
+      "%llu discarded\n",
+      fetches, sel.render.size(), after.sse_threshold, (unsigned long long)after.evictions,
+      (unsigned long long)after.discarded_over_budget);
+
+  // The headless one-shot load settles too and says the budget limited it.
+  tiles3d::RenderLoadOptions ro;
+  ro.streamer = opt;
+  ro.streamer.fetcher = nullptr;
+  ro.camera = &v.camera;
+  auto r = tiles3d::load_tileset_for_render((dir / "tileset.json").string(), ro);
+  EXPECT_TRUE(r.budget_limited);
+  EXPECT_TRUE(r.errors.empty());
+  EXPECT_GT(r.tiles_rendered, 0u);
+  EXPECT_LE(r.stats.peak_resident_bytes, opt.traversal.memory_budget);
+  fs::remove_all(dir);
 }
 
 TEST(TilesLazy, ExpandAllStopsAtItsCap) {

@@ -133,6 +133,8 @@ void update_tileset(Registry& main) {
   stats.loads_completed = streamer_stats.loads_completed;
   stats.evictions = streamer_stats.evictions;
   stats.discarded_over_budget = streamer_stats.discarded_over_budget;
+  stats.budget_limited = streamer_stats.budget_limited;
+  stats.sse_threshold = streamer_stats.sse_threshold;
   stats.idle = s.streamer->idle();
   ++stats.frames;
   auto& info = main.resource<SceneInfo>();

@@ -75,6 +75,8 @@ struct TilesetStats {
   uint64_t resident_bytes = 0, peak_resident_bytes = 0, memory_budget = 0;
   uint64_t loads_completed = 0, evictions = 0;
   uint64_t discarded_over_budget = 0;  // loads dropped: even evicting every unused tile was short
+  bool budget_limited = false;         // the budget raised the screen-space error threshold ...
+  double sse_threshold = 0;            // ... to this (pixels)
   uint32_t drawn_tiles = 0;
   uint64_t drawn_points = 0;
   bool idle = false;  // nothing queued or in flight after this frame's update

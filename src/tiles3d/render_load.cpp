@@ -131,6 +131,20 @@ RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoa
   }
   for (auto& e : streamer.take_errors()) out.errors.push_back(std::move(e));
   out.camera = view.camera;
+  out.stats = streamer.stats();
+  out.budget_limited = selection->budget_limited;
+  out.sse_threshold = selection->sse_threshold;
+  if (out.budget_limited && selection->render.empty())
+    STIPPLE_WARN(
+        "{}: the memory budget ({:.1f} MiB) is smaller than the coarsest tiles this view "
+        "needs: nothing is drawn",
+        uri, double(options.streamer.traversal.memory_budget) / (1 << 20));
+  else if (out.budget_limited)
+    STIPPLE_WARN(
+        "{}: the memory budget ({:.1f} MiB) limited detail: screen-space error {:.1f} px "
+        "instead of {:.1f}",
+        uri, double(options.streamer.traversal.memory_budget) / (1 << 20), out.sse_threshold,
+        options.streamer.traversal.max_sse);
   for (uint32_t t : selection->render) {
     const auto* contents = streamer.content(t);
     if (!contents) continue;

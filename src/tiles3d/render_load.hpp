@@ -32,6 +32,11 @@ struct RenderLoadResult {
   Camera camera;
   std::vector<TileError> errors;
   uint32_t tiles_rendered = 0;
+  // The memory budget limited detail: tiles were drawn at this screen-space error instead of
+  // max_sse (infinite: not even the root fitted).
+  bool budget_limited = false;
+  double sse_threshold = 0;
+  StreamerStats stats;
 };
 
 // Appends a tile's decoded points to the cloud as one chunk: double origin (tile centre in the

@@ -33,6 +33,7 @@ struct TileStreamer::Job {
   PreparedTile prepared;
   std::optional<io::Expansion> expansion;  // a read of pending children, not content
   std::string error;
+  bool complete = false;  // every content fetched and decoded (even if cancelled meanwhile)
 };
 
 struct TileStreamer::Shared {
@@ -73,7 +74,8 @@ void TileStreamer::evict(uint32_t e) {
   contents_[e].shrink_to_fit();
   release_prepared(e);
   stats_.resident_bytes -= states_[e].bytes;
-  states_[e] = TileState{};
+  // The size stays known: what reloading it would cost, for the budget.
+  states_[e] = TileState{LoadState::Unloaded, states_[e].bytes, 0};
   ++stats_.evictions;
 }
 
@@ -102,7 +104,15 @@ void TileStreamer::integrate() {
     jobs_[t].reset();
     if (job->cancelled) {
       states_[t].state = LoadState::Unloaded;
-      ++stats_.loads_cancelled;
+      uint64_t bytes = job->prepared.bytes;
+      for (const auto& c : job->result) bytes += c.memory_bytes();
+      if (job->complete) states_[t].bytes = bytes;  // known now, for the budget
+      // Cancelled after the work was done: kept where it fits without evicting anything.
+      if (!job->complete || stats_.resident_bytes + bytes > options_.traversal.memory_budget) {
+        ++stats_.loads_cancelled;
+        continue;
+      }
+      make_resident(*job, bytes);
       continue;
     }
     if (!job->error.empty()) {
@@ -114,27 +124,38 @@ void TileStreamer::integrate() {
     }
     uint64_t bytes = job->prepared.bytes;
     for (const auto& c : job->result) bytes += c.memory_bytes();
+    // Results arrive before this frame's selection: the previous frame's tiles (being drawn,
+    // and within the budget with this one) are not evicted for it.
     bool fits = false;
-    auto evict_list = make_room(states_, bytes, options_.traversal.memory_budget, frame_, &fits);
+    auto evict_list =
+        make_room(states_, bytes, options_.traversal.memory_budget, frame_ - 1, &fits);
     if (!fits) {
-      // Not even evicting every unused tile makes room: drop the result, try again later.
+      // Larger than the selection assumed, and not even evicting every unused tile makes room:
+      // dropped, but its size is now known, so the traversal plans with it from now on.
       states_[t].state = LoadState::Unloaded;
+      states_[t].bytes = bytes;
       ++stats_.discarded_over_budget;
       continue;
     }
     for (uint32_t e : evict_list) evict(e);
-    contents_[t] = std::move(job->result);
-    if (job->prepared.data) {
-      if (t >= prepared_.size()) prepared_.resize(size_t(t) + 1);
-      prepared_[t] = std::move(job->prepared);
-    }
-    states_[t].state = LoadState::Loaded;
-    states_[t].bytes = bytes;
-    states_[t].last_used = frame_;
-    stats_.resident_bytes += bytes;
-    stats_.peak_resident_bytes = std::max(stats_.peak_resident_bytes, stats_.resident_bytes);
-    ++stats_.loads_completed;
+    make_resident(*job, bytes);
   }
+}
+
+// last_used stays the frame that last asked for the tile: one nobody wants any more (a REPLACE
+// parent whose children arrived first) is not made to look fresh.
+void TileStreamer::make_resident(Job& job, uint64_t bytes) {
+  const uint32_t t = job.tile;
+  contents_[t] = std::move(job.result);
+  if (job.prepared.data) {
+    if (t >= prepared_.size()) prepared_.resize(size_t(t) + 1);
+    prepared_[t] = std::move(job.prepared);
+  }
+  states_[t].state = LoadState::Loaded;
+  states_[t].bytes = bytes;
+  stats_.resident_bytes += bytes;
+  stats_.peak_resident_bytes = std::max(stats_.peak_resident_bytes, stats_.resident_bytes);
+  ++stats_.loads_completed;
 }
 
 const Selection& TileStreamer::update(const View& view) {
@@ -196,14 +217,18 @@ void TileStreamer::start_jobs() {
         for (const auto& uri : uris) {
           if (job->cancelled) break;
           auto bytes = fetcher(uri);
-          if (job->cancelled) break;
+          // Decoded even when cancelled meanwhile: far cheaper than fetching it again, and the
+          // result is kept where it fits.
           job->result.push_back(decode_content(bytes, uri, limits, fetch));
         }
-        if (prepare && !job->cancelled) job->prepared = prepare(job->tile, transform, job->result);
+        job->complete = job->result.size() == uris.size();
+        // Prepared even when cancelled meanwhile, like the decode: the result may be kept.
+        if (prepare && job->complete) job->prepared = prepare(job->tile, transform, job->result);
       } catch (const std::exception& e) {
         job->error = e.what();
         job->result.clear();
         job->prepared = {};
+        job->complete = false;
       }
       std::lock_guard lock(shared->mutex);
       shared->done.push_back(job);
@@ -249,6 +274,8 @@ StreamerStats TileStreamer::stats() const {
   s.in_flight = in_flight_;
   s.queued = uint32_t(queue_.size() + expand_queue_.size());
   s.expanding = uint32_t(expanding_.size());
+  s.budget_limited = selection_.budget_limited;
+  s.sse_threshold = selection_.sse_threshold;
   for (const auto& st : states_) {
     s.loaded += st.state == LoadState::Loaded;
     s.failed += st.state == LoadState::Failed;

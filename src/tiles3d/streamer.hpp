@@ -61,6 +61,9 @@ struct StreamerStats {
   uint64_t loads_completed = 0, loads_cancelled = 0, evictions = 0, discarded_over_budget = 0;
   uint64_t expansions = 0;  // tiles whose pending children (tilesets, subtrees) were read
   uint32_t expanding = 0;   // of those in flight
+  // The latest selection: whether the budget limited detail, and the threshold it used.
+  bool budget_limited = false;
+  double sse_threshold = 0;
 };
 
 // Decodes one content by its URI's extension or magic (pnts, glb, glTF). Throws stipple::Error.
@@ -118,6 +121,7 @@ class TileStreamer {
   void release_prepared(uint32_t tile);
   void evict(uint32_t tile);
   void grow();
+  void make_resident(Job& job, uint64_t bytes);
 };
 
 }  // namespace stipple::tiles3d
