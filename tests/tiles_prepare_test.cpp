@@ -36,7 +36,7 @@ TEST(StreamerPrepare, RunsOnWorkersAndIsResidentWithTheTile) {
   fs::remove_all(dir);
   const uint32_t points = 2000;
   int count = test::write_grid_tileset(dir, 4, points);  // 85 tiles
-  auto ts = std::make_shared<const io::Tileset>(io::load_tileset((dir / "tileset.json").string()));
+  auto ts = std::make_shared<io::Tileset>(io::load_tileset((dir / "tileset.json").string()));
   ASSERT_EQ(int(ts->tiles.size()), count);
 
   std::mutex mutex;
@@ -124,7 +124,7 @@ TEST(StreamerPrepare, AThrowingHookFailsTheTile) {
   fs::path dir = fs::temp_directory_path() / ("stipple-prepare-fail-" + std::to_string(::getpid()));
   fs::remove_all(dir);
   test::write_grid_tileset(dir, 1, 100);
-  auto ts = std::make_shared<const io::Tileset>(io::load_tileset((dir / "tileset.json").string()));
+  auto ts = std::make_shared<io::Tileset>(io::load_tileset((dir / "tileset.json").string()));
   tiles3d::StreamerOptions opt;
   opt.threads = 1;
   opt.prepare = [](uint32_t, const glm::dmat4&,

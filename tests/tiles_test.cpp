@@ -11,6 +11,7 @@
 #include <meshoptimizer.h>
 
 #include "core/error.hpp"
+#include "io/fetch.hpp"
 #include "io/glb_points.hpp"
 #include "io/pnts.hpp"
 #include "io/subtree.hpp"
@@ -404,9 +405,25 @@ TEST(Tileset, ImplicitQuadtreeWithChildSubtrees) {
   write_json(dir / "tileset.json", ts);
   io::Tileset t = io::load_tileset((dir / "tileset.json").string());
   EXPECT_TRUE(t.errors.empty()) << t.errors.front();
-  // root, (1,0,0), (1,1,1), then (2,0,0) + its 4 children at level 3.
+  // Loading reads the root subtree only: root, (1,0,0), the root of the child subtree (2,0,0)
+  // (its volume is known, its content is not), (1,1,1).
+  ASSERT_EQ(t.tiles.size(), 4u);
+  EXPECT_EQ(t.subtrees, 1u);
+  EXPECT_EQ(t.pending, 1u);
+  ASSERT_TRUE(t.tiles[2].pending);
+  EXPECT_EQ(t.tiles[2].pending->kind, io::PendingChildren::Kind::Subtree);
+  EXPECT_EQ(t.tiles[2].pending->uris[0], (dir / "subtrees/2.0.0.subtree").string());
+  EXPECT_TRUE(t.tiles[2].contents.empty());
+  EXPECT_EQ(t.tiles[2].depth, 2u);
+  EXPECT_EQ(t.tiles[2].parent, 1);
+  // Reading it adds its content and its 4 children at level 3.
+  EXPECT_TRUE(io::expand_all(
+      t, [](const std::string& u) { return io::fetch(u); }, {}, 1000));
   ASSERT_EQ(t.tiles.size(), 8u);
   EXPECT_EQ(t.subtrees, 2u);
+  EXPECT_EQ(t.pending, 0u);
+  EXPECT_EQ(t.tiles[2].contents, (std::vector<std::string>{(dir / "content/2/0_0.pnts").string()}));
+  EXPECT_EQ(t.tiles[2].children, (std::vector<uint32_t>{4, 5, 6, 7}));
   EXPECT_EQ(t.tiles[0].children.size(), 2u);
   EXPECT_EQ(t.tiles[0].contents[0], (dir / "content/0/0_0.pnts").string());
   const io::Tile& c1 = t.tiles[t.tiles[0].children[1]];
@@ -465,23 +482,39 @@ TEST(Tileset, ExternalTransformsRefineRegionAndCycles) {
   io::Tileset t = io::load_tileset((dir / "tileset.json").string());
   EXPECT_EQ(t.version, "1.0");
   EXPECT_EQ(t.warnings.size(), 1u);
+  // Loading leaves external tilesets pending: root, child0, region child, cycle child.
+  EXPECT_EQ(t.external_tilesets, 0u);
+  ASSERT_EQ(t.tiles.size(), 4u);
+  EXPECT_EQ(t.pending, 2u);
+  ASSERT_TRUE(t.tiles[1].pending);
+  EXPECT_EQ(t.tiles[1].pending->uris, (std::vector<std::string>{(dir / "sub/b.json").string()}));
+  EXPECT_TRUE(t.tiles[1].children.empty());
+  EXPECT_TRUE(t.errors.empty());
+  // Read: b's root under child0, cycle.json's root under the cycle child.
+  EXPECT_TRUE(io::expand_all(
+      t, [](const std::string& u) { return io::fetch(u); }, {}, 1000));
   EXPECT_EQ(t.external_tilesets, 2u);
-  // root, child0, b's root, region child, cycle child, cycle.json's root.
+  EXPECT_EQ(t.pending, 0u);
   ASSERT_EQ(t.tiles.size(), 6u);
   EXPECT_DOUBLE_EQ(t.tiles[0].box.sphere_radius, 20);
   EXPECT_DOUBLE_EQ(t.tiles[0].box.center.x, 100);
-  const io::Tile& ext_root = t.tiles[2];
+  const io::Tile& ext_root = t.tiles[4];
   EXPECT_EQ(ext_root.parent, 1);
+  EXPECT_EQ(ext_root.depth, 2u);
+  EXPECT_EQ(t.tiles[1].children, (std::vector<uint32_t>{4}));
   EXPECT_EQ(ext_root.refine, io::Refine::Add);  // inherited across the external tileset
   EXPECT_EQ(ext_root.contents[0], (dir / "c.pnts").string());
   // Transforms chain: root scale 2 + translate 100, child translate (0,5,0).
   EXPECT_NEAR(t.tiles[1].box.center.x, 102, 1e-9);
   EXPECT_NEAR(t.tiles[1].box.center.y, 10, 1e-9);
   EXPECT_NEAR(glm::length(t.tiles[1].box.half_axes[0]), 2, 1e-9);
-  const io::Tile& region = t.tiles[3];
+  const io::Tile& region = t.tiles[2];
   EXPECT_EQ(region.contents.size(), 2u);
   EXPECT_GT(glm::length(region.box.center), 6.3e6);  // ECEF, not moved by the transform
+  // The cycle is seen where cycle.json refers back to the root: nothing is fetched for it.
+  EXPECT_EQ(t.tiles[5].parent, 3);
   EXPECT_NE(t.tiles[5].error.find("cycle"), std::string::npos);
+  EXPECT_FALSE(t.tiles[5].pending);
   EXPECT_EQ(t.errors.size(), 1u);
 
   json req = a;
@@ -620,7 +653,7 @@ TEST(Traversal, BudgetEvictsLeastRecentlyUsedUnusedTiles) {
 TEST(Streamer, MemoryBudgetHoldsOverACameraFlight) {
   fs::path dir = temp_dir("flight");
   int tiles = write_grid_tileset(dir, 4, 2000);  // 85 tiles x 2000 points
-  auto ts = std::make_shared<const io::Tileset>(io::load_tileset((dir / "tileset.json").string()));
+  auto ts = std::make_shared<io::Tileset>(io::load_tileset((dir / "tileset.json").string()));
   ASSERT_EQ(int(ts->tiles.size()), tiles);
   tiles3d::StreamerOptions opt;
   opt.threads = 2;

@@ -18,6 +18,7 @@
 #include "engine/plugins.hpp"
 #include "engine/render_plugins.hpp"
 #include "math/camera.hpp"
+#include "renderer/png.hpp"
 #include "test_util.hpp"
 #include "tiles_fixtures.hpp"
 
@@ -157,3 +158,43 @@ TEST_P(TilesetStreamGpu, FollowsTheCameraWithinTheBudget) {
 
 INSTANTIATE_TEST_SUITE_P(Backends, TilesetStreamGpu, ::testing::Values("dawn", "wgpu"),
                          [](const auto& info) { return info.param; });
+
+// `stipple render` on a view that wants more than --memory-mb: the traversal settles on coarser
+// tiles that fit, the command finishes normally (no stall detection, no --max-frames) and says
+// that the budget limited detail; with room, the same view draws every leaf.
+TEST(TilesetRenderCli, BudgetLimitedViewFinishesAndSaysSo) {
+  fs::path dir =
+      fs::temp_directory_path() / ("stipple_tileset_budget_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  test::write_grid_tileset(dir, 4, 2000);  // 64 leaves of 2000 points: about 2 MiB resident
+  const std::string common = (dir / "tileset.json").string() +
+                             " --width 160 --height 120 --max-sse 0.5 --max-frames 5000 -o ";
+  // "rendered N points" counts the points resident on the GPU (tiles drawn at some frame).
+  auto rendered = [](const std::string& output) -> uint64_t {
+    auto at = output.find("rendered ");
+    return at == std::string::npos ? 0 : std::stoull(output.substr(at + 9));
+  };
+  auto full = test::run_stipple("render " + common + (dir / "full.png").string());
+  ASSERT_EQ(full.exit_code, 0) << full.output;
+  EXPECT_GE(rendered(full.output), 64u * 2000u) << full.output;
+  EXPECT_EQ(full.output.find("screen-space error"), std::string::npos) << full.output;
+
+  auto starved =
+      test::run_stipple("render " + common + (dir / "starved.png").string() + " --memory-mb 1");
+  ASSERT_EQ(starved.exit_code, 0) << starved.output;
+  EXPECT_NE(starved.output.find("wants more than --memory-mb 1: drawn at a screen-space error"),
+            std::string::npos)
+      << starved.output;
+  EXPECT_EQ(starved.output.find("--max-frames"), std::string::npos) << starved.output;
+  // Coarser tiles, within 1 MiB (about 32 tiles of 2000 points), but a full picture of the data.
+  const uint64_t points = rendered(starved.output);
+  EXPECT_GT(points, 0u) << starved.output;
+  EXPECT_LE(points, 32u * 2000u) << starved.output;
+  const uint8_t bg[3] = {18, 20, 26};
+  const double full_coverage =
+      test::coverage_stats(gpu::read_png(dir / "full.png"), bg, 1).coverage;
+  const double starved_coverage =
+      test::coverage_stats(gpu::read_png(dir / "starved.png"), bg, 1).coverage;
+  EXPECT_GT(starved_coverage, 0.5 * full_coverage);
+  fs::remove_all(dir);
+}

@@ -9,6 +9,7 @@
 
 #include "app/commands.hpp"
 #include "core/error.hpp"
+#include "io/fetch.hpp"
 #include "io/las.hpp"
 #include "io/tileset.hpp"
 #include "renderer/gpu.hpp"
@@ -23,6 +24,7 @@ struct InfoArgs {
   bool json = false;
   bool vlrs = false;
   std::string backend;
+  size_t max_tiles = 1'000'000;  // tilesets: the whole tree is read up to this many tiles
 };
 
 nlohmann::json header_json(const io::LasHeader& h) {
@@ -137,9 +139,20 @@ void print_gpu(const std::string& backend, bool json) {
 
 // A tileset's shape: depth, tiles, content types, declared points (from loading every content
 // would be too much for a summary: points are counted for the tiles a framing camera selects).
-nlohmann::json tileset_json(const std::string& uri) {
-  io::Tileset ts = io::load_tileset(uri);
+// Streaming reads external tilesets and subtrees only where a view needs them; a summary wants
+// the whole tree, so it reads every one, up to `max_tiles` tiles.
+nlohmann::json tileset_json(const std::string& uri, size_t max_tiles) {
+  io::TilesetOptions options;
+  io::Tileset ts = io::load_tileset(uri, options);
+  const bool complete = io::expand_all(
+      ts, [&](const std::string& u) { return io::fetch(u, options.fetch); }, options, max_tiles);
+  if (!complete)
+    ts.warnings.push_back(
+        fmt::format("the tile tree was read up to {} tiles (--max-tiles): "
+                    "external tilesets or subtrees below them are not counted",
+                    ts.tiles.size()));
   nlohmann::json j;
+  j["complete"] = complete;
   j["uri"] = uri;
   j["version"] = ts.version;
   j["geometric_error"] = ts.geometric_error;
@@ -180,7 +193,7 @@ void run_info(const InfoArgs& args) {
   nlohmann::json all = nlohmann::json::array();
   for (const auto& input : args.inputs) {
     if (tiles3d::is_tileset_input(input)) {
-      auto j = tileset_json(input);
+      auto j = tileset_json(input, args.max_tiles);
       if (args.json) {
         all.push_back(j);
       } else {
@@ -192,6 +205,9 @@ void run_info(const InfoArgs& args) {
                     j["external_tilesets"].get<uint32_t>(),
                     j["implicit"].get<bool>() ? "yes" : "no", j["subtrees"].get<uint32_t>(),
                     j["errors"].size());
+        if (!j["complete"].get<bool>())
+          std::printf("  the tree was read up to %zu tiles (--max-tiles): counts are partial\n",
+                      j["tiles"].get<size_t>());
         std::printf(
             "  points in the default view: %llu (%u tiles)\n",
             static_cast<unsigned long long>(j["points_selected_for_default_view"].get<uint64_t>()),
@@ -218,6 +234,10 @@ void add_info_command(CLI::App& cli) {
   cmd->add_flag("--gpu", args->gpu, "Print the WebGPU adapter, backend, limits and features");
   cmd->add_flag("--json", args->json, "Print JSON instead of text");
   cmd->add_flag("--vlrs", args->vlrs, "List every VLR and EVLR");
+  cmd->add_option("--max-tiles", args->max_tiles,
+                  "Tilesets: read external tilesets and subtrees up to this many tiles")
+      ->check(CLI::Range(size_t(1), size_t(1) << 32))
+      ->capture_default_str();
   cmd->add_option("--backend", args->backend, "WebGPU implementation for --gpu: dawn or wgpu")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
   cmd->callback([args] { run_info(*args); });

@@ -123,33 +123,30 @@ void run_render(const RenderArgs& args) {
     if (auto_size) settings.render.point_size = 2.0f;
     engine.add_system(
         MainStage::Update,
-        [settled = uint64_t(0), last_draw = std::vector<uint32_t>(), stalled = 0,
-         frames = uint64_t(args.frames), max_frames = args.max_frames, output = args.output,
-         height = args.height, auto_size](Registry& r) mutable {
+        [settled = uint64_t(0), frames = uint64_t(args.frames), max_frames = args.max_frames,
+         output = args.output, height = args.height, memory_mb = args.memory_mb,
+         max_sse = args.max_sse, auto_size](Registry& r) mutable {
           auto& s = r.resource<TilesetStream>();
           const auto& stats = r.resource<TilesetStats>();
           bool capped = stats.frames >= max_frames;
-          // A view that needs more than the memory budget never goes idle: loads are dropped
-          // or evict each other over and over. Settle when the drawn tiles stop changing.
-          if (s.draw != last_draw) {
-            last_draw = s.draw;
-            stalled = 0;
-          } else {
-            ++stalled;
-          }
-          const bool over_budget =
-              stalled >= 64 && stats.discarded_over_budget + stats.evictions > 0;
-          if (!stats.idle && !capped && !over_budget) {
+          // The traversal keeps the selection within the memory budget (coarser tiles where the
+          // view wants more), so the streamer goes idle in every case.
+          if (!stats.idle && !capped) {
             s.streamer->wait_for_progress();
             return;
           }
-          if (settled == 0 && !stats.idle) {
-            if (over_budget)
-              STIPPLE_WARN("the view needs more than --memory-mb: {} loads dropped, {} evictions",
-                           stats.discarded_over_budget, stats.evictions);
-            else
-              STIPPLE_WARN("--max-frames {} reached before the tileset was streamed", max_frames);
-          }
+          if (settled == 0 && !stats.idle)
+            STIPPLE_WARN("--max-frames {} reached before the tileset was streamed", max_frames);
+          if (settled == 0 && stats.budget_limited && stats.drawn_tiles == 0)
+            STIPPLE_WARN(
+                "--memory-mb {} is smaller than the coarsest tiles this view needs: "
+                "nothing is drawn (raise --memory-mb)",
+                memory_mb);
+          else if (settled == 0 && stats.budget_limited)
+            STIPPLE_WARN(
+                "the view wants more than --memory-mb {}: drawn at a screen-space error of {:.1f} "
+                "px instead of --max-sse {} (raise --memory-mb for more detail)",
+                memory_mb, stats.sse_threshold, max_sse);
           if (settled++ == 0 && auto_size && stats.drawn_points > 0) {
             Aabb drawn;
             for (uint32_t t : s.draw)

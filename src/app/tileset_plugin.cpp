@@ -133,6 +133,8 @@ void update_tileset(Registry& main) {
   stats.loads_completed = streamer_stats.loads_completed;
   stats.evictions = streamer_stats.evictions;
   stats.discarded_over_budget = streamer_stats.discarded_over_budget;
+  stats.budget_limited = streamer_stats.budget_limited;
+  stats.sse_threshold = streamer_stats.sse_threshold;
   stats.idle = s.streamer->idle();
   ++stats.frames;
   auto& info = main.resource<SceneInfo>();
@@ -318,10 +320,11 @@ void queue_tileset(Registry& render) {
 
 void TilesetPlugin::build(Engine& engine) {
   Registry& main = engine.main();
-  io::TilesetOptions ts_options;
+  io::TilesetOptions ts_options = streamer.tileset;
   ts_options.fetch = streamer.fetch;
   TilesetStream s;
-  s.tileset = std::make_shared<const io::Tileset>(io::load_tileset(uri, ts_options));
+  auto tileset = std::make_shared<io::Tileset>(io::load_tileset(uri, ts_options));
+  s.tileset = tileset;
   for (const auto& e : s.tileset->errors) STIPPLE_WARN("{}: {}", uri, e);
   if (s.tileset->tiles.empty()) fail("{}: the tileset has no tiles", uri);
   s.world_from_tileset = tiles3d::world_from_tileset(*s.tileset);
@@ -337,7 +340,7 @@ void TilesetPlugin::build(Engine& engine) {
     const uint64_t bytes = chunks->memory_bytes();
     return tiles3d::PreparedTile{std::move(chunks), bytes};
   };
-  s.streamer = std::make_shared<tiles3d::TileStreamer>(s.tileset, std::move(options));
+  s.streamer = std::make_shared<tiles3d::TileStreamer>(tileset, std::move(options));
   s.chunks.resize(s.tileset->tiles.size());
 
   SceneInfo info;

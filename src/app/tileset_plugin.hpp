@@ -55,6 +55,7 @@ std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dma
 
 // Main-world resource: the streaming state.
 struct TilesetStream {
+  // Grows inside streamer->update() as external tilesets and subtrees are read: main thread only.
   std::shared_ptr<const io::Tileset> tileset;
   std::shared_ptr<tiles3d::TileStreamer> streamer;
   glm::dmat4 world_from_tileset{1.0};
@@ -74,6 +75,8 @@ struct TilesetStats {
   uint64_t resident_bytes = 0, peak_resident_bytes = 0, memory_budget = 0;
   uint64_t loads_completed = 0, evictions = 0;
   uint64_t discarded_over_budget = 0;  // loads dropped: even evicting every unused tile was short
+  bool budget_limited = false;         // the budget raised the screen-space error threshold ...
+  double sse_threshold = 0;            // ... to this (pixels)
   uint32_t drawn_tiles = 0;
   uint64_t drawn_points = 0;
   bool idle = false;  // nothing queued or in flight after this frame's update

@@ -191,16 +191,22 @@ std::string expand_template(std::string t, int level, uint32_t x, uint32_t y, ui
   return t;
 }
 
+// Builds tiles into an Expansion: index -1 is the tile being expanded (or, for the root document,
+// nothing). External tilesets and child subtrees it meets are left pending on their tile.
 class Builder {
  public:
-  Builder(Tileset& ts, const Fetcher& fetcher, const TilesetOptions& options)
-      : ts_(ts), fetch_(fetcher), options_(options) {}
+  Builder(Expansion& out, const Fetcher& fetcher, const TilesetOptions& options, size_t tiles_now,
+          std::vector<std::string> chain)
+      : out_(out),
+        fetch_(fetcher),
+        options_(options),
+        tiles_now_(tiles_now),
+        chain_(std::move(chain)) {}
 
-  void enter(const std::string& uri) { chain_.push_back(uri); }
-
-  // Parses a tileset document and attaches its root under `parent` (-1: the tileset's root).
+  // Parses a tileset document and attaches its root under `parent`. `top` receives the
+  // document's version and geometric error (the root document only).
   void document(std::span<const uint8_t> bytes, const std::string& uri, int32_t parent,
-                const glm::dmat4& parent_transform, Refine parent_refine) {
+                const glm::dmat4& parent_transform, Refine parent_refine, Tileset* top = nullptr) {
     if (bytes.size() > options_.max_json_bytes) fail("{}: tileset JSON too large", uri);
     if (looks_like_html(bytes.data(), bytes.size()))
       fail("{}: this is an HTML page, not a tileset", uri);
@@ -227,39 +233,70 @@ class Builder {
                            e.get<std::string>()));
     if (!j.contains("root") || !j["root"].is_object())
       fail("{}: the tileset has no root tile", uri);
-    if (parent < 0) {
-      ts_.version = version;
-      ts_.geometric_error = j.value("geometricError", 0.0);
+    if (top) {
+      top->version = version;
+      top->geometric_error = j.value("geometricError", 0.0);
     }
     tile(j["root"], uri, parent, parent_transform, parent_refine, 0);
   }
 
+  // Reads the subtree rooted at (level, x, y, z), whose root tile is `root_tile`, and adds the
+  // tiles it makes available; child subtrees are left pending on their root tiles.
+  void subtree(const std::shared_ptr<const ImplicitTiling>& im, int32_t root_tile,
+               const std::string& uri, int level, uint32_t x, uint32_t y, uint32_t z) {
+    Subtree s;
+    try {
+      auto bytes = fetch_(uri);
+      s = decode_subtree(bytes, uri, im->branching, im->subtree_levels,
+                         [&](const std::string& u) { return fetch_(resolve_uri(uri, u)); });
+      ++out_.subtrees;
+    } catch (const Error& e) {
+      tile_error(root_tile, e.what());
+      return;
+    }
+    if (!s.tiles.get(0)) return;  // an empty subtree
+    set_contents(*im, s, root_tile, 0, 0, level, x, y, z);
+    visit(im, s, root_tile, 0, level, x, y, z);
+  }
+
+  // A failure that costs one tile (-1: the expanded one), recorded on it.
+  void tile_error(int32_t index, const std::string& text) {
+    STIPPLE_WARN("{}", text);
+    if (index >= 0) {
+      auto& error = out_.tiles[size_t(index)].error;
+      if (!error.empty()) error += "; ";
+      error += text;
+    }
+    out_.errors.emplace_back(index, text);
+  }
+
  private:
-  Tileset& ts_;
+  Expansion& out_;
   const Fetcher& fetch_;
   const TilesetOptions& options_;
-  std::vector<std::string> chain_;  // external tilesets being expanded (cycle detection)
+  size_t tiles_now_;                // tiles the tileset has besides out_.tiles
+  std::vector<std::string> chain_;  // external tilesets from the root down (cycle detection)
 
   void warn(std::string text) {
     STIPPLE_WARN("{}", text);
-    ts_.warnings.push_back(std::move(text));
+    out_.warnings.push_back(std::move(text));
   }
-  void tile_error(uint32_t index, const std::string& text) {
-    STIPPLE_WARN("{}", text);
-    if (!ts_.tiles[index].error.empty()) ts_.tiles[index].error += "; ";
-    ts_.tiles[index].error += text;
-    ts_.errors.push_back(text);
-  }
-  uint32_t add_tile(Tile t) {
-    if (ts_.tiles.size() >= options_.max_tiles)
-      fail("more than {} tiles: the tileset is cut off here", options_.max_tiles);
-    uint32_t index = uint32_t(ts_.tiles.size());
-    if (t.parent >= 0) {
-      t.depth = ts_.tiles[t.parent].depth + 1;
-      ts_.tiles[t.parent].children.push_back(index);
+  int32_t add_tile(Tile t) {
+    if (tiles_now_ + out_.tiles.size() >= options_.max_tiles) {
+      out_.over_limit = true;
+      fail("the tile limit is reached: {} tiles are materialised (TilesetOptions::max_tiles)",
+           options_.max_tiles);
     }
-    ts_.tiles.push_back(std::move(t));
+    int32_t index = int32_t(out_.tiles.size());
+    if (t.parent >= 0) {
+      t.depth = out_.tiles[size_t(t.parent)].depth + 1;
+      out_.tiles[size_t(t.parent)].children.push_back(uint32_t(index));
+    }
+    out_.tiles.push_back(std::move(t));
     return index;
+  }
+  std::vector<std::string>& contents_of(int32_t index) {
+    return index >= 0 ? out_.tiles[size_t(index)].contents : out_.contents;
   }
 
   void tile(const json& j, const std::string& uri, int32_t parent,
@@ -318,120 +355,102 @@ class Builder {
                            : ext && ext->contains("3DTILES_implicit_tiling")
                                ? &(*ext)["3DTILES_implicit_tiling"]
                                : nullptr;
+    if (auto ch = j.find("children"); ch != j.end() && !ch->is_array())
+      fail("{}: children is not an array", where);
     glm::dmat4 transform = t.transform;
     Refine refine = t.refine;
-    uint32_t index = add_tile(std::move(t));
+    int32_t index = add_tile(std::move(t));
     if (implicit) {
       implicit_root(*implicit, index, content_uris, uri, where);
       return;
     }
+    std::vector<std::string> externals;
     for (const auto& u : content_uris) {
       std::string resolved = resolve_uri(uri, u);
-      if (is_tileset_uri(resolved)) {
-        external(index, resolved, transform, refine);
+      if (!is_tileset_uri(resolved)) {
+        out_.tiles[size_t(index)].contents.push_back(resolved);
+      } else if (std::find(chain_.begin(), chain_.end(), resolved) != chain_.end()) {
+        std::string cycle;
+        for (const auto& c : chain_) cycle += c + " -> ";
+        tile_error(index, fmt::format("external tileset cycle: {}{}", cycle, resolved));
+      } else if (int(chain_.size()) >= options_.max_external_depth) {
+        tile_error(index, fmt::format("{}: external tilesets nested deeper than {}", resolved,
+                                      options_.max_external_depth));
       } else {
-        ts_.tiles[index].contents.push_back(resolved);
+        externals.push_back(resolved);
       }
     }
-    if (auto ch = j.find("children"); ch != j.end()) {
-      if (!ch->is_array()) fail("{}: children is not an array", where);
-      for (const auto& c : *ch) tile(c, uri, int32_t(index), transform, refine, depth + 1);
+    if (!externals.empty()) {
+      // Read when a traversal wants to refine this tile, not now.
+      auto p = std::make_shared<PendingChildren>();
+      p->kind = PendingChildren::Kind::External;
+      p->uris = std::move(externals);
+      p->chain = chain_;
+      p->transform = transform;
+      p->refine = refine;
+      out_.tiles[size_t(index)].pending = std::move(p);
+    }
+    if (auto ch = j.find("children"); ch != j.end())
+      for (const auto& c : *ch) tile(c, uri, index, transform, refine, depth + 1);
+  }
+
+ public:
+  // Reads the external tilesets of `pending` and attaches their roots under tile -1.
+  void externals(const PendingChildren& pending) {
+    for (const auto& uri : pending.uris) {
+      // A broken external tileset costs its own tiles only: a partly added one is rolled back.
+      size_t tiles_before = out_.tiles.size();
+      size_t errors_before = out_.errors.size(), warnings_before = out_.warnings.size();
+      chain_.push_back(uri);
+      try {
+        std::vector<uint8_t> bytes = fetch_(uri);
+        document(bytes, uri, -1, pending.transform, pending.refine);
+        ++out_.external_tilesets;
+      } catch (const std::exception& e) {
+        out_.tiles.resize(tiles_before);
+        out_.errors.resize(errors_before);
+        out_.warnings.resize(warnings_before);
+        const bool json_error = dynamic_cast<const nlohmann::json::exception*>(&e) != nullptr;
+        tile_error(-1, json_error ? fmt::format("{}: malformed JSON: {}", uri, e.what())
+                                  : std::string(e.what()));
+      }
+      chain_.pop_back();
     }
   }
 
-  void external(uint32_t index, const std::string& uri, const glm::dmat4& transform,
-                Refine refine) {
-    if (std::find(chain_.begin(), chain_.end(), uri) != chain_.end()) {
-      std::string cycle;
-      for (const auto& c : chain_) cycle += c + " -> ";
-      tile_error(index, fmt::format("external tileset cycle: {}{}", cycle, uri));
-      return;
-    }
-    if (int(chain_.size()) >= options_.max_external_depth) {
-      tile_error(index, fmt::format("{}: external tilesets nested deeper than {}", uri,
-                                    options_.max_external_depth));
-      return;
-    }
-    chain_.push_back(uri);
-    size_t tiles_before = ts_.tiles.size();
-    try {
-      std::vector<uint8_t> bytes = fetch_(uri);
-      ++ts_.external_tilesets;
-      document(bytes, uri, int32_t(index), transform, refine);
-    } catch (const Error& e) {
-      // A broken external tileset costs its subtree only; a partly added one is rolled back.
-      ts_.tiles.resize(std::max(tiles_before, size_t(index + 1)));
-      auto& ch = ts_.tiles[index].children;
-      ch.erase(std::remove_if(ch.begin(), ch.end(), [&](uint32_t c) { return c >= tiles_before; }),
-               ch.end());
-      tile_error(index, e.what());
-    }
-    chain_.pop_back();
-  }
-
-  struct Implicit {
-    bool octree = false;
-    int branching = 4;
-    int subtree_levels = 0;
-    int available_levels = 0;
-    std::string subtrees;               // resolved template
-    std::vector<std::string> contents;  // resolved templates
-    BoundingVolume root_volume;
-    glm::dmat4 transform;
-    double root_error = 0;
-    Refine refine = Refine::Replace;
-  };
-
-  void implicit_root(const json& j, uint32_t index,
+ private:
+  void implicit_root(const json& j, int32_t index,
                      const std::vector<std::string>& content_templates, const std::string& uri,
                      const std::string& where) {
-    ts_.implicit = true;
-    Implicit im;
+    out_.implicit = true;
+    auto im = std::make_shared<ImplicitTiling>();
     std::string scheme = j.value("subdivisionScheme", "");
     if (scheme != "QUADTREE" && scheme != "OCTREE")
       fail("{}: implicitTiling.subdivisionScheme '{}' is not QUADTREE or OCTREE", where, scheme);
-    im.octree = scheme == "OCTREE";
-    im.branching = im.octree ? 8 : 4;
-    im.subtree_levels = j.value("subtreeLevels", 0);
-    im.available_levels = j.contains("availableLevels") ? j.value("availableLevels", 0)
-                                                        : j.value("maximumLevel", -1) + 1;
-    if (im.subtree_levels < 1 || im.available_levels < 1 || im.available_levels > 31)
+    im->octree = scheme == "OCTREE";
+    im->branching = im->octree ? 8 : 4;
+    im->subtree_levels = j.value("subtreeLevels", 0);
+    im->available_levels = j.contains("availableLevels") ? j.value("availableLevels", 0)
+                                                         : j.value("maximumLevel", -1) + 1;
+    if (im->subtree_levels < 1 || im->available_levels < 1 || im->available_levels > 31)
       fail("{}: implicitTiling needs subtreeLevels >= 1 and 1 <= availableLevels <= 31", where);
     const json& subtrees = j.value("subtrees", json::object());
     if (!subtrees.is_object() || !subtrees.contains("uri") || !subtrees["uri"].is_string())
       fail("{}: implicitTiling.subtrees.uri is missing", where);
-    im.subtrees = resolve_uri(uri, subtrees["uri"].get<std::string>());
-    for (const auto& c : content_templates) im.contents.push_back(resolve_uri(uri, c));
-    const Tile& root = ts_.tiles[index];
+    im->subtrees = resolve_uri(uri, subtrees["uri"].get<std::string>());
+    for (const auto& c : content_templates) im->contents.push_back(resolve_uri(uri, c));
+    const Tile& root = out_.tiles[size_t(index)];
     if (root.volume.kind == BoundingVolume::Kind::Sphere)
       fail("{}: implicit tiling needs a box or region bounding volume", where);
-    im.root_volume = root.volume;
-    im.transform = root.transform;
-    im.root_error = root.geometric_error;
-    im.refine = root.refine;
-    subtree(im, index, 0, 0, 0, 0);
+    im->root_volume = root.volume;
+    im->transform = root.transform;
+    im->root_error = root.geometric_error;
+    im->refine = root.refine;
+    // The root subtree is read now: it holds the root's content and the first levels.
+    subtree(im, index, expand_template(im->subtrees, 0, 0, 0, 0), 0, 0, 0, 0);
   }
 
-  // Loads the subtree rooted at (level, x, y, z), whose root tile is `root_tile`.
-  void subtree(const Implicit& im, uint32_t root_tile, int level, uint32_t x, uint32_t y,
-               uint32_t z) {
-    std::string uri = expand_template(im.subtrees, level, x, y, z);
-    Subtree s;
-    try {
-      auto bytes = fetch_(uri);
-      s = decode_subtree(bytes, uri, im.branching, im.subtree_levels,
-                         [&](const std::string& u) { return fetch_(resolve_uri(uri, u)); });
-      ++ts_.subtrees;
-    } catch (const Error& e) {
-      tile_error(root_tile, e.what());
-      return;
-    }
-    if (!s.tiles.get(0)) return;  // an empty subtree
-    set_contents(im, s, root_tile, 0, 0, level, x, y, z);
-    visit(im, s, root_tile, 0, level, x, y, z);
-  }
-
-  void set_contents(const Implicit& im, const Subtree& s, uint32_t tile, int local_level,
+  void set_contents(const ImplicitTiling& im, const Subtree& s, int32_t tile, int local_level,
                     uint64_t morton, int level, uint32_t x, uint32_t y, uint32_t z) {
     for (size_t c = 0; c < im.contents.size() && c < s.contents.size(); ++c)
       if (s.contents[c].get(availability_index(im.branching, local_level, morton))) {
@@ -441,13 +460,17 @@ class Builder {
               tile,
               fmt::format("{}: external tilesets inside implicit tiling are not supported", u));
         } else {
-          ts_.tiles[tile].contents.push_back(u);
+          contents_of(tile).push_back(u);
         }
       }
   }
 
-  void visit(const Implicit& im, const Subtree& s, uint32_t tile, int local_level, int level,
-             uint32_t x, uint32_t y, uint32_t z) {
+  // Adds the available children of `tile` in this subtree, depth first. Tiles of the subtree's
+  // last level are only made when available; the roots of child subtrees are made (their
+  // volume is known) with the subtree pending.
+  void visit(const std::shared_ptr<const ImplicitTiling>& imp, const Subtree& s, int32_t tile,
+             int local_level, int level, uint32_t x, uint32_t y, uint32_t z) {
+    const ImplicitTiling& im = *imp;
     if (level + 1 >= im.available_levels) return;
     for (int c = 0; c < im.branching; ++c) {
       uint32_t cx = 2 * x + (c & 1), cy = 2 * y + ((c >> 1) & 1),
@@ -458,7 +481,7 @@ class Builder {
       uint64_t morton = morton_index(cx & mask, cy & mask, cz & mask, im.branching);
       auto make = [&] {
         Tile t;
-        t.parent = int32_t(tile);
+        t.parent = tile;
         t.volume = subdivide(im.root_volume, child_level, cx, cy, cz, im.octree);
         t.transform = im.transform;
         t.box = obb_of(t.volume, t.transform);
@@ -468,16 +491,27 @@ class Builder {
       };
       if (child_local < im.subtree_levels) {
         if (!s.tiles.get(availability_index(im.branching, child_local, morton))) continue;
-        uint32_t child = make();
+        int32_t child = make();
         set_contents(im, s, child, child_local, morton, child_level, cx, cy, cz);
-        visit(im, s, child, child_local, child_level, cx, cy, cz);
+        visit(imp, s, child, child_local, child_level, cx, cy, cz);
       } else if (s.child_subtrees.get(morton)) {
-        uint32_t child = make();
-        subtree(im, child, child_level, cx, cy, cz);
+        int32_t child = make();
+        auto p = std::make_shared<PendingChildren>();
+        p->kind = PendingChildren::Kind::Subtree;
+        p->uris = {expand_template(im.subtrees, child_level, cx, cy, cz)};
+        p->implicit = imp;
+        p->level = uint32_t(child_level), p->x = cx, p->y = cy, p->z = cz;
+        out_.tiles[size_t(child)].pending = std::move(p);
       }
     }
   }
 };
+
+uint32_t count_pending(const std::vector<Tile>& tiles) {
+  uint32_t n = 0;
+  for (const auto& t : tiles) n += t.pending != nullptr;
+  return n;
+}
 
 }  // namespace
 
@@ -487,16 +521,23 @@ static Tileset parse_tileset_unchecked(std::span<const uint8_t> json_bytes, cons
                                        const Fetcher& fetcher, const TilesetOptions& options) {
   Tileset ts;
   ts.uri = uri;
-  Builder builder(ts, fetcher, options);
-  builder.enter(uri);  // a reference back to the root is a cycle too
+  Expansion e;
+  // The root document is in the chain: a reference back to it is a cycle too.
+  Builder builder(e, fetcher, options, 0, {uri});
   try {
-    builder.document(json_bytes, uri, -1, glm::dmat4(1.0), Refine::Replace);
+    builder.document(json_bytes, uri, -1, glm::dmat4(1.0), Refine::Replace, &ts);
   } catch (const Error&) {
-    if (ts.tiles.empty()) throw;
+    if (e.tiles.empty()) throw;
     // Past the root, running over max_tiles keeps what was built.
-    ts.errors.push_back(
-        fmt::format("{}: the tile tree was cut off at {} tiles", uri, ts.tiles.size()));
+    e.errors.emplace_back(
+        0, fmt::format("{}: the tile tree was cut off at {} tiles", uri, e.tiles.size()));
   }
+  ts.tiles = std::move(e.tiles);
+  for (auto& [tile, text] : e.errors) ts.errors.push_back(std::move(text));
+  ts.warnings = std::move(e.warnings);
+  ts.subtrees = e.subtrees;
+  ts.implicit = e.implicit;
+  ts.pending = count_pending(ts.tiles);
   return ts;
 }
 
@@ -513,6 +554,94 @@ Tileset parse_tileset(std::span<const uint8_t> json_bytes, const std::string& ur
   } catch (const nlohmann::json::exception& e) {
     fail("{}: malformed JSON: {}", uri, e.what());
   }
+}
+
+Expansion read_children(uint32_t tile, const PendingChildren& pending, size_t tiles_now,
+                        const Fetcher& fetcher, const TilesetOptions& options) {
+  Expansion e;
+  e.tile = tile;
+  Builder builder(e, fetcher, options, tiles_now, pending.chain);
+  if (pending.kind == PendingChildren::Kind::External) {
+    builder.externals(pending);
+    return e;
+  }
+  try {
+    if (!pending.implicit || pending.uris.size() != 1) fail("a pending subtree without tiling");
+    builder.subtree(pending.implicit, -1, pending.uris[0], int(pending.level), pending.x, pending.y,
+                    pending.z);
+  } catch (const std::exception& err) {
+    // Over max_tiles: the subtree is dropped as a whole.
+    e.tiles.clear();
+    e.contents.clear();
+    builder.tile_error(-1, fmt::format("{}: {}", pending.uris[0], err.what()));
+  }
+  return e;
+}
+
+std::vector<std::pair<uint32_t, std::string>> attach_children(Tileset& ts, Expansion&& e,
+                                                              const TilesetOptions& options) {
+  std::vector<std::pair<uint32_t, std::string>> errors;
+  if (e.tile >= ts.tiles.size() || !ts.tiles[e.tile].pending) return errors;
+  ts.tiles[e.tile].pending.reset();
+  --ts.pending;
+  const size_t base = ts.tiles.size();
+  if (base + e.tiles.size() > options.max_tiles) {
+    // The limit can be passed by expansions read at the same time: refused here.
+    e.over_limit = true;
+    e.tiles.clear();
+    e.contents.clear();
+    e.errors.assign(1, {-1, fmt::format("the tile limit is reached: {} tiles are materialised "
+                                        "(TilesetOptions::max_tiles); children not read",
+                                        base)});
+    STIPPLE_WARN("tile {}: {}", e.tile, e.errors[0].second);
+  }
+  ts.external_tilesets += e.external_tilesets;
+  ts.subtrees += e.subtrees;
+  ts.implicit = ts.implicit || e.implicit;
+  for (auto& w : e.warnings) ts.warnings.push_back(std::move(w));
+  for (auto& c : e.contents) ts.tiles[e.tile].contents.push_back(std::move(c));
+  const uint32_t depth = ts.tiles[e.tile].depth + 1;
+  ts.tiles.reserve(base + e.tiles.size());
+  for (size_t i = 0; i < e.tiles.size(); ++i) {
+    Tile& t = e.tiles[i];
+    if (t.parent < 0) {
+      t.parent = int32_t(e.tile);
+      ts.tiles[e.tile].children.push_back(uint32_t(base + i));
+    } else {
+      t.parent += int32_t(base);
+    }
+    for (auto& c : t.children) c += uint32_t(base);
+    t.depth += depth;
+    ts.pending += t.pending != nullptr;
+    ts.tiles.push_back(std::move(t));
+  }
+  for (auto& [local, text] : e.errors) {
+    uint32_t index = local < 0 ? e.tile : uint32_t(base + size_t(local));
+    if (local < 0) {
+      auto& error = ts.tiles[index].error;
+      if (!error.empty()) error += "; ";
+      error += text;
+    }
+    ts.errors.push_back(text);
+    errors.emplace_back(index, std::move(text));
+  }
+  return errors;
+}
+
+bool expand_all(Tileset& ts, const Fetcher& fetcher, const TilesetOptions& options,
+                size_t max_tiles) {
+  TilesetOptions limited = options;
+  limited.max_tiles = std::min(options.max_tiles, max_tiles);
+  // New tiles are appended, so one pass in index order reads the tree breadth first.
+  for (size_t i = 0; i < ts.tiles.size() && ts.pending > 0; ++i) {
+    if (!ts.tiles[i].pending) continue;
+    if (ts.tiles.size() >= limited.max_tiles) return false;
+    auto pending = ts.tiles[i].pending;
+    Expansion e = read_children(uint32_t(i), *pending, ts.tiles.size(), fetcher, limited);
+    if (e.over_limit) return false;  // the tile stays pending: its children were not read
+    attach_children(ts, std::move(e), limited);
+  }
+  return ts.pending == 0;
 }
 
 }  // namespace stipple::io

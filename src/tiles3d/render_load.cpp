@@ -103,9 +103,12 @@ void append_content(pc::PointCloud& cloud, const io::PointContent& content,
 }
 
 RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoadOptions& options) {
-  io::TilesetOptions ts_options;
+  io::TilesetOptions ts_options = options.streamer.tileset;
   ts_options.fetch = options.streamer.fetch;
-  auto tileset = std::make_shared<const io::Tileset>(io::load_tileset(uri, ts_options));
+  auto tileset = std::make_shared<io::Tileset>(
+      options.streamer.fetcher ? io::parse_tileset(options.streamer.fetcher(uri), uri,
+                                                   options.streamer.fetcher, ts_options)
+                               : io::load_tileset(uri, ts_options));
   RenderLoadResult out;
   for (const auto& e : tileset->errors) out.errors.push_back({0, e});
   View view;
@@ -128,6 +131,20 @@ RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoa
   }
   for (auto& e : streamer.take_errors()) out.errors.push_back(std::move(e));
   out.camera = view.camera;
+  out.stats = streamer.stats();
+  out.budget_limited = selection->budget_limited;
+  out.sse_threshold = selection->sse_threshold;
+  if (out.budget_limited && selection->render.empty())
+    STIPPLE_WARN(
+        "{}: the memory budget ({:.1f} MiB) is smaller than the coarsest tiles this view "
+        "needs: nothing is drawn",
+        uri, double(options.streamer.traversal.memory_budget) / (1 << 20));
+  else if (out.budget_limited)
+    STIPPLE_WARN(
+        "{}: the memory budget ({:.1f} MiB) limited detail: screen-space error {:.1f} px "
+        "instead of {:.1f}",
+        uri, double(options.streamer.traversal.memory_budget) / (1 << 20), out.sse_threshold,
+        options.streamer.traversal.max_sse);
   for (uint32_t t : selection->render) {
     const auto* contents = streamer.content(t);
     if (!contents) continue;
@@ -136,8 +153,11 @@ RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoa
     ++out.tiles_rendered;
   }
   pc::finish_cloud(out.cloud);
-  STIPPLE_INFO("{}: {} tiles, {} rendered, {} points, {} errors", uri, tileset->tiles.size(),
-               out.tiles_rendered, out.cloud.point_count, out.errors.size());
+  STIPPLE_INFO(
+      "{}: {} tiles read ({} external tilesets, {} subtrees), {} rendered, {} points, "
+      "{} errors",
+      uri, tileset->tiles.size(), tileset->external_tilesets, tileset->subtrees, out.tiles_rendered,
+      out.cloud.point_count, out.errors.size());
   return out;
 }
 

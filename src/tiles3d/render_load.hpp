@@ -1,6 +1,7 @@
 #pragma once
 // One-shot loading of a tileset for headless rendering (`stipple render tileset.json`): frame
-// the root volume, stream until the selection for that camera is resident, convert to chunks.
+// the root volume, stream until the selection for that camera is resident (reading external
+// tilesets and subtrees as the traversal reaches them), convert to chunks.
 #include <string>
 #include <vector>
 
@@ -31,6 +32,11 @@ struct RenderLoadResult {
   Camera camera;
   std::vector<TileError> errors;
   uint32_t tiles_rendered = 0;
+  // The memory budget limited detail: tiles were drawn at this screen-space error instead of
+  // max_sse (infinite: not even the root fitted).
+  bool budget_limited = false;
+  double sse_threshold = 0;
+  StreamerStats stats;
 };
 
 // Appends a tile's decoded points to the cloud as one chunk: double origin (tile centre in the

@@ -2,6 +2,11 @@
 // Streams tile content for a view: runs select_tiles every update, fetches and decodes requested
 // tiles on a worker pool (off the calling thread), cancels what is no longer wanted, and keeps
 // resident content within a memory budget by evicting least recently used tiles.
+//
+// The tile tree grows while streaming: external tilesets and child subtrees the traversal asks
+// for are read on the worker pool too (io::read_children) and attached in update(), on the
+// calling thread. Tile indices never change, but the tileset's tile array may reallocate in
+// update(): read the tileset on that thread only, and hand workers copies of what they need.
 #include <atomic>
 #include <deque>
 #include <functional>
@@ -36,8 +41,12 @@ struct StreamerOptions {
   io::FetchOptions fetch;
   io::DecodeLimits limits;
   unsigned threads = 4;        // worker threads (I/O bound: more than cores is fine)
-  unsigned max_in_flight = 8;  // tiles fetched or decoded at once
+  unsigned max_in_flight = 8;  // tiles fetched or decoded, tilesets or subtrees read, at once
   PrepareTile prepare;         // optional post-decode step on the worker
+  io::TilesetOptions tileset;  // limits for reading pending children (its fetch is unused)
+  // Fetches content, external tilesets and subtrees, from any worker thread (tests count or
+  // fault requests with it); null: io::fetch with `fetch`.
+  io::Fetcher fetcher;
 };
 
 struct TileError {
@@ -50,6 +59,11 @@ struct StreamerStats {
   uint64_t peak_resident_bytes = 0;
   uint32_t loaded = 0, failed = 0, in_flight = 0, queued = 0;
   uint64_t loads_completed = 0, loads_cancelled = 0, evictions = 0, discarded_over_budget = 0;
+  uint64_t expansions = 0;  // tiles whose pending children (tilesets, subtrees) were read
+  uint32_t expanding = 0;   // of those in flight
+  // The latest selection: whether the budget limited detail, and the threshold it used.
+  bool budget_limited = false;
+  double sse_threshold = 0;
 };
 
 // Decodes one content by its URI's extension or magic (pnts, glb, glTF). Throws stipple::Error.
@@ -58,7 +72,8 @@ io::PointContent decode_content(const std::vector<uint8_t>& bytes, const std::st
 
 class TileStreamer {
  public:
-  TileStreamer(std::shared_ptr<const io::Tileset> tileset, StreamerOptions options);
+  // The streamer grows `tileset` as it reads pending children (others may read it, see above).
+  TileStreamer(std::shared_ptr<io::Tileset> tileset, StreamerOptions options);
   ~TileStreamer();
   TileStreamer(const TileStreamer&) = delete;
   TileStreamer& operator=(const TileStreamer&) = delete;
@@ -68,7 +83,7 @@ class TileStreamer {
   const Selection& update(const View& view);
   // Blocks until something in flight finishes (or returns at once when nothing is).
   void wait_for_progress();
-  bool idle() const;  // nothing queued or in flight
+  bool idle() const;  // nothing queued or in flight (loads and pending children)
 
   const io::Tileset& tileset() const { return *tileset_; }
   // Content of a Loaded tile (all of its contents merged); nullptr otherwise.
@@ -83,13 +98,16 @@ class TileStreamer {
  private:
   struct Job;
   struct Shared;
-  std::shared_ptr<const io::Tileset> tileset_;
+  std::shared_ptr<io::Tileset> tileset_;
   StreamerOptions options_;
+  io::Fetcher fetcher_;
   std::vector<TileState> states_;
   std::vector<std::vector<io::PointContent>> contents_;
-  std::vector<PreparedTile> prepared_;      // by tile, grown on demand (see release_prepared)
-  std::vector<std::shared_ptr<Job>> jobs_;  // by tile, while Loading
-  std::vector<LoadRequest> queue_;          // wanted, not started; most important first
+  std::vector<PreparedTile> prepared_;           // by tile, grown on demand (see release_prepared)
+  std::vector<std::shared_ptr<Job>> jobs_;       // by tile, while Loading
+  std::vector<std::shared_ptr<Job>> expanding_;  // reading pending children
+  std::vector<LoadRequest> queue_;               // wanted, not started; most important first
+  std::vector<LoadRequest> expand_queue_;        // pending children wanted, not started
   std::shared_ptr<Shared> shared_;
   std::unique_ptr<ThreadPool> pool_;
   Selection selection_;
@@ -101,6 +119,9 @@ class TileStreamer {
   void integrate();
   void start_jobs();
   void release_prepared(uint32_t tile);
+  void evict(uint32_t tile);
+  void grow();
+  void make_resident(Job& job, uint64_t bytes);
 };
 
 }  // namespace stipple::tiles3d
