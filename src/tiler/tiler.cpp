@@ -263,6 +263,9 @@ void Tiler::open_inputs() {
     Input in;
     in.path = path;
     in.header = io::read_las_header(path);
+    // The reader detects 8-bit colour stored in 16-bit fields from the first points
+    // (read_las_header cannot): make_records scales by it.
+    if (in.header.has_rgb) in.header.rgb_bits = io::LasReader(path).header().rgb_bits;
     in.crs = source_crs_definition(in.header, opt_.crs);
     total_points_ += in.header.point_count;
     inputs_.push_back(std::move(in));
@@ -492,68 +495,70 @@ uint32_t Tiler::cell_of(const glm::dvec3& p) const {
   return (c[2] << (2 * count_level_)) | (c[1] << count_level_) | c[0];
 }
 
-// Reads every input in batches on this thread; `process(input, batch)` runs on the pool with a
-// bounded number of batches in flight.
+// Points per LAZ chunk from the LASzip VLR (0: unknown or variable, as in COPC).
+uint64_t laz_chunk_points(const io::LasHeader& h) {
+  for (const io::Vlr& v : h.vlrs)
+    if (v.user_id == "laszip encoded" && v.record_id == 22204 && v.data.size() >= 16) {
+      uint32_t chunk = 0;
+      std::memcpy(&chunk, v.data.data() + 12, 4);
+      return chunk == 0xffffffffu ? 0 : chunk;
+    }
+  return 0;
+}
+
+// Every input is cut into ranges of about batch_points_ points (whole LAZ chunks for LAZ) and
+// `process(input, batch)` runs for each range on the pool. Ranges are decoded on the workers by
+// readers that seek, so LAZ decompression, the heaviest part of reading, uses every core. The
+// ranges are the same in every pass (the lattice transform of a batch is then bit-identical).
 template <typename Process>
 void Tiler::read_pass(const char* label, Process process) {
   Progress progress(label, total_points_);
-  const unsigned in_flight = pool_->size() + 1;
-  std::counting_semaphore<64> slots(in_flight);
-  std::mutex error_mutex;
-  std::exception_ptr error;
-  std::atomic<uint64_t> done{0};
-  std::vector<std::future<void>> futures;
-  // Batches are recycled: a fresh one per read would fault in tens of MB of new pages each time.
-  std::mutex spare_mutex;
-  std::vector<std::shared_ptr<io::PointBatch>> spare;
-  for (Input& in : inputs_) {
-    io::LasReader reader(in.path);
-    // The reader detects 8-bit colour stored in 16-bit fields from the first points
-    // (read_las_header cannot): make_records scales by it.
-    in.header.rgb_bits = reader.header().rgb_bits;
-    while (true) {
-      std::shared_ptr<io::PointBatch> batch;
-      {
-        std::lock_guard lock(spare_mutex);
-        if (!spare.empty()) batch = std::move(spare.back()), spare.pop_back();
-      }
-      if (!batch) batch = std::make_shared<io::PointBatch>();
-      batch->clear();
-      size_t got = reader.read(*batch, batch_points_);
-      if (got == 0) break;
-      slots.acquire();
-      {
-        std::lock_guard lock(error_mutex);
-        if (error) break;
-      }
-      futures.push_back(pool_->submit([&, batch, input = &in] {
-        try {
-          process(*input, *batch);
-        } catch (...) {
-          std::lock_guard lock(error_mutex);
-          if (!error) error = std::current_exception();
-        }
-        done += batch->size();
-        {
-          std::lock_guard lock(spare_mutex);
-          spare.push_back(batch);
-        }
-        slots.release();
-      }));
-      {
-        std::lock_guard lock(progress_mutex_);
-        progress.set(done.load());
-      }
-      // Keep the futures list short.
-      while (!futures.empty() &&
-             futures.front().wait_for(std::chrono::seconds(0)) == std::future_status::ready)
-        futures.erase(futures.begin());
-    }
-    if (error) break;
+  struct Range {
+    size_t input;
+    uint64_t first, count;
+  };
+  std::vector<Range> ranges;
+  for (size_t k = 0; k < inputs_.size(); ++k) {
+    const Input& in = inputs_[k];
+    uint64_t step = batch_points_;
+    if (const uint64_t chunk = in.header.compressed ? laz_chunk_points(in.header) : 0)
+      step = std::max<uint64_t>(1, step / chunk) * chunk;
+    for (uint64_t first = 0; first < in.header.point_count; first += step)
+      ranges.push_back({k, first, std::min(step, in.header.point_count - first)});
   }
-  for (auto& f : futures) f.wait();
-  if (error) std::rethrow_exception(error);
-  progress.set(done.load());
+  // Readers and batches are recycled: opening a reader parses the header and VLRs (and LASzip's
+  // chunk table), and a fresh batch would fault in tens of MB of new pages each time.
+  std::mutex mutex;
+  std::vector<std::vector<std::unique_ptr<io::LasReader>>> readers(inputs_.size());
+  std::vector<std::unique_ptr<io::PointBatch>> batches;
+  std::atomic<uint64_t> done{0};
+  pool_->parallel_for(ranges.size(), 1, [&](size_t b, size_t e) {
+    for (size_t r = b; r < e; ++r) {
+      const Range& range = ranges[r];
+      const Input& in = inputs_[range.input];
+      std::unique_ptr<io::LasReader> reader;
+      std::unique_ptr<io::PointBatch> batch;
+      {
+        std::lock_guard lock(mutex);
+        auto& idle = readers[range.input];
+        if (!idle.empty()) reader = std::move(idle.back()), idle.pop_back();
+        if (!batches.empty()) batch = std::move(batches.back()), batches.pop_back();
+      }
+      if (!reader) reader = std::make_unique<io::LasReader>(in.path);
+      if (!batch) batch = std::make_unique<io::PointBatch>();
+      batch->clear();
+      reader->seek(range.first);
+      if (reader->read(*batch, range.count) != range.count)
+        fail("{}: holds fewer points than its header declares", in.path);
+      process(in, *batch);
+      done += range.count;
+      std::lock_guard lock(mutex);
+      readers[range.input].push_back(std::move(reader));
+      batches.push_back(std::move(batch));
+      std::lock_guard progress_lock(progress_mutex_);
+      progress.set(done.load());
+    }
+  });
   progress.finish();
 }
 
