@@ -155,7 +155,7 @@ TEST(TilesetStreamer, BudgetAndMaxSseChangeAtRunTime) {
   fs::path dir = fs::temp_directory_path() / ("stipple_view_budget_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   ASSERT_EQ(test::write_grid_tileset(dir, 4, 1000), 85);
-  auto ts = std::make_shared<const io::Tileset>(io::load_tileset((dir / "tileset.json").string()));
+  auto ts = std::make_shared<io::Tileset>(io::load_tileset((dir / "tileset.json").string()));
   tiles3d::StreamerOptions options;
   options.threads = 2;
   options.traversal.memory_budget = 64 << 20;  // everything fits
