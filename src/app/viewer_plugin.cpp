@@ -77,6 +77,8 @@ void tileset_controls(TilesetStream& stream, const TilesetStats& stats) {
     changed = true;
   }
   if (changed) stream.streamer->set_traversal_options(options);
+  if (const auto streamer = stream.streamer->stats(); streamer.budget_limited)
+    ImGui::TextDisabled("budget limits detail: SSE %.1f px", streamer.sse_threshold);
 }
 
 void viewer_panel(Registry& main) {
