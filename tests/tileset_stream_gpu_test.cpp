@@ -13,6 +13,9 @@
 #include <string>
 #include <vector>
 
+#include <glm/geometric.hpp>
+
+#include "app/picking.hpp"
 #include "app/point_cloud_plugin.hpp"
 #include "app/tileset_plugin.hpp"
 #include "engine/plugins.hpp"
@@ -154,6 +157,58 @@ TEST_P(TilesetStreamGpu, FollowsTheCameraWithinTheBudget) {
   ASSERT_FALSE(single.frames.empty());
   ASSERT_FALSE(piped.frames.empty());
   EXPECT_EQ(test::differing_fraction(single.frames.back(), piped.frames.back(), 0), 0.0);
+}
+
+// Double-click picking through the engine: TilesetPlugin registers its picker, and the scene's
+// pick (what the camera controller calls) finds the drawn point a ray is cast through.
+TEST_P(TilesetStreamGpu, PicksTheDrawnPointUnderTheRay) {
+  fs::path dir = fs::temp_directory_path() /
+                 ("stipple_tileset_pick_" + std::to_string(::getpid()) + "_" + GetParam());
+  fs::remove_all(dir);
+  ASSERT_EQ(test::write_grid_tileset(dir, 3, 500), 21);
+  Engine engine;
+  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
+  GpuPlugin gpu;
+  gpu.options.backend = GetParam();
+  engine.add_plugin(std::move(gpu));
+  engine.add_plugin(RenderGraphPlugin{});
+  app::TilesetPlugin tiles;
+  tiles.uri = (dir / "tileset.json").string();
+  tiles.streamer.threads = 2;
+  tiles.width = kWidth;
+  tiles.height = kHeight;
+  engine.add_plugin(std::move(tiles));
+  engine.add_plugin(HeadlessTargetPlugin{kWidth, kHeight, "", 0});
+  Registry& main = engine.main();
+  Entity camera = main.create();
+  main.emplace<Camera>(camera);
+  main.get<Camera>(camera).look_at(z_up_to_y_up({500, -500, 800}), z_up_to_y_up({500, 500, 0}));
+  main.get<Camera>(camera).near_plane = 1.0;
+  for (int i = 0; i < 500 && !main.resource<app::TilesetStats>().idle; ++i) {
+    engine.update();
+    main.resource<app::TilesetStream>().streamer->wait_for_progress();
+  }
+  engine.update();
+  const auto& s = main.resource<app::TilesetStream>();
+  ASSERT_FALSE(s.draw.empty());
+  // The drawn point nearest to the camera: a thin cone through it hits it and nothing before.
+  const glm::dvec3 eye = main.get<Camera>(camera).position;
+  glm::dvec3 target{0.0};
+  double nearest = 1e300;
+  for (uint32_t t : s.draw)
+    for (const auto& chunk : s.chunks[t]->chunks)
+      for (const auto& v : chunk.vertices) {
+        glm::dvec3 p = chunk.origin + glm::dvec3(v.x, v.y, v.z);
+        if (glm::distance(p, eye) < nearest) nearest = glm::distance(p, eye), target = p;
+      }
+  auto hit = app::pick_scene(main, {eye, glm::normalize(target - eye), 1e-4});
+  ASSERT_TRUE(hit);
+  EXPECT_LT(glm::distance(hit->point, target), 1e-6);
+  EXPECT_NEAR(hit->t, nearest, 1e-6);
+  // Up into the sky: nothing.
+  EXPECT_FALSE(app::pick_scene(main, {eye, {0, 1, 0}, 1e-2}));
+  engine.shutdown();
+  fs::remove_all(dir);
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, TilesetStreamGpu, ::testing::Values("dawn", "wgpu"),

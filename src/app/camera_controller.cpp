@@ -6,7 +6,8 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 
-#include "app/point_cloud_plugin.hpp"
+#include "app/picking.hpp"
+#include "app/point_cloud_plugin.hpp"  // SceneInfo
 #include "app/window_plugins.hpp"
 #include "engine/engine.hpp"
 #include "engine/time.hpp"
@@ -166,10 +167,9 @@ void control_cameras(Registry& main) {
     if (input.double_clicked) {
       // Picking radius: 4 pixels around the cursor.
       double tan_radius = 4.0 * 2.0 * std::tan(camera.fov_y * 0.5) / std::max(viewport.y, 1.0);
-      glm::dvec3 ray = cursor_ray(camera, input.double_click_position, viewport);
-      main.view<PointCloudData>().each([&](const PointCloudData& data) {
-        if (auto hit = pick_point(data, camera.position, ray, tan_radius)) focus_on(c, *hit);
-      });
+      PickRay ray{camera.position, cursor_ray(camera, input.double_click_position, viewport),
+                  tan_radius};
+      if (auto hit = pick_scene(main, ray)) focus_on(c, hit->point);
     }
     update_controller(c, input, dt, camera.fov_y, viewport);
     apply_controller(c, camera);

@@ -5,7 +5,8 @@
 // Orbit: left drag rotates around the pivot, right or middle drag pans, the wheel zooms towards
 // the point under the cursor. Fly: WASD moves, Q/E down/up, shift is faster, dragging with a
 // mouse button looks around. F or Tab switches; a double click centres the view on the point
-// under the cursor (the nearest point along the ray, CPU side).
+// under the cursor (the nearest point along the ray, CPU side, from whichever scene plugins
+// registered a picker in ScenePickers: app/picking.hpp).
 #include <array>
 #include <string_view>
 
@@ -74,10 +75,10 @@ struct CameraControllerPlugin {
       "orbit and fly camera from input; double click focuses the point under the cursor";
   static constexpr std::array<std::string_view, 3> dependencies{"InputPlugin", "WindowPlugin",
                                                                 "CameraPlugin"};
-  static constexpr std::array<std::string_view, 3> optional_dependencies{
-      "TimePlugin", "PointCloudPlugin", "UiPlugin"};
+  static constexpr std::array<std::string_view, 4> optional_dependencies{
+      "TimePlugin", "PointCloudPlugin", "TilesetPlugin", "UiPlugin"};
   // finish() attaches a controller to every Camera entity without one, orbiting the centre of
-  // SceneInfo's bounds when the point cloud plugin is there.
+  // SceneInfo's bounds when a scene plugin (point clouds or a tileset) is there.
   void build(Engine& engine);
   void finish(Engine& engine);
 };

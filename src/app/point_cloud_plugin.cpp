@@ -7,6 +7,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "app/picking.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "engine/camera.hpp"
@@ -234,34 +235,30 @@ std::vector<uint32_t> select_chunks(const std::vector<Aabb>& bounds,
 std::optional<glm::dvec3> pick_point(const PointCloudData& data, const glm::dvec3& origin,
                                      const glm::dvec3& direction, double tan_radius) {
   if (!data.cloud) return std::nullopt;
-  const glm::dvec3 dir = glm::normalize(direction);
-  double best_t = std::numeric_limits<double>::infinity();
-  std::optional<glm::dvec3> best;
+  const PickRay ray{origin, glm::normalize(direction), tan_radius};
+  std::optional<PickHit> best;
   const auto& chunks = data.cloud->chunks;
-  for (size_t c = 0; c < chunks.size(); ++c) {
-    const Aabb& box = data.chunk_bounds[c];
-    if (box.empty()) continue;
-    // Bounding sphere against the cone: skip chunks wholly outside it or behind a better hit.
-    glm::dvec3 center = box.center();
-    double radius = glm::length(box.size()) * 0.5;
-    glm::dvec3 v = center - origin;
-    double t = glm::dot(v, dir);
-    if (t + radius < 0 || t - radius > best_t) continue;
-    double off_axis = glm::length(v - t * dir);
-    if (off_axis - radius > tan_radius * std::max(t + radius, 0.0)) continue;
-    const glm::dvec3 rel_origin = origin - chunks[c].origin;
-    for (const auto& p : chunks[c].vertices) {
-      glm::dvec3 w = glm::dvec3(p.x, p.y, p.z) - rel_origin;
-      double tp = glm::dot(w, dir);
-      if (tp <= 0 || tp >= best_t) continue;
-      glm::dvec3 perpendicular = w - tp * dir;
-      if (glm::dot(perpendicular, perpendicular) > tan_radius * tan_radius * tp * tp) continue;
-      best_t = tp;
-      best = chunks[c].origin + glm::dvec3(p.x, p.y, p.z);
-    }
-  }
+  for (size_t c = 0; c < chunks.size(); ++c)
+    pick_in_chunk(chunks[c], data.chunk_bounds[c], ray, best);
+  if (!best) return std::nullopt;
+  return best->point;
+}
+
+namespace {
+
+// ScenePickers entry: every loaded cloud, whatever the point budget draws.
+std::optional<PickHit> pick_point_clouds(Registry& main, const PickRay& ray) {
+  std::optional<PickHit> best;
+  main.view<PointCloudData>().each([&](const PointCloudData& data) {
+    if (!data.cloud) return;
+    const auto& chunks = data.cloud->chunks;
+    for (size_t c = 0; c < chunks.size(); ++c)
+      pick_in_chunk(chunks[c], data.chunk_bounds[c], ray, best);
+  });
   return best;
 }
+
+}  // namespace
 
 void PointCloudPlugin::build(Engine& engine) {
   Registry& main = engine.main();
@@ -281,6 +278,8 @@ void PointCloudPlugin::build(Engine& engine) {
   main.insert_resource(settings);
   engine.render().insert_resource(settings);
   engine.render().insert_resource(PointPipelineCache{});
+
+  add_scene_picker(main, pick_point_clouds);
 
   engine.add_system(MainStage::Extract, extract_point_clouds, "extract_point_clouds");
   engine.add_system(RenderStage::Prepare, upload_point_clouds, "upload_point_clouds");

@@ -75,7 +75,22 @@ std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dma
   return out;
 }
 
+std::optional<PickHit> pick_tileset_point(const TilesetStream& stream, const PickRay& ray) {
+  std::optional<PickHit> best;
+  for (uint32_t t : stream.draw) {
+    if (t >= stream.chunks.size() || !stream.chunks[t]) continue;
+    for (const auto& chunk : stream.chunks[t]->chunks)
+      pick_in_chunk(chunk, chunk.bounds, ray, best);
+  }
+  return best;
+}
+
 namespace {
+
+std::optional<PickHit> pick_tileset(Registry& main, const PickRay& ray) {
+  const auto* stream = main.try_resource<TilesetStream>();
+  return stream ? pick_tileset_point(*stream, ray) : std::nullopt;
+}
 
 // MainStage::Update: one streamer update with the first camera.
 void update_tileset(Registry& main) {
@@ -136,6 +151,7 @@ void update_tileset(Registry& main) {
   stats.budget_limited = streamer_stats.budget_limited;
   stats.sse_threshold = streamer_stats.sse_threshold;
   stats.idle = s.streamer->idle();
+  stats.memory_budget = s.streamer->traversal_options().memory_budget;  // the panel may change it
   ++stats.frames;
   auto& info = main.resource<SceneInfo>();
   info.points = std::max(info.points, stats.drawn_points);
@@ -365,6 +381,8 @@ void TilesetPlugin::build(Engine& engine) {
   g.page_bytes = gpu_page_bytes;
   engine.render().insert_resource(std::move(g));
   engine.render().insert_resource(TilesetGpuStats{});
+
+  add_scene_picker(main, pick_tileset);
 
   engine.add_system(MainStage::Update, update_tileset, "update_tileset");
   engine.add_system(MainStage::Extract, extract_tileset, "extract_tileset");

@@ -19,10 +19,12 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "app/picking.hpp"
 #include "math/aabb.hpp"
 #include "pointcloud/paged_points.hpp"
 #include "pointcloud/point_cloud.hpp"
@@ -66,6 +68,10 @@ struct TilesetStream {
   std::vector<uint32_t> draw;  // this frame's tiles to draw (ids with chunks), traversal order
   uint64_t intensity_signature = 0;  // of the drawn tiles the intensity ramp was computed from
 };
+
+// The nearest point of this frame's drawn tiles within the ray's cone (TilesetPlugin registers it
+// in ScenePickers for double-click focus). Chunks whose bounds miss the cone are not read.
+std::optional<PickHit> pick_tileset_point(const TilesetStream& stream, const PickRay& ray);
 
 // Main-world resource: what the stream did this frame (tests, the UI, `stipple render`).
 struct TilesetStats {

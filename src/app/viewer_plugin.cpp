@@ -8,6 +8,7 @@
 
 #include "app/camera_controller.hpp"
 #include "app/point_cloud_plugin.hpp"
+#include "app/tileset_plugin.hpp"
 #include "app/ui_plugin.hpp"
 #include "app/window_plugins.hpp"
 #include "engine/engine.hpp"
@@ -54,6 +55,32 @@ void viewer_keys(Registry& main) {
 const char* kColorModes[] = {"auto",      "rgb",    "intensity", "classification",
                              "elevation", "return", "constant"};
 
+// A tileset's knobs are the streamer's: its memory budget (what stays resident) and the maximum
+// screen-space error (how fine the drawn tiles are); PointDrawSettings::budget is unused there.
+void tileset_controls(TilesetStream& stream, const TilesetStats& stats) {
+  constexpr double kMiB = 1 << 20;
+  ImGui::Text("tiles: %u drawn (%.2f M points), %u resident", stats.drawn_tiles,
+              stats.drawn_points / 1e6, stats.resident_tiles);
+  ImGui::Text("resident %.1f MiB of %.1f MiB (peak %.1f)", stats.resident_bytes / kMiB,
+              stats.memory_budget / kMiB, stats.peak_resident_bytes / kMiB);
+  tiles3d::TraversalOptions options = stream.streamer->traversal_options();
+  bool changed = false;
+  float budget = float(options.memory_budget / kMiB);
+  if (ImGui::SliderFloat("memory budget", &budget, 1.0f, std::max(8192.0f, budget), "%.0f MiB",
+                         ImGuiSliderFlags_Logarithmic)) {
+    options.memory_budget = uint64_t(double(std::max(budget, 1.0f)) * kMiB);
+    changed = true;
+  }
+  float sse = float(options.max_sse);
+  if (ImGui::SliderFloat("max SSE", &sse, 0.5f, 128.0f, "%.1f px", ImGuiSliderFlags_Logarithmic)) {
+    options.max_sse = std::max(sse, 0.5f);
+    changed = true;
+  }
+  if (changed) stream.streamer->set_traversal_options(options);
+  if (const auto streamer = stream.streamer->stats(); streamer.budget_limited)
+    ImGui::TextDisabled("budget limits detail: SSE %.1f px", streamer.sse_threshold);
+}
+
 void viewer_panel(Registry& main) {
   auto& state = main.resource<ViewerState>();
   if (const auto* time = main.try_resource<Time>(); time && time->delta_seconds > 0) {
@@ -93,14 +120,18 @@ void viewer_panel(Registry& main) {
     ImGui::Text("%ux%u, present %s", info->size.x, info->size.y, info->present_mode.c_str());
   ImGui::Separator();
 
-  bool limit = settings.budget > 0;
-  if (ImGui::Checkbox("point budget", &limit))
-    settings.budget = limit ? std::max<uint64_t>(scene.points / 2, 1) : 0;
-  if (limit) {
-    float millions = float(settings.budget / 1e6);
-    if (ImGui::SliderFloat("M points", &millions, 0.01f, float(scene.points / 1e6), "%.2f",
-                           ImGuiSliderFlags_Logarithmic))
-      settings.budget = std::max<uint64_t>(uint64_t(double(millions) * 1e6), 1);
+  if (auto* stream = main.try_resource<TilesetStream>()) {
+    tileset_controls(*stream, main.resource<TilesetStats>());
+  } else {
+    bool limit = settings.budget > 0;
+    if (ImGui::Checkbox("point budget", &limit))
+      settings.budget = limit ? std::max<uint64_t>(scene.points / 2, 1) : 0;
+    if (limit) {
+      float millions = float(settings.budget / 1e6);
+      if (ImGui::SliderFloat("M points", &millions, 0.01f, float(scene.points / 1e6), "%.2f",
+                             ImGuiSliderFlags_Logarithmic))
+        settings.budget = std::max<uint64_t>(uint64_t(double(millions) * 1e6), 1);
+    }
   }
   pc::PointRenderSettings& render = settings.render;
   ImGui::SliderFloat("point size", &render.point_size, 1.0f, 16.0f, "%.1f px");

@@ -94,6 +94,10 @@ class TileStreamer {
   std::vector<TileError> take_errors();
   const std::vector<TileError>& errors() const { return all_errors_; }
   StreamerStats stats() const;
+  // Takes effect from the next update(): a lower memory budget evicts unused tiles down to it, a
+  // higher max_sse selects coarser tiles (the viewer's panel turns these knobs).
+  void set_traversal_options(const TraversalOptions& traversal) { options_.traversal = traversal; }
+  const TraversalOptions& traversal_options() const { return options_.traversal; }
 
  private:
   struct Job;
