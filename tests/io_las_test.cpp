@@ -111,6 +111,8 @@ TEST(LasRead, AutzenLazMatchesLas) {
   EXPECT_FALSE(h.compressed);
   EXPECT_TRUE(laz.header().compressed);
   EXPECT_FALSE(laz.header().copc);
+  EXPECT_EQ(laz.header().laz_chunk_points, 50000u);  // LASzip's default chunk
+  EXPECT_EQ(h.laz_chunk_points, 0u);
   EXPECT_EQ(laz.header().point_format, 3);
   EXPECT_EQ(laz.header().point_count, 110000u);
   EXPECT_TRUE(h.has_rgb && h.has_gps_time && !h.has_nir && !h.has_waveform);
@@ -222,6 +224,7 @@ TEST(LasRead, Copc) {
   const LasHeader& h = r.header();
   EXPECT_TRUE(h.compressed);
   EXPECT_TRUE(h.copc);
+  EXPECT_EQ(h.laz_chunk_points, 0u);  // COPC: variable chunks, one per octree node
   EXPECT_EQ(h.version_minor, 4);
   EXPECT_EQ(h.point_format, 6);
   EXPECT_EQ(h.point_count, 518862u);

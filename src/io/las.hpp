@@ -70,6 +70,9 @@ struct LasHeader {
   uint16_t point_record_length = 0;
   bool compressed = false;  // LAZ
   bool copc = false;        // LAZ 1.4 with a "copc" info VLR
+  // Points per LASzip chunk, from its VLR: readers that seek to whole chunks decode nothing
+  // twice. 0 when unknown or variable (COPC).
+  uint32_t laz_chunk_points = 0;
   uint64_t point_count = 0;
   std::array<uint64_t, 15> points_by_return{};
   glm::dvec3 scale{0.01}, offset{0}, min{0}, max{0};

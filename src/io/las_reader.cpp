@@ -276,7 +276,14 @@ struct Parser {
 
     bool laszip_vlr = false;
     for (const Vlr& v : h.vlrs) {
-      if (v.user_id == "laszip encoded" && v.record_id == 22204) laszip_vlr = true;
+      if (v.user_id == "laszip encoded" && v.record_id == 22204) {
+        laszip_vlr = true;
+        // compressor, coder (u16 each), version (u8, u8, u16), options (u32), chunk size (u32).
+        if (v.data.size() >= 16) {
+          const uint32_t chunk = load<uint32_t>(v.data.data() + 12);
+          h.laz_chunk_points = chunk == 0xffffffffu ? 0 : chunk;
+        }
+      }
       if (v.user_id == "copc" && v.record_id == 1) h.copc = true;
       if (v.user_id == "LASF_Spec" && v.record_id == 4) h.extra_bytes = parse_extra_bytes(v);
     }

@@ -495,17 +495,6 @@ uint32_t Tiler::cell_of(const glm::dvec3& p) const {
   return (c[2] << (2 * count_level_)) | (c[1] << count_level_) | c[0];
 }
 
-// Points per LAZ chunk from the LASzip VLR (0: unknown or variable, as in COPC).
-uint64_t laz_chunk_points(const io::LasHeader& h) {
-  for (const io::Vlr& v : h.vlrs)
-    if (v.user_id == "laszip encoded" && v.record_id == 22204 && v.data.size() >= 16) {
-      uint32_t chunk = 0;
-      std::memcpy(&chunk, v.data.data() + 12, 4);
-      return chunk == 0xffffffffu ? 0 : chunk;
-    }
-  return 0;
-}
-
 // Every input is cut into ranges of about batch_points_ points (whole LAZ chunks for LAZ) and
 // `process(input, batch)` runs for each range on the pool. Ranges are decoded on the workers by
 // readers that seek, so LAZ decompression, the heaviest part of reading, uses every core. The
@@ -521,7 +510,7 @@ void Tiler::read_pass(const char* label, Process process) {
   for (size_t k = 0; k < inputs_.size(); ++k) {
     const Input& in = inputs_[k];
     uint64_t step = batch_points_;
-    if (const uint64_t chunk = in.header.compressed ? laz_chunk_points(in.header) : 0)
+    if (const uint64_t chunk = in.header.compressed ? in.header.laz_chunk_points : 0)
       step = std::max<uint64_t>(1, step / chunk) * chunk;
     for (uint64_t first = 0; first < in.header.point_count; first += step)
       ranges.push_back({k, first, std::min(step, in.header.point_count - first)});
