@@ -37,6 +37,7 @@
 #include <mutex>
 #include <semaphore>
 #include <set>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
@@ -109,6 +110,14 @@ const EcefTransform& thread_transform(const std::string& crs) {
   return *t;
 }
 
+// Closes a file descriptor when the scope ends, error paths included.
+struct FdCloser {
+  int fd = -1;
+  ~FdCloser() {
+    if (fd >= 0) ::close(fd);
+  }
+};
+
 void write_all(int fd, const fs::path& path, const void* data, size_t size) {
   const char* p = static_cast<const char*>(data);
   while (size > 0) {
@@ -118,34 +127,22 @@ void write_all(int fd, const fs::path& path, const void* data, size_t size) {
   }
 }
 
+// Writes `size` bytes to `path`, truncating (O_TRUNC) or appending (O_APPEND); a failed close
+// is a failed write.
+void put_file(const fs::path& path, int mode, const void* data, size_t size) {
+  FdCloser file{::open(path.c_str(), O_WRONLY | O_CREAT | mode, 0644)};
+  if (file.fd < 0) fail("{}: cannot open ({})", path.string(), std::strerror(errno));
+  write_all(file.fd, path, data, size);
+  if (::close(std::exchange(file.fd, -1)) != 0)
+    fail("{}: write failed ({})", path.string(), std::strerror(errno));
+}
+
 void write_file(const fs::path& path, const void* data, size_t size) {
-  int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  if (fd < 0) fail("{}: cannot create ({})", path.string(), std::strerror(errno));
-  const char* p = static_cast<const char*>(data);
-  while (size > 0) {
-    ssize_t w = ::write(fd, p, size);
-    if (w <= 0) {
-      ::close(fd);
-      fail("{}: write failed ({})", path.string(), std::strerror(errno));
-    }
-    p += w, size -= size_t(w);
-  }
-  if (::close(fd) != 0) fail("{}: write failed ({})", path.string(), std::strerror(errno));
+  put_file(path, O_TRUNC, data, size);
 }
 
 void append_file(const fs::path& path, const void* data, size_t size) {
-  int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-  if (fd < 0) fail("{}: cannot open ({})", path.string(), std::strerror(errno));
-  const char* p = static_cast<const char*>(data);
-  while (size > 0) {
-    ssize_t w = ::write(fd, p, size);
-    if (w <= 0) {
-      ::close(fd);
-      fail("{}: write failed ({})", path.string(), std::strerror(errno));
-    }
-    p += w, size -= size_t(w);
-  }
-  ::close(fd);
+  put_file(path, O_APPEND, data, size);
 }
 
 void read_points(const fs::path& path, std::vector<TilePoint>& pts) {
@@ -379,12 +376,9 @@ void Tiler::choose_resident_chunks(const std::vector<uint32_t>& counts) {
 
 // Distribution pass over staged records, in blocks read in parallel (pread).
 void Tiler::distribute(const fs::path& staged, uint64_t count) {
-  int fd = ::open(staged.c_str(), O_RDONLY);
+  const FdCloser file{::open(staged.c_str(), O_RDONLY)};
+  const int fd = file.fd;
   if (fd < 0) fail("{}: cannot open ({})", staged.string(), std::strerror(errno));
-  struct Closer {
-    int fd;
-    ~Closer() { ::close(fd); }
-  } closer{fd};
   const uint64_t block = batch_points_;
   const size_t blocks = size_t((count + block - 1) / block);
   Progress progress("distributing", count);
@@ -904,12 +898,7 @@ TileStats Tiler::run() {
         fd = ::open(staged.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
         if (fd < 0) fail("{}: cannot create ({})", staged.string(), std::strerror(errno));
       }
-      struct Closer {
-        int fd;
-        ~Closer() {
-          if (fd >= 0) ::close(fd);
-        }
-      } closer{fd};
+      const FdCloser closer{fd};
       read_pass("reading", [&](const Input& in, io::PointBatch& batch) {
         const size_t n = batch.size();
         thread_local std::vector<TilePoint> local;
