@@ -1,6 +1,8 @@
 #pragma once
 // Minimal encoders for the 3D Tiles test corpus (pnts, glb, subtree, tileset.json), written
 // from the specifications so the readers are checked against independently built bytes.
+#include <unistd.h>
+
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -13,6 +15,15 @@
 namespace stipple::test {
 
 using Bytes = std::vector<uint8_t>;
+
+// An empty directory of its own for this process: <tmp>/stipple-<name>-<pid>.
+inline std::filesystem::path fresh_temp_dir(const std::string& name) {
+  std::filesystem::path p = std::filesystem::temp_directory_path() /
+                            ("stipple-" + name + "-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(p);
+  std::filesystem::create_directories(p);
+  return p;
+}
 
 inline void put_u32(Bytes& b, uint32_t v) {
   for (int i = 0; i < 4; ++i) b.push_back(uint8_t(v >> (8 * i)));

@@ -28,11 +28,7 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path temp_dir(const std::string& name) {
-  fs::path p =
-      fs::temp_directory_path() / ("stipple-lazy-" + name + "-" + std::to_string(::getpid()));
-  fs::remove_all(p);
-  fs::create_directories(p);
-  return p;
+  return fresh_temp_dir("lazy-" + name);
 }
 
 // Counts every request by URI; serves made-up bytes for URIs `synth` answers, files otherwise.

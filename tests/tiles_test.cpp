@@ -29,11 +29,7 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path temp_dir(const std::string& name) {
-  fs::path p =
-      fs::temp_directory_path() / ("stipple-tiles-" + name + "-" + std::to_string(::getpid()));
-  fs::remove_all(p);
-  fs::create_directories(p);
-  return p;
+  return fresh_temp_dir("tiles-" + name);
 }
 
 // Writes a seed for the fuzzer when STIPPLE_WRITE_TILE_SEEDS names a folder.

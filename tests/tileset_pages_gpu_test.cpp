@@ -12,11 +12,11 @@
 #include <vector>
 
 #include "app/tileset_plugin.hpp"
-#include "engine/plugins.hpp"
 #include "engine/render_plugins.hpp"
 #include "math/camera.hpp"
 #include "test_util.hpp"
 #include "tiles_fixtures.hpp"
+#include "tileset_engine.hpp"
 
 using namespace stipple;
 namespace fs = std::filesystem;
@@ -38,14 +38,6 @@ PagedRun stream(const std::string& backend, bool pipelined, const fs::path& tile
                 uint64_t page) {
   PagedRun out;
   Engine engine;
-  TimePlugin time;
-  time.fixed_delta = 1.0 / 30.0;
-  engine.add_plugins(time, TransformPlugin{}, CameraPlugin{});
-  if (pipelined) engine.add_plugin(PipelinedRenderingPlugin{});
-  GpuPlugin gpu;
-  gpu.options.backend = backend;
-  engine.add_plugin(std::move(gpu));
-  engine.add_plugin(RenderGraphPlugin{});
   app::TilesetPlugin tiles;
   tiles.uri = tileset.string();
   tiles.streamer.threads = 2;
@@ -55,8 +47,7 @@ PagedRun stream(const std::string& backend, bool pipelined, const fs::path& tile
   tiles.height = kHeight;
   tiles.render.point_size = 3.0f;
   tiles.gpu_page_bytes = page;
-  engine.add_plugin(std::move(tiles));
-  engine.add_plugin(HeadlessTargetPlugin{kWidth, kHeight, "", 0});
+  test::add_tileset_engine_plugins(engine, backend, pipelined, std::move(tiles), 1.0 / 30.0);
   gpu::Image last;
   engine.render().insert_resource(
       FrameCapture{[&last](uint64_t, const gpu::Image& image) { last = image; }});
@@ -72,12 +63,7 @@ PagedRun stream(const std::string& backend, bool pipelined, const fs::path& tile
     const double x = p[0], y = p[1], d = p[2];
     main.get<Camera>(camera).look_at(z_up_to_y_up({x, y - d, d * 0.6}), z_up_to_y_up({x, y, 0}));
     main.get<Camera>(camera).near_plane = 1.0;
-    bool idle = false;
-    for (int i = 0; i < 500 && !idle; ++i) {
-      engine.update();
-      idle = main.resource<app::TilesetStats>().idle;
-      if (!idle) main.resource<app::TilesetStream>().streamer->wait_for_progress();
-    }
+    test::update_until_idle(engine);
     // Two more frames: the pipelined render world draws what the last update extracted.
     engine.update();
     engine.update();

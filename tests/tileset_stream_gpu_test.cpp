@@ -24,6 +24,7 @@
 #include "renderer/png.hpp"
 #include "test_util.hpp"
 #include "tiles_fixtures.hpp"
+#include "tileset_engine.hpp"
 
 using namespace stipple;
 namespace fs = std::filesystem;
@@ -49,14 +50,6 @@ struct StreamRun {
 StreamRun stream(const std::string& backend, bool pipelined, const fs::path& tileset) {
   StreamRun out;
   Engine engine;
-  TimePlugin time;
-  time.fixed_delta = 1.0 / 30.0;
-  engine.add_plugins(time, TransformPlugin{}, CameraPlugin{});
-  if (pipelined) engine.add_plugin(PipelinedRenderingPlugin{});
-  GpuPlugin gpu;
-  gpu.options.backend = backend;
-  engine.add_plugin(std::move(gpu));
-  engine.add_plugin(RenderGraphPlugin{});
   app::TilesetPlugin tiles;
   tiles.uri = tileset.string();
   tiles.streamer.threads = 2;
@@ -65,8 +58,7 @@ StreamRun stream(const std::string& backend, bool pipelined, const fs::path& til
   tiles.width = kWidth;
   tiles.height = kHeight;
   tiles.render.point_size = 3.0f;
-  engine.add_plugin(std::move(tiles));
-  engine.add_plugin(HeadlessTargetPlugin{kWidth, kHeight, "", 0});
+  test::add_tileset_engine_plugins(engine, backend, pipelined, std::move(tiles), 1.0 / 30.0);
   engine.render().insert_resource(
       FrameCapture{[&out](uint64_t, const gpu::Image& image) { out.frames.push_back(image); }});
 
@@ -81,14 +73,10 @@ StreamRun stream(const std::string& backend, bool pipelined, const fs::path& til
     const double x = p[0], y = p[1], d = p[2];
     main.get<Camera>(camera).look_at(z_up_to_y_up({x, y - d, d * 0.6}), z_up_to_y_up({x, y, 0}));
     main.get<Camera>(camera).near_plane = 1.0;
-    bool idle = false;
-    for (int i = 0; i < 500 && !idle; ++i) {
-      engine.update();
-      const auto& stats = main.resource<app::TilesetStats>();
-      out.max_resident_bytes = std::max(out.max_resident_bytes, stats.resident_bytes);
-      idle = stats.idle;
-      if (!idle) main.resource<app::TilesetStream>().streamer->wait_for_progress();
-    }
+    const bool idle = test::update_until_idle(engine, [&] {
+      out.max_resident_bytes =
+          std::max(out.max_resident_bytes, main.resource<app::TilesetStats>().resident_bytes);
+    });
     out.all_idle = out.all_idle && idle;
     const auto& stats = main.resource<app::TilesetStats>();
     out.steps.push_back(
@@ -167,27 +155,18 @@ TEST_P(TilesetStreamGpu, PicksTheDrawnPointUnderTheRay) {
   fs::remove_all(dir);
   ASSERT_EQ(test::write_grid_tileset(dir, 3, 500), 21);
   Engine engine;
-  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
-  GpuPlugin gpu;
-  gpu.options.backend = GetParam();
-  engine.add_plugin(std::move(gpu));
-  engine.add_plugin(RenderGraphPlugin{});
   app::TilesetPlugin tiles;
   tiles.uri = (dir / "tileset.json").string();
   tiles.streamer.threads = 2;
   tiles.width = kWidth;
   tiles.height = kHeight;
-  engine.add_plugin(std::move(tiles));
-  engine.add_plugin(HeadlessTargetPlugin{kWidth, kHeight, "", 0});
+  test::add_tileset_engine_plugins(engine, GetParam(), false, std::move(tiles), 0.0);
   Registry& main = engine.main();
   Entity camera = main.create();
   main.emplace<Camera>(camera);
   main.get<Camera>(camera).look_at(z_up_to_y_up({500, -500, 800}), z_up_to_y_up({500, 500, 0}));
   main.get<Camera>(camera).near_plane = 1.0;
-  for (int i = 0; i < 500 && !main.resource<app::TilesetStats>().idle; ++i) {
-    engine.update();
-    main.resource<app::TilesetStream>().streamer->wait_for_progress();
-  }
+  test::update_until_idle(engine);
   engine.update();
   const auto& s = main.resource<app::TilesetStream>();
   ASSERT_FALSE(s.draw.empty());
