@@ -102,10 +102,11 @@ void TileStreamer::integrate() {
       continue;
     }
     jobs_[t].reset();
+    // Resident size of the result (0 for a failed load: its result and preparation are cleared).
+    uint64_t bytes = job->prepared.bytes;
+    for (const auto& c : job->result) bytes += c.memory_bytes();
     if (job->cancelled) {
       states_[t].state = LoadState::Unloaded;
-      uint64_t bytes = job->prepared.bytes;
-      for (const auto& c : job->result) bytes += c.memory_bytes();
       if (job->complete) states_[t].bytes = bytes;  // known now, for the budget
       // Cancelled after the work was done: kept where it fits without evicting anything.
       if (!job->complete || stats_.resident_bytes + bytes > options_.traversal.memory_budget) {
@@ -122,8 +123,6 @@ void TileStreamer::integrate() {
       STIPPLE_WARN("tile {}: {}", t, job->error);
       continue;
     }
-    uint64_t bytes = job->prepared.bytes;
-    for (const auto& c : job->result) bytes += c.memory_bytes();
     // Results arrive before this frame's selection: the previous frame's tiles (being drawn,
     // and within the budget with this one) are not evicted for it.
     bool fits = false;
