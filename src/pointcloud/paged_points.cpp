@@ -25,25 +25,21 @@ PagedPoints create_paged_points(gpu::Context& ctx, uint64_t page_size) {
 
 void upload_chunk_paged(gpu::Context& ctx, PagedPoints& store, GpuPointCloud& cloud,
                         const PointChunk& chunk) {
-  for (size_t first = 0; first < chunk.vertices.size(); first += store.max_chunk_points) {
-    GpuPointCloud::Chunk c;
-    c.count = uint32_t(std::min<uint64_t>(store.max_chunk_points, chunk.vertices.size() - first));
-    c.origin = chunk.origin;
-    c.spacing = chunk.spacing > 0 ? chunk.spacing : 1.0;
-    const uint64_t point_bytes = uint64_t(c.count) * sizeof(PointChunk::Vertex);
-    c.range = store.allocator->allocate(point_bytes, kPagedPointUsage);
-    c.survivors_range = store.allocator->allocate(uint64_t(c.count) * 4, kPagedSurvivorUsage);
-    c.points_buffer = c.range.buffer;
-    c.points_offset = c.range.offset;
-    c.survivors_buffer = c.survivors_range.buffer;
-    c.survivors_offset = c.survivors_range.offset;
-    // writeBuffer sizes must be multiples of 4: 20-byte vertices always are.
-    wgpuQueueWriteBuffer(ctx.queue.get(), c.points_buffer, c.points_offset,
-                         chunk.vertices.data() + first, point_bytes);
-    cloud.point_count += c.count;
-    cloud.chunks.push_back(std::move(c));
-    ++store.stats->chunks_uploaded;
-  }
+  append_chunk_pieces(cloud, chunk, store.max_chunk_points,
+                      [&](GpuPointCloud::Chunk& c, const PointChunk::Vertex* vertices) {
+                        const uint64_t point_bytes = uint64_t(c.count) * sizeof(PointChunk::Vertex);
+                        c.range = store.allocator->allocate(point_bytes, kPagedPointUsage);
+                        c.survivors_range =
+                            store.allocator->allocate(uint64_t(c.count) * 4, kPagedSurvivorUsage);
+                        c.points_buffer = c.range.buffer;
+                        c.points_offset = c.range.offset;
+                        c.survivors_buffer = c.survivors_range.buffer;
+                        c.survivors_offset = c.survivors_range.offset;
+                        // writeBuffer sizes must be multiples of 4: 20-byte vertices always are.
+                        wgpuQueueWriteBuffer(ctx.queue.get(), c.points_buffer, c.points_offset,
+                                             vertices, point_bytes);
+                        ++store.stats->chunks_uploaded;
+                      });
 }
 
 void free_chunks_deferred(PagedPoints& store, std::vector<GpuPointCloud::Chunk>& chunks) {

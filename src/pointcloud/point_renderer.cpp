@@ -149,23 +149,18 @@ uint64_t max_gpu_chunk_points(const gpu::Context& ctx) {
 }
 
 void upload_chunk(gpu::Context& ctx, GpuPointCloud& gpu_cloud, const PointChunk& chunk) {
-  const uint64_t max_points = max_gpu_chunk_points(ctx);
   // Chunks larger than one storage binding are split; the pieces share the origin.
-  for (size_t first = 0; first < chunk.vertices.size(); first += max_points) {
-    GpuPointCloud::Chunk c;
-    c.count = uint32_t(std::min<uint64_t>(max_points, chunk.vertices.size() - first));
-    c.origin = chunk.origin;
-    c.spacing = chunk.spacing > 0 ? chunk.spacing : 1.0;
-    c.points = gpu::create_buffer(ctx, uint64_t(c.count) * sizeof(PointChunk::Vertex),
-                                  WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "point-chunk",
-                                  chunk.vertices.data() + first);
-    c.survivors =
-        gpu::create_buffer(ctx, uint64_t(c.count) * 4, WGPUBufferUsage_Storage, "clod-survivors");
-    c.points_buffer = c.points.get();
-    c.survivors_buffer = c.survivors.get();
-    gpu_cloud.point_count += c.count;
-    gpu_cloud.chunks.push_back(std::move(c));
-  }
+  append_chunk_pieces(gpu_cloud, chunk, max_gpu_chunk_points(ctx),
+                      [&](GpuPointCloud::Chunk& c, const PointChunk::Vertex* vertices) {
+                        c.points =
+                            gpu::create_buffer(ctx, uint64_t(c.count) * sizeof(PointChunk::Vertex),
+                                               WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst,
+                                               "point-chunk", vertices);
+                        c.survivors = gpu::create_buffer(ctx, uint64_t(c.count) * 4,
+                                                         WGPUBufferUsage_Storage, "clod-survivors");
+                        c.points_buffer = c.points.get();
+                        c.survivors_buffer = c.survivors.get();
+                      });
 }
 
 void finish_upload(gpu::Context& ctx, GpuPointCloud& gpu_cloud) {

@@ -20,6 +20,7 @@
 //
 // Colour is computed in the shader from the packed attributes, so colour modes and ranges are
 // uniforms: switching them in the viewer costs nothing.
+#include <algorithm>
 #include <array>
 #include <string>
 #include <vector>
@@ -105,6 +106,21 @@ struct GpuPointCloud {
 void upload_chunk(gpu::Context& ctx, GpuPointCloud& gpu_cloud, const PointChunk& chunk);
 // The most points one GPU chunk holds on this device (larger chunks are split).
 uint64_t max_gpu_chunk_points(const gpu::Context& ctx);
+// Splits `chunk` into GPU pieces of at most `max_points` points sharing its origin and spacing;
+// `store(piece, first_vertex)` gives each its buffers, then the piece joins the cloud.
+template <typename Store>
+void append_chunk_pieces(GpuPointCloud& cloud, const PointChunk& chunk, uint64_t max_points,
+                         Store store) {
+  for (size_t first = 0; first < chunk.vertices.size(); first += max_points) {
+    GpuPointCloud::Chunk c;
+    c.count = uint32_t(std::min<uint64_t>(max_points, chunk.vertices.size() - first));
+    c.origin = chunk.origin;
+    c.spacing = chunk.spacing > 0 ? chunk.spacing : 1.0;
+    store(c, chunk.vertices.data() + first);
+    cloud.point_count += c.count;
+    cloud.chunks.push_back(std::move(c));
+  }
+}
 void finish_upload(gpu::Context& ctx, GpuPointCloud& gpu_cloud);
 GpuPointCloud upload_point_cloud(gpu::Context& ctx, const PointCloud& cloud);
 
