@@ -5,6 +5,9 @@
 #   scripts/setup.sh --deps     install only
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# ccache keys on paths relative to the checkout, so a fresh clone elsewhere (CI) reuses the
+# objects of earlier builds.
+export CCACHE_BASEDIR="$root" CCACHE_NOHASHDIR=1
 deps_only=0
 [[ "${1:-}" == "--deps" ]] && deps_only=1
 sudo_cmd=""

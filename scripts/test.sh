@@ -7,6 +7,9 @@
 # Set STIPPLE_SKIP_ASAN=1 to run only the first part.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# ccache keys on paths relative to the checkout, so a fresh clone elsewhere (CI) reuses the
+# objects of earlier builds.
+export CCACHE_BASEDIR="$root" CCACHE_NOHASHDIR=1
 cd "$root"
 jobs=$(nproc)
 werror="${CI:+ON}"

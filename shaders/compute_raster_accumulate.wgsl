@@ -8,21 +8,16 @@
 @group(0) @binding(6) var<storage, read> depth_buffer: array<u32>;
 @group(0) @binding(7) var<storage, read_write> accum: array<atomic<u32>>;
 
+// The geometry passes count batches; accumulation does not.
+fn count_batch(b: GpuBatch, bits: u32, skipped: bool) {}
 
 @compute @workgroup_size(128)
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-  if (group.x >= params.batch_count) {
-    return;
-  }
-  let b = batches[group.x];
-  if (lid == 0u) {
-    var skipped = false;
-    batch_bits = classify(params, b, &skipped);
-  }
-  let bits = workgroupUniformLoad(&batch_bits);
+  let bits = batch_prologue(group.x, lid);
   if (bits == 0u) {
     return;
   }
+  let b = batches[group.x];
   for (var i = lid; i < b.count; i += WORKGROUP) {
     let index = b.first + i;
     let pr = project(params, load_position(b, bits, index));

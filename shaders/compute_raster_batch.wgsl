@@ -11,6 +11,24 @@
 
 var<workgroup> batch_bits: u32;
 
+// How every geometry pass starts: thread 0 classifies the workgroup's batch (frustum, LOD,
+// precision) and reports it to count_batch(), which the including shader defines (counters, or
+// nothing); then every thread gets the precision in bits, 0 when the batch is culled or skipped
+// (or past the last batch). Call it from uniform control flow.
+fn batch_prologue(group: u32, lid: u32) -> u32 {
+  if (group >= params.batch_count) {
+    return 0u;
+  }
+  if (lid == 0u) {
+    let b = batches[group];
+    var skipped = false;
+    let bits = classify(params, b, &skipped);
+    batch_bits = bits;
+    count_batch(b, bits, skipped);
+  }
+  return workgroupUniformLoad(&batch_bits);
+}
+
 // Point `index` of batch `b` relative to the camera, from 10, 20 or 30 bits per axis.
 fn load_position(b: GpuBatch, bits: u32, index: u32) -> vec3<f32> {
   let c = coarse[index];

@@ -9,8 +9,8 @@
 
 #include <spdlog/spdlog.h>
 
-#include "core/error.hpp"
-#include "io/las.hpp"
+#include "stipple/core/error.hpp"
+#include "stipple/io/las.hpp"
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   spdlog::set_level(spdlog::level::off);  // warnings about odd headers would flood the output

@@ -7,10 +7,10 @@
 
 #include <spdlog/spdlog.h>
 
-#include "core/error.hpp"
-#include "io/glb_points.hpp"
-#include "io/pnts.hpp"
-#include "io/subtree.hpp"
+#include "stipple/core/error.hpp"
+#include "stipple/io/glb_points.hpp"
+#include "stipple/io/pnts.hpp"
+#include "stipple/io/subtree.hpp"
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   spdlog::set_level(spdlog::level::off);

@@ -1,0 +1,25 @@
+#pragma once
+// The command-line flags of the point pipeline (PointRenderSettings), shared by `stipple render`
+// and `stipple view` so that both accept the same options with the same meaning.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "stipple/pointcloud/point_renderer.hpp"
+
+namespace stipple::app {
+
+// Registers --color, --constant-color, --elevation-range, --intensity-range, --point-size,
+// --point-size-mode, --size-scale, --clod-k, --splat, --blend-depth, --no-edl, --edl-radius,
+// --edl-strength, --background on `cmd`; parsed values land in `settings` (which must outlive
+// the parse). Malformed lists ("r,g,b") throw CLI::ValidationError naming the flag.
+void add_point_render_options(CLI::App* cmd, pc::PointRenderSettings& settings);
+
+// "1,2,3" -> {1, 2, 3}; throws stipple::Error naming `what` unless exactly `expected` finite
+// numbers.
+
+std::vector<double> parse_numbers(const std::string& text, size_t expected, const char* what);
+
+}  // namespace stipple::app

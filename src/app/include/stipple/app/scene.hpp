@@ -1,0 +1,46 @@
+#pragma once
+// The one place that picks the scene plugin for `stipple render` and `stipple view`: one 3D
+// Tiles tileset (a tileset.json path or an http(s) URL) is streamed by tiles3d::TilesetPlugin;
+// LAS/LAZ/COPC files, or no input at all (the built-in scene), are read by
+// pc::PointCloudPlugin. Both give the same main-world contract (pc::SceneInfo,
+// pc::PointDrawSettings), so what follows in either command works over both.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "stipple/pointcloud/point_renderer.hpp"
+
+namespace stipple {
+class Engine;
+}
+
+namespace stipple::app {
+
+enum class Renderer { Billboard, Compute };
+
+struct SceneOptions {
+  std::vector<std::string> inputs;  // empty: the built-in scene
+  pc::PointRenderSettings render;
+  Renderer renderer = Renderer::Billboard;
+  bool hqs = false;               // compute renderer: high-quality shading
+  uint64_t budget = 0;            // point clouds: at most this many points (nearest chunks)
+  size_t chunk_points = 1 << 20;  // point clouds: chunk size (finer chunks, finer budget)
+  uint64_t scene_points = 1'000'000;
+  uint32_t seed = 1;
+  double max_sse = 16.0;     // tilesets: refine while a tile's screen-space error exceeds this
+  uint64_t memory_mb = 512;  // tilesets: resident tile memory budget
+};
+
+// Whether `inputs` name one tileset (streamed) rather than point-cloud files.
+bool is_tileset_scene(const SceneOptions& options);
+
+// Adds the scene plugin for `options` to `engine`; throws stipple::Error for what the chosen
+// path cannot do (the compute renderer does not draw tilesets yet).
+void add_scene_plugin(Engine& engine, const SceneOptions& options);
+
+// --renderer, --hqs, --max-sse and --memory-mb, the same for `render` and `view`.
+void add_scene_options(CLI::App* cmd, SceneOptions& options);
+
+}  // namespace stipple::app

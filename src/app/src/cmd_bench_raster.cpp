@@ -1,0 +1,344 @@
+// `stipple bench raster`: the compute rasterizer against the billboard path on the built-in
+// scene (seed 001, Tables 1-2). For each size N the scene is generated (deterministic, in
+// parallel, quantized per batch while generating), uploaded once, and every variant renders the
+// same views: GPU ms per frame from timestamp queries (sum of the frame's passes, median over
+// frames), points per second, batch counters, and the bytes of point data loaded per second
+// against a measured buffer-to-buffer copy bandwidth.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "stipple/app/commands.hpp"
+#include "stipple/core/atomic_file.hpp"
+#include "stipple/core/error.hpp"
+#include "stipple/core/stats.hpp"
+#include "stipple/core/thread_pool.hpp"
+#include "stipple/io/procedural.hpp"
+#include "stipple/math/camera.hpp"
+#include "stipple/pointcloud/batches.hpp"
+#include "stipple/pointcloud/compute_raster.hpp"
+#include "stipple/pointcloud/point_renderer.hpp"
+#include "stipple/renderer/gpu.hpp"
+#include "stipple/renderer/gpu_timer.hpp"
+#include "stipple/renderer/render_graph.hpp"
+
+namespace stipple::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+struct RasterArgs {
+  std::vector<uint64_t> points = {100'000'000};
+  uint32_t width = 2560, height = 1140;
+  uint32_t frames = 10, warmup = 3;
+  std::string backend;
+  std::string order = "morton";
+  std::string json;
+  uint32_t copy_mb = 1024;
+  bool billboard = true;
+  uint32_t seed = 1;
+};
+
+// A buffer-to-buffer copy between two empty compute passes whose timestamps bracket it.
+double copy_bandwidth_gbs(gpu::Context& ctx, uint64_t bytes) {
+  bytes = std::min<uint64_t>(bytes, ctx.limits.maxBufferSize) & ~uint64_t(255);
+  auto src = gpu::create_buffer(ctx, bytes, WGPUBufferUsage_CopySrc, "copy-src");
+  auto dst = gpu::create_buffer(ctx, bytes, WGPUBufferUsage_CopyDst, "copy-dst");
+  gpu::PassTimer timer = gpu::create_pass_timer(ctx, 1);
+  if (!timer.enabled) return 0.0;
+  std::vector<double> ms;
+  for (int rep = 0; rep < 6; ++rep) {
+    WGPUCommandEncoderDescriptor enc_desc = WGPU_COMMAND_ENCODER_DESCRIPTOR_INIT;
+    gpu::CommandEncoder encoder(wgpuDeviceCreateCommandEncoder(ctx.device.get(), &enc_desc));
+    WGPUPassTimestampWrites storage;
+    for (int half = 0; half < 2; ++half) {
+      if (half == 1)
+        wgpuCommandEncoderCopyBufferToBuffer(encoder.get(), src.get(), 0, dst.get(), 0, bytes);
+      WGPUPassTimestampWrites writes = *gpu::pass_timestamps(timer, 0, storage);
+      // The first pass writes the begin stamp, the second the end stamp: the copy between.
+      if (half == 0) writes.endOfPassWriteIndex = WGPU_QUERY_SET_INDEX_UNDEFINED;
+      if (half == 1) writes.beginningOfPassWriteIndex = WGPU_QUERY_SET_INDEX_UNDEFINED;
+      WGPUComputePassDescriptor desc = WGPU_COMPUTE_PASS_DESCRIPTOR_INIT;
+      desc.timestampWrites = &writes;
+      gpu::ComputePassEncoder pass(wgpuCommandEncoderBeginComputePass(encoder.get(), &desc));
+      wgpuComputePassEncoderEnd(pass.get());
+    }
+    gpu::resolve_pass_timer(timer, encoder.get());
+    WGPUCommandBufferDescriptor cb_desc = WGPU_COMMAND_BUFFER_DESCRIPTOR_INIT;
+    gpu::CommandBuffer commands(wgpuCommandEncoderFinish(encoder.get(), &cb_desc));
+    WGPUCommandBuffer raw = commands.get();
+    wgpuQueueSubmit(ctx.queue.get(), 1, &raw);
+    auto t = gpu::read_pass_times(ctx, timer);
+    if (rep > 0 && !t.empty()) ms.push_back(t[0]);  // the first run warms up
+  }
+  ctx.check("copy bandwidth");
+  double m = median(ms);
+  return m > 0 ? double(bytes) / (m * 1e-3) * 1e-9 : 0.0;
+}
+
+// Billboard vertices decoded from the same quantized points, one chunk per ~1M points.
+pc::GpuPointCloud upload_billboards(gpu::Context& ctx, const pc::BatchedCloud& cloud,
+                                    ThreadPool& pool) {
+  pc::GpuPointCloud out;
+  std::vector<pc::PointChunk::Vertex> vertices;
+  size_t b = 0;
+  while (b < cloud.batches.size()) {
+    size_t e = b;
+    uint64_t count = 0;
+    while (e < cloud.batches.size() && count < (1u << 20)) count += cloud.batches[e++].count;
+    glm::dvec3 origin = cloud.batches[b].min;
+    uint64_t base = cloud.batches[b].first;
+    vertices.resize(count);
+    pool.parallel_for(e - b, 8, [&](size_t lo, size_t hi) {
+      for (size_t k = b + lo; k < b + hi; ++k) {
+        const pc::Batch& batch = cloud.batches[k];
+        for (uint64_t i = batch.first; i < batch.first + batch.count; ++i) {
+          glm::dvec3 p = pc::dequantize({cloud.coarse[i], cloud.medium[i], cloud.fine[i]}, 30,
+                                        batch.min, batch.size) -
+                         origin;
+          vertices[i - base] = {float(p.x), float(p.y), float(p.z), cloud.color[i], 0u};
+        }
+      }
+    });
+    pc::PointChunk chunk;
+    chunk.origin = origin;
+    chunk.vertices = std::move(vertices);
+    pc::upload_chunk(ctx, out, chunk);
+    vertices = std::move(chunk.vertices);
+    if (out.chunks.size() % 256 == 0) ctx.wait_idle();  // bound the staging memory
+    b = e;
+  }
+  pc::finish_upload(ctx, out);
+  out.attributes.has_rgb = true;
+  ctx.wait_idle();
+  ctx.check("uploading billboards");
+  return out;
+}
+
+struct View {
+  std::string name;
+  Camera camera;
+};
+
+std::vector<View> bench_views(const Aabb& world, double aspect) {
+  std::vector<View> views;
+  views.push_back({"overview", frame_box(world, aspect, 30.0, 40.0, 50.0)});
+  // Low over the town looking across it: most batches behind or beside the camera, the rest
+  // spanning near (large, precise) to far (tiny).
+  glm::dvec3 c = y_up_to_z_up(world.center()), s = y_up_to_z_up(world.size());
+  double span = std::max(std::abs(s.x), std::abs(s.y));
+  Camera close;
+  close.fov_y = glm::radians(60.0);
+  close.look_at(z_up_to_y_up({c.x - span * 0.05, c.y - span * 0.05, c.z + 20.0}),
+                z_up_to_y_up({c.x + span * 0.2, c.y + span * 0.1, c.z - 30.0}));
+  close.near_plane = 0.5;
+  views.push_back({"closeup", close});
+  return views;
+}
+
+void run_raster_bench(const RasterArgs& args) {
+  gpu::ContextOptions options;
+  options.backend = args.backend;
+  options.optional_features = pc::compute_raster_features();
+  auto ctx = gpu::create_context(options);
+  if (!ctx->has_feature(WGPUFeatureName_TimestampQuery))
+    fail("bench raster needs timestamp queries, which this adapter lacks");
+  const bool has64 = pc::has_visibility64(*ctx);
+  std::printf("%s on %s (%s): %s\n", ctx->description.backend.c_str(),
+              ctx->description.device.c_str(), ctx->description.graphics_api.c_str(),
+              has64 ? "64-bit visibility buffer" : "no 64-bit atomics: 32-bit two-pass fallback");
+  double copy_gbs = copy_bandwidth_gbs(*ctx, uint64_t(args.copy_mb) << 20);
+  std::printf("buffer copy: %.1f GB/s copied (%.1f GB/s read + write)\n", copy_gbs, 2 * copy_gbs);
+
+  nlohmann::json out;
+  out["backend"] = ctx->description.backend;
+  out["adapter"] = ctx->description.device;
+  out["width"] = args.width;
+  out["height"] = args.height;
+  out["frames"] = args.frames;
+  out["visibility64"] = has64;
+  out["copy_gb_per_s"] = copy_gbs;
+  out["runs"] = nlohmann::json::array();
+
+  const WGPUTextureFormat format = WGPUTextureFormat_RGBA8Unorm;
+  gpu::Texture color = gpu::create_texture_2d(*ctx, args.width, args.height, format,
+                                              WGPUTextureUsage_RenderAttachment, "bench-color");
+  gpu::TextureView view = gpu::create_view(color);
+  ThreadPool pool;
+
+  std::printf("\n%-6s %-9s %-17s %9s %9s %8s %15s %13s %19s %6s %7s %5s\n", "Mpts", "view",
+              "variant", "frame ms", "geom ms", "Gpts/s", "batches pr/rend", "pts rendered",
+              "batches 10/20/30b", "B/pt", "GB/s", "%copy");
+  for (uint64_t n : args.points) {
+    io::SceneParams scene;
+    scene.point_count = n;
+    scene.seed = args.seed;
+    auto t0 = Clock::now();
+    pc::BatchedCloud cloud = pc::generate_batched_scene(scene, pc::parse_spatial_order(args.order),
+                                                        pc::kBatchPoints, true);
+    double gen_s = std::chrono::duration<double>(Clock::now() - t0).count();
+    t0 = Clock::now();
+    pc::GpuBatchedCloud raster_cloud = pc::upload_batched_cloud(*ctx, cloud);
+    double upload_s = std::chrono::duration<double>(Clock::now() - t0).count();
+    std::printf(
+        "# %llu points: generated in %.1f s, %zu batches, %zu segments, %.2f GB on the "
+        "GPU (uploaded in %.1f s)\n",
+        static_cast<unsigned long long>(n), gen_s, cloud.batches.size(),
+        raster_cloud.segments.size(), double(raster_cloud.bytes) * 1e-9, upload_s);
+    pc::GpuPointCloud billboards;
+    if (args.billboard) billboards = upload_billboards(*ctx, cloud, pool);
+
+    auto raster64 = pc::create_compute_raster_pipeline(*ctx, format);
+    pc::ComputeRasterPipeline fallback;
+    if (has64) fallback = pc::create_compute_raster_pipeline(*ctx, format, true);
+    auto point_pipelines = pc::create_point_pipelines(*ctx, format);
+
+    struct Variant {
+      std::string name;
+      pc::ComputeRasterPipeline* pipeline;  // null: billboards
+      pc::ComputeRasterOptions options;
+    };
+    std::vector<Variant> variants;
+    pc::ComputeRasterOptions basic, adaptive, hqs;
+    basic.force_bits = 30;  // every coordinate bit loaded, as without adaptive precision
+    hqs.hqs = true;
+    variants.push_back({"compute-basic", &raster64, basic});
+    variants.push_back({"compute-precision", &raster64, adaptive});
+    variants.push_back({"compute-hqs", &raster64, hqs});
+    if (has64) variants.push_back({"compute-fallback32", &fallback, adaptive});
+    if (args.billboard) variants.push_back({"billboard-1px", nullptr, {}});
+
+    for (const View& v : bench_views(cloud.world_bounds, double(args.width) / args.height)) {
+      for (const Variant& variant : variants) {
+        gpu::TransientPool transients;
+        gpu::PassTimer timer;
+        std::vector<double> frame_ms, geom_ms;
+        // 1-pixel depth-tested points, the billboard path's cheapest configuration.
+        pc::PointRenderSettings style;
+        style.point_size = 1.0f;
+        style.round = false;
+        style.splat = pc::SplatMode::Naive;
+        style.edl = false;
+        style.color = pc::ColorMode::Rgb;
+        for (uint32_t f = 0; f < args.warmup + args.frames; ++f) {
+          gpu::RenderGraph graph;
+          graph.import_texture("color", color.get(), view.get(),
+                               {args.width, args.height, format, WGPUTextureUsage_RenderAttachment},
+                               gpu::Access::Writable);
+          if (variant.pipeline)
+            pc::add_compute_raster_passes(graph, *variant.pipeline, raster_cloud, v.camera,
+                                          variant.options, args.width, args.height);
+          else
+            pc::add_point_cloud_passes(graph, point_pipelines, billboards, v.camera, style,
+                                       args.width, args.height);
+          graph.compile();
+          if (f == 0) timer = gpu::create_pass_timer(*ctx, graph.plan().timed_passes);
+          graph.execute(*ctx, transients, &timer);
+          auto times = graph.read_pass_times(*ctx, timer);
+          if (f < args.warmup) continue;
+          double total = 0;
+          for (const auto& [name, ms] : times) total += ms;
+          frame_ms.push_back(total);
+          geom_ms.push_back(times.count("raster-depth") ? times["raster-depth"] : times["points"]);
+        }
+        ctx->check("bench frame");
+        double ms = median(frame_ms), geom = median(geom_ms);
+        nlohmann::json run;
+        run["points"] = n;
+        run["view"] = v.name;
+        run["variant"] = variant.name;
+        run["frame_gpu_ms"] = ms;
+        run["geometry_gpu_ms"] = geom;
+        run["frame_gpu_ms_all"] = frame_ms;
+        run["points_per_second"] = ms > 0 ? double(n) / (ms * 1e-3) : 0.0;
+        run["generate_s"] = gen_s;
+        char batches[32] = "-", rendered[32] = "-", bits[40] = "-", bpp[16] = "-", gbs[16] = "-",
+             pct[16] = "-";
+        if (variant.pipeline) {
+          pc::RasterCounters c = pc::read_raster_counters(*ctx, *variant.pipeline);
+          // Bytes of point data the passes load: coordinate words by precision in the geometry
+          // pass; the accumulation pass (HQS, fallback) loads them again plus a colour each.
+          // The resolve reads one colour per pixel (negligible).
+          double coords = 4.0 * double(c.points_by_bits[0]) + 8.0 * double(c.points_by_bits[1]) +
+                          12.0 * double(c.points_by_bits[2]);
+          bool second = variant.options.hqs || !variant.pipeline->visibility64;
+          double loaded = coords + (second ? coords + 4.0 * double(c.points_rendered) : 0.0);
+          double per_point = c.points_rendered ? loaded / double(c.points_rendered) : 0.0;
+          double rate = ms > 0 ? loaded / (ms * 1e-3) * 1e-9 : 0.0;
+          std::snprintf(batches, sizeof batches, "%u/%u", c.batches_processed, c.batches_rendered);
+          std::snprintf(rendered, sizeof rendered, "%.1fM", double(c.points_rendered) * 1e-6);
+          std::snprintf(bits, sizeof bits, "%u/%u/%u", c.batches_by_bits[0], c.batches_by_bits[1],
+                        c.batches_by_bits[2]);
+          std::snprintf(bpp, sizeof bpp, "%.1f", per_point);
+          std::snprintf(gbs, sizeof gbs, "%.1f", rate);
+          if (copy_gbs > 0) std::snprintf(pct, sizeof pct, "%.0f", 100.0 * rate / (2 * copy_gbs));
+          run["batches_processed"] = c.batches_processed;
+          run["batches_rendered"] = c.batches_rendered;
+          run["batches_culled"] = c.batches_culled;
+          run["points_rendered"] = c.points_rendered;
+          run["batches_by_bits"] = {c.batches_by_bits[0], c.batches_by_bits[1],
+                                    c.batches_by_bits[2]};
+          run["points_by_bits"] = {c.points_by_bits[0], c.points_by_bits[1], c.points_by_bits[2]};
+          run["bytes_per_point_loaded"] = per_point;
+          run["loaded_gb_per_s"] = rate;
+          run["visibility64"] = variant.pipeline->visibility64;
+        } else {
+          double rate = ms > 0 ? 16.0 * double(n) / (ms * 1e-3) * 1e-9 : 0.0;
+          std::snprintf(bpp, sizeof bpp, "16.0");
+          std::snprintf(gbs, sizeof gbs, "%.1f", rate);
+          if (copy_gbs > 0) std::snprintf(pct, sizeof pct, "%.0f", 100.0 * rate / (2 * copy_gbs));
+          run["bytes_per_point_loaded"] = 16.0;
+          run["loaded_gb_per_s"] = rate;
+        }
+        out["runs"].push_back(run);
+        std::printf("%-6.0f %-9s %-17s %9.3f %9.3f %8.2f %15s %13s %19s %6s %7s %5s\n",
+                    double(n) * 1e-6, v.name.c_str(), variant.name.c_str(), ms, geom,
+                    ms > 0 ? double(n) / (ms * 1e-3) * 1e-9 : 0.0, batches, rendered, bits, bpp,
+                    gbs, pct);
+        std::fflush(stdout);
+      }
+    }
+  }
+  std::printf(
+      "\nframe ms: all passes of a frame (clear, geometry, resolve/accumulate, display), "
+      "median of %u; Gpts/s: all N points per frame time; GB/s: point data loaded per "
+      "second; %%copy: against the copy's read + write traffic\n",
+      args.frames);
+  if (!args.json.empty()) {
+    write_file_atomically(args.json, out.dump(2) + "\n");
+  }
+}
+
+}  // namespace
+
+void add_bench_raster_command(CLI::App& bench) {
+  auto args = std::make_shared<RasterArgs>();
+  auto* cmd = bench.add_subcommand(
+      "raster", "Compute rasterizer vs billboards on the built-in scene (seed 001, Tables 1-2)");
+  cmd->add_option("--points", args->points, "Scene sizes in points (several allowed)")
+      ->capture_default_str();
+  cmd->add_option("--width", args->width, "Image width")->capture_default_str();
+  cmd->add_option("--height", args->height, "Image height")->capture_default_str();
+  cmd->add_option("--frames", args->frames, "Timed frames per variant")
+      ->check(CLI::Range(1u, 10000u))
+      ->capture_default_str();
+  cmd->add_option("--warmup", args->warmup, "Untimed frames first")->capture_default_str();
+  cmd->add_option("--backend", args->backend, "WebGPU implementation: dawn or wgpu")
+      ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
+  cmd->add_option("--order", args->order, "Point order inside batches: morton, hilbert, none")
+      ->check(CLI::IsMember({"morton", "hilbert", "none"}))
+      ->capture_default_str();
+  cmd->add_option("--copy-mb", args->copy_mb, "Size of the bandwidth copy in MiB")
+      ->capture_default_str();
+  cmd->add_flag("!--no-billboard", args->billboard, "Skip the billboard variant (saves 16 B/pt)");
+  cmd->add_option("--seed", args->seed, "Scene seed")->capture_default_str();
+  cmd->add_option("--json", args->json, "Write the results as JSON");
+  cmd->callback([args] { run_raster_bench(*args); });
+}
+
+}  // namespace stipple::app

@@ -1,0 +1,246 @@
+// `stipple info`: what a point-cloud file holds, or what the GPU offers.
+#include <algorithm>
+#include <cstdio>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "stipple/app/commands.hpp"
+#include "stipple/core/error.hpp"
+#include "stipple/io/fetch.hpp"
+#include "stipple/io/las.hpp"
+#include "stipple/io/tileset.hpp"
+#include "stipple/renderer/gpu.hpp"
+#include "stipple/tiles3d/render_load.hpp"
+
+namespace stipple::app {
+namespace {
+
+struct InfoArgs {
+  std::vector<std::string> inputs;
+  bool gpu = false;
+  bool json = false;
+  bool vlrs = false;
+  std::string backend;
+  size_t max_tiles = 1'000'000;  // tilesets: the whole tree is read up to this many tiles
+};
+
+nlohmann::json header_json(const io::LasHeader& h) {
+  nlohmann::json j;
+  j["file"] = h.path;
+  j["version"] = fmt::format("{}.{}", h.version_major, h.version_minor);
+  j["point_format"] = h.point_format;
+  j["point_record_length"] = h.point_record_length;
+  j["compressed"] = h.compressed;
+  j["copc"] = h.copc;
+  j["point_count"] = h.point_count;
+  j["points_by_return"] = h.points_by_return;
+  j["scale"] = {h.scale.x, h.scale.y, h.scale.z};
+  j["offset"] = {h.offset.x, h.offset.y, h.offset.z};
+  j["min"] = {h.min.x, h.min.y, h.min.z};
+  j["max"] = {h.max.x, h.max.y, h.max.z};
+  j["system_identifier"] = h.system_identifier;
+  j["generating_software"] = h.generating_software;
+  j["creation"] = {{"day", h.creation_day}, {"year", h.creation_year}};
+  j["rgb_bits"] = h.has_rgb ? h.rgb_bits : 0;
+  j["has_gps_time"] = h.has_gps_time;
+  j["has_nir"] = h.has_nir;
+  j["extra_bytes_per_point"] = h.extra_bytes_per_point;
+  nlohmann::json crs;
+  crs["epsg"] = h.crs.epsg;
+  crs["vertical_epsg"] = h.crs.vertical_epsg;
+  crs["name"] = h.crs.name;
+  crs["geographic"] = h.crs.geographic;
+  crs["wkt"] = h.crs.wkt;
+  crs["geokeys"] = h.crs.geokeys.size();
+  j["crs"] = crs;
+  nlohmann::json vlrs = nlohmann::json::array();
+  for (const auto& v : h.vlrs)
+    vlrs.push_back({{"user_id", v.user_id},
+                    {"record_id", v.record_id},
+                    {"description", v.description},
+                    {"bytes", v.data.size()}});
+  for (const auto& v : h.evlrs)
+    vlrs.push_back({{"user_id", v.user_id},
+                    {"record_id", v.record_id},
+                    {"description", v.description},
+                    {"bytes", v.data.size()},
+                    {"extended", true}});
+  j["vlrs"] = vlrs;
+  nlohmann::json extra = nlohmann::json::array();
+  for (const auto& e : h.extra_bytes)
+    extra.push_back({{"name", e.name}, {"data_type", e.data_type}, {"bytes", e.size}});
+  j["extra_bytes"] = extra;
+  return j;
+}
+
+void print_header(const io::LasHeader& h, bool vlrs) {
+  std::printf("%s\n", h.path.c_str());
+  std::printf("  LAS %u.%u, point format %u (%u bytes/point)%s%s\n", h.version_major,
+              h.version_minor, h.point_format, h.point_record_length,
+              h.compressed ? ", LAZ compressed" : "", h.copc ? ", COPC" : "");
+  std::printf("  points:     %llu\n", static_cast<unsigned long long>(h.point_count));
+  std::printf("  bounds min: %.6f %.6f %.6f\n", h.min.x, h.min.y, h.min.z);
+  std::printf("  bounds max: %.6f %.6f %.6f\n", h.max.x, h.max.y, h.max.z);
+  std::printf("  scale:      %g %g %g\n", h.scale.x, h.scale.y, h.scale.z);
+  std::printf("  offset:     %.6f %.6f %.6f\n", h.offset.x, h.offset.y, h.offset.z);
+  std::printf("  CRS:        %s\n", h.crs.empty() ? "none" : h.crs.describe().c_str());
+  std::string attrs = "intensity, returns, classification, scan angle";
+  if (h.has_gps_time) attrs += ", GPS time";
+  if (h.has_rgb) attrs += fmt::format(", RGB ({}-bit values)", h.rgb_bits);
+  if (h.has_nir) attrs += ", NIR";
+  if (h.has_waveform) attrs += ", waveform packets";
+  if (h.extra_bytes_per_point) attrs += fmt::format(", {} extra bytes", h.extra_bytes_per_point);
+  std::printf("  attributes: %s\n", attrs.c_str());
+  std::printf("  software:   %s / %s\n", h.system_identifier.c_str(),
+              h.generating_software.c_str());
+  std::printf("  VLRs:       %zu, EVLRs: %zu\n", h.vlrs.size(), h.evlrs.size());
+  if (vlrs) {
+    for (const auto& v : h.vlrs)
+      std::printf("    VLR  %-16s %5u %7zu bytes  %s\n", v.user_id.c_str(), v.record_id,
+                  v.data.size(), v.description.c_str());
+    for (const auto& v : h.evlrs)
+      std::printf("    EVLR %-16s %5u %7zu bytes  %s\n", v.user_id.c_str(), v.record_id,
+                  v.data.size(), v.description.c_str());
+  }
+}
+
+void print_gpu(const std::string& backend, bool json) {
+  gpu::ContextOptions options;
+  options.backend = backend;
+  auto ctx = gpu::create_context(options);
+  const auto& d = ctx->description;
+  if (json) {
+    nlohmann::json j;
+    j["backend"] = d.backend;
+    j["adapter"] = {
+        {"vendor", d.vendor},           {"architecture", d.architecture}, {"device", d.device},
+        {"description", d.description}, {"graphics_api", d.graphics_api}, {"type", d.adapter_type},
+        {"vendor_id", d.vendor_id},     {"device_id", d.device_id}};
+    for (const auto& [name, value] : gpu::limit_list(ctx->limits)) j["limits"][name] = value;
+    for (auto f : ctx->adapter_features) j["features"].push_back(gpu::feature_name(f));
+    std::printf("%s\n", j.dump(2).c_str());
+    return;
+  }
+  std::printf("WebGPU implementation: %s\n", d.backend.c_str());
+  std::printf("adapter:  %s (%s)\n", d.device.c_str(), d.adapter_type.c_str());
+  std::printf("  vendor %s (0x%04x), device 0x%04x, architecture %s\n", d.vendor.c_str(),
+              d.vendor_id, d.device_id, d.architecture.c_str());
+  std::printf("  graphics API: %s; driver: %s\n", d.graphics_api.c_str(), d.description.c_str());
+  std::printf("limits (device created with the adapter's own):\n");
+  for (const auto& [name, value] : gpu::limit_list(ctx->limits))
+    std::printf("  %-44s %llu\n", name.c_str(), static_cast<unsigned long long>(value));
+  std::printf("features (%zu):\n", ctx->adapter_features.size());
+  for (auto f : ctx->adapter_features)
+    std::printf("  %s%s\n", gpu::feature_name(f).c_str(), ctx->has_feature(f) ? " (enabled)" : "");
+}
+
+// A tileset's shape: depth, tiles, content types, declared points (from loading every content
+// would be too much for a summary: points are counted for the tiles a framing camera selects).
+// Streaming reads external tilesets and subtrees only where a view needs them; a summary wants
+// the whole tree, so it reads every one, up to `max_tiles` tiles.
+nlohmann::json tileset_json(const std::string& uri, size_t max_tiles) {
+  io::TilesetOptions options;
+  io::Tileset ts = io::load_tileset(uri, options);
+  const bool complete = io::expand_all(
+      ts, [&](const std::string& u) { return io::fetch(u, options.fetch); }, options, max_tiles);
+  if (!complete)
+    ts.warnings.push_back(
+        fmt::format("the tile tree was read up to {} tiles (--max-tiles): "
+                    "external tilesets or subtrees below them are not counted",
+                    ts.tiles.size()));
+  nlohmann::json j;
+  j["complete"] = complete;
+  j["uri"] = uri;
+  j["version"] = ts.version;
+  j["geometric_error"] = ts.geometric_error;
+  j["tiles"] = ts.tiles.size();
+  uint32_t depth = 0;
+  size_t contents = 0;
+  std::map<std::string, size_t> types;
+  for (const auto& t : ts.tiles) {
+    depth = std::max(depth, t.depth);
+    contents += t.contents.size();
+    for (const auto& c : t.contents) {
+      std::string p = io::uri_path(c);
+      size_t dot = p.rfind('.');
+      types[dot == std::string::npos ? "?" : p.substr(dot + 1)]++;
+    }
+  }
+  j["depth"] = depth + 1;
+  j["contents"] = contents;
+  j["content_types"] = types;
+  j["external_tilesets"] = ts.external_tilesets;
+  j["implicit"] = ts.implicit;
+  j["subtrees"] = ts.subtrees;
+  j["warnings"] = ts.warnings;
+  j["errors"] = ts.errors;
+  auto loaded = tiles3d::load_tileset_for_render(uri, {});
+  j["points_selected_for_default_view"] = loaded.cloud.point_count;
+  j["tiles_selected_for_default_view"] = loaded.tiles_rendered;
+  j["tile_errors"] = loaded.errors.size();
+  return j;
+}
+
+void run_info(const InfoArgs& args) {
+  if (args.gpu) {
+    print_gpu(args.backend, args.json);
+    if (args.inputs.empty()) return;
+  }
+  if (args.inputs.empty()) fail("info: give a file, or --gpu");
+  nlohmann::json all = nlohmann::json::array();
+  for (const auto& input : args.inputs) {
+    if (tiles3d::is_tileset_input(input)) {
+      auto j = tileset_json(input, args.max_tiles);
+      if (args.json) {
+        all.push_back(j);
+      } else {
+        std::printf("%s\n  3D Tiles %s: %zu tiles, depth %u, %zu contents %s\n", input.c_str(),
+                    j["version"].get<std::string>().c_str(), j["tiles"].get<size_t>(),
+                    j["depth"].get<uint32_t>(), j["contents"].get<size_t>(),
+                    j["content_types"].dump().c_str());
+        std::printf("  external tilesets: %u, implicit: %s, subtrees: %u, errors: %zu\n",
+                    j["external_tilesets"].get<uint32_t>(),
+                    j["implicit"].get<bool>() ? "yes" : "no", j["subtrees"].get<uint32_t>(),
+                    j["errors"].size());
+        if (!j["complete"].get<bool>())
+          std::printf("  the tree was read up to %zu tiles (--max-tiles): counts are partial\n",
+                      j["tiles"].get<size_t>());
+        std::printf(
+            "  points in the default view: %llu (%u tiles)\n",
+            static_cast<unsigned long long>(j["points_selected_for_default_view"].get<uint64_t>()),
+            j["tiles_selected_for_default_view"].get<uint32_t>());
+      }
+      continue;
+    }
+    // Opening a reader also looks at the first points (8-bit colour detection).
+    io::LasHeader header = io::LasReader(input).header();
+    if (args.json)
+      all.push_back(header_json(header));
+    else
+      print_header(header, args.vlrs);
+  }
+  if (args.json) std::printf("%s\n", (all.size() == 1 ? all[0] : all).dump(2).c_str());
+}
+
+}  // namespace
+
+void add_info_command(CLI::App& cli) {
+  auto args = std::make_shared<InfoArgs>();
+  auto* cmd = cli.add_subcommand("info", "Describe LAS/LAZ/COPC files, or the GPU (--gpu)");
+  cmd->add_option("inputs", args->inputs, "Input files, tileset.json paths or URLs");
+  cmd->add_flag("--gpu", args->gpu, "Print the WebGPU adapter, backend, limits and features");
+  cmd->add_flag("--json", args->json, "Print JSON instead of text");
+  cmd->add_flag("--vlrs", args->vlrs, "List every VLR and EVLR");
+  cmd->add_option("--max-tiles", args->max_tiles,
+                  "Tilesets: read external tilesets and subtrees up to this many tiles")
+      ->check(CLI::Range(size_t(1), size_t(1) << 32))
+      ->capture_default_str();
+  cmd->add_option("--backend", args->backend, "WebGPU implementation for --gpu: dawn or wgpu")
+      ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
+  cmd->callback([args] { run_info(*args); });
+}
+
+}  // namespace stipple::app

@@ -1,0 +1,125 @@
+// `stipple view`: an interactive window over LAS/LAZ/COPC files (or the built-in scene),
+// composed from engine plugins with the render world on its own thread.
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "stipple/app/commands.hpp"
+#include "stipple/app/point_options.hpp"
+#include "stipple/app/scene.hpp"
+#include "stipple/core/error.hpp"
+#include "stipple/engine/plugins.hpp"
+#include "stipple/engine/render_plugins.hpp"
+#include "stipple/io/fetch.hpp"
+#include "stipple/math/camera.hpp"
+#include "stipple/pointcloud/compute_raster.hpp"
+#include "stipple/pointcloud/point_cloud_plugin.hpp"
+#include "stipple/pointcloud/point_renderer.hpp"
+#include "stipple/viewer/camera_controller.hpp"
+#include "stipple/viewer/ui_plugin.hpp"
+#include "stipple/viewer/viewer_plugin.hpp"
+#include "stipple/viewer/window_plugins.hpp"
+
+namespace stipple::app {
+namespace {
+
+struct ViewArgs {
+  SceneOptions scene;  // inputs, point settings, renderer, budgets
+  uint32_t width = 1280, height = 720;
+  std::string backend;
+  uint64_t frames = 0;
+  std::string screenshot;
+  bool no_vsync = false;
+  bool no_ui = false;
+  bool single_thread = false;
+};
+
+void run_view(const ViewArgs& args) {
+  Engine engine;
+  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
+  if (!args.single_thread) engine.add_plugin(PipelinedRenderingPlugin{});
+  GpuPlugin gpu;
+  gpu.options.backend = args.backend;
+  if (args.scene.renderer == Renderer::Compute)
+    gpu.options.optional_features = pc::compute_raster_features();
+  engine.add_plugin(std::move(gpu));
+  engine.add_plugin(RenderGraphPlugin{});
+  const bool tileset = is_tileset_scene(args.scene);
+  SceneOptions options = args.scene;
+  options.chunk_points = 1 << 16;  // a finer point budget
+  add_scene_plugin(engine, options);
+  platform::WindowOptions window;
+  window.title = "stipple";
+  window.width = args.width;
+  window.height = args.height;
+  engine.add_plugin(viewer::WindowPlugin{window});
+  engine.add_plugin(viewer::InputPlugin{});
+  engine.add_plugin(viewer::SurfaceTargetPlugin{!args.no_vsync});
+  if (!args.no_ui) engine.add_plugin(viewer::UiPlugin{});
+  engine.add_plugin(viewer::CameraControllerPlugin{});
+  engine.add_plugin(viewer::ViewerPlugin{args.frames, args.screenshot});
+
+  // The scene: a camera framing the data, and a point size that closes the gaps from there.
+  Registry& main = engine.main();
+  const auto& scene = main.resource<pc::SceneInfo>();
+  glm::uvec2 size = main.resource<viewer::WindowState>().framebuffer_size;
+  double aspect = size.y > 0 ? double(size.x) / size.y : double(args.width) / args.height;
+  Camera camera = frame_box(scene.world_bounds, aspect);
+  main.emplace<Camera>(main.create(), camera);
+  auto& settings = main.resource<pc::PointDrawSettings>();
+  main.view<pc::PointCloudData>().each([&](const pc::PointCloudData& data) {
+    if (settings.render.point_size <= 0)
+      settings.render.point_size = pc::auto_point_size(*data.cloud, camera, std::max(size.y, 1u));
+  });
+  // Streamed tiles arrive later: a size that suits the default screen-space error.
+  if (tileset && settings.render.point_size <= 0) settings.render.point_size = 2.0f;
+  engine.run();
+  engine.shutdown();
+}
+
+}  // namespace
+
+void add_view_command(CLI::App& cli) {
+  auto args = std::make_shared<ViewArgs>();
+  auto* cmd = cli.add_subcommand(
+      "view",
+      "Open a window over point clouds (LAS/LAZ/COPC); with no input, the built-in scene.\n"
+      "Orbit: left drag rotate, right/middle drag pan, wheel zoom to the cursor. Fly (F/Tab): "
+      "WASD, Q/E, shift, drag to look. Double click: focus. P screenshot, V vsync, F1 panel, "
+      "Esc quit");
+  cmd->add_option("inputs", args->scene.inputs,
+                  "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json path or URL "
+                  "(streamed while the camera moves)")
+      ->check([](const std::string& in) {
+        return io::is_url(in) ? std::string() : CLI::ExistingFile(in);
+      });
+  cmd->add_option("--width", args->width, "Window width")
+      ->check(CLI::Range(64u, 16384u))
+      ->capture_default_str();
+  cmd->add_option("--height", args->height, "Window height")
+      ->check(CLI::Range(64u, 16384u))
+      ->capture_default_str();
+  cmd->add_option("--backend", args->backend,
+                  "WebGPU implementation: dawn or wgpu (default: $STIPPLE_BACKEND, else wgpu)")
+      ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
+  add_point_render_options(cmd, args->scene.render);
+  cmd->add_option("--budget", args->scene.budget,
+                  "Draw at most this many points, nearest chunks first (0: all)")
+      ->capture_default_str();
+  cmd->add_option("--scene-points", args->scene.scene_points, "Built-in scene: number of points")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))
+      ->capture_default_str();
+  cmd->add_option("--frames", args->frames, "Exit after this many frames (0: when closed)")
+      ->capture_default_str();
+  cmd->add_option("--screenshot", args->screenshot,
+                  "With --frames: write the last frame (as shown, panel included) to this PNG");
+  cmd->add_flag("--no-vsync", args->no_vsync, "Start with vsync off (Immediate or Mailbox)");
+  cmd->add_flag("--no-ui", args->no_ui, "Leave out the ImGui panel (UiPlugin)");
+  add_scene_options(cmd, args->scene);
+  cmd->add_flag("--single-thread", args->single_thread,
+                "Run the render world on the main thread (no PipelinedRenderingPlugin)");
+  cmd->callback([args] { run_view(*args); });
+}
+
+}  // namespace stipple::app

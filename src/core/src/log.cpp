@@ -1,0 +1,27 @@
+#include "stipple/core/log.hpp"
+
+#include <cstdlib>
+
+#include <spdlog/sinks/stdout_color_sinks.h>
+
+namespace stipple {
+
+void init_logging(int verbosity) {
+  static auto logger = [] {
+    auto l = spdlog::stderr_color_mt("stipple");
+    spdlog::set_default_logger(l);
+    spdlog::set_pattern("%^[%l]%$ %v");
+    return l;
+  }();
+  constexpr spdlog::level::level_enum levels[] = {spdlog::level::warn, spdlog::level::info,
+                                                  spdlog::level::debug, spdlog::level::trace};
+  logger->set_level(levels[verbosity < 0 ? 0 : verbosity > 3 ? 3 : verbosity]);
+}
+
+void assert_failed(const char* expr, const char* file, int line, const char* message) {
+  spdlog::critical("assertion failed: {} ({}:{}): {}", expr, file, line, message);
+  spdlog::shutdown();
+  std::abort();
+}
+
+}  // namespace stipple

@@ -1,0 +1,134 @@
+#pragma once
+// The renderer's built-in plugins: GpuPlugin (the WebGPU device), RenderGraphPlugin (the frame's
+// render graph, built in Prepare..PreDraw and executed in Draw) and HeadlessTargetPlugin (an
+// offscreen colour target and PNG output). A window's surface target lives in the app
+// (SurfaceTargetPlugin): any plugin that fills RenderTarget in Prepare can replace the headless
+// one.
+//
+// Render-world frame, in stage order:
+//   Prepare   targets set RenderTarget (acquire a surface texture, or an offscreen texture);
+//             uploads; then (registered in finish(), so after every plugin's Prepare systems)
+//             RenderGraphPlugin starts a new graph with the target imported as "color"
+//   Queue     scene passes (points)
+//   PreDraw   overlay passes (UI)
+//   Draw      RenderGraphPlugin compiles and executes the graph, then serves capture requests
+//   PostDraw  targets present; then (finish()) pass times are read back into RenderStats
+#include <array>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "stipple/engine/registry.hpp"
+#include "stipple/renderer/gpu.hpp"
+#include "stipple/renderer/gpu_timer.hpp"
+#include "stipple/renderer/render_graph.hpp"
+
+namespace stipple {
+
+class Engine;
+
+// Render-world resource (and main-world, for plugins that create GPU objects before the first
+// frame, e.g. a window surface): the device, shared by both worlds.
+struct GpuContext {
+  std::shared_ptr<gpu::Context> context;
+  gpu::Context& operator*() const { return *context; }
+  gpu::Context* operator->() const { return context.get(); }
+};
+
+struct GpuPlugin {
+  static constexpr std::string_view name = "GpuPlugin";
+  static constexpr std::string_view description =
+      "WebGPU device (wgpu-native or Dawn) as GpuContext in both worlds";
+  gpu::ContextOptions options;
+  void build(Engine& engine);
+};
+
+// Render-world resource: where this frame is drawn. Set by a target plugin in Prepare; invalid
+// (no texture) when there is nothing to draw into (a minimised window), and then no graph runs.
+struct RenderTarget {
+  WGPUTexture texture = nullptr;  // not owned
+  WGPUTextureView view = nullptr;
+  uint32_t width = 0, height = 0;
+  WGPUTextureFormat format = WGPUTextureFormat_RGBA8Unorm;
+  WGPUTextureUsage usage = WGPUTextureUsage_RenderAttachment;
+  bool valid() const { return texture && view && width > 0 && height > 0; }
+};
+
+// Render-world resource: this frame's graph and what lives across frames.
+struct FrameGraph {
+  gpu::RenderGraph graph;
+  bool active = false;  // a target was available: passes may be added and the graph runs
+  gpu::TransientPool pool;
+  gpu::PassTimer timer;
+  bool timer_created = false;
+  bool timing = true;
+  std::string dump_path;  // write the first frame's graph as DOT
+  bool executed = false;  // this frame
+};
+
+// Render-world resource: statistics of the frames drawn so far.
+struct RenderStats {
+  uint64_t frames = 0;                                 // frames whose graph ran
+  std::map<std::string, double> pass_ms;               // last frame, GPU milliseconds
+  std::map<std::string, std::vector<double>> history;  // per pass, every frame (keep_history)
+  std::vector<double> gpu_ms, wall_ms;                 // per frame
+  bool keep_history = false;
+  uint64_t points_drawn = 0;  // last frame (set by the point passes)
+  uint64_t points_total = 0;
+  double frame_start = 0;  // internal: when Prepare began
+};
+
+// Main-world resource: the render world's statistics as of the last Extract (for UIs; in
+// pipelined mode they describe the frame before the one just extracted).
+struct RenderStatsSnapshot {
+  uint64_t frames = 0;
+  std::map<std::string, double> pass_ms;
+  uint64_t points_drawn = 0, points_total = 0;
+};
+
+// Main-world resource: PNG files to write from the next drawn frame (the target as presented,
+// overlays included). Moved to the render world in Extract.
+struct ScreenshotRequests {
+  std::vector<std::string> paths;
+};
+// Render-world resource: every drawn frame handed to a callback (tests compare frames).
+struct FrameCapture {
+  std::function<void(uint64_t frame, const gpu::Image&)> on_frame;
+};
+
+struct RenderGraphPlugin {
+  static constexpr std::string_view name = "RenderGraphPlugin";
+  static constexpr std::string_view description =
+      "per-frame render graph with the target imported as \"color\"; pass timing, screenshots";
+  static constexpr std::array<std::string_view, 1> dependencies{"GpuPlugin"};
+  bool timing = true;
+  bool keep_history = false;  // every frame's pass times in RenderStats::history
+  std::string dump_graph;     // DOT of the first frame's graph
+  void build(Engine& engine);
+  void finish(Engine& engine);
+};
+
+// An offscreen RGBA8 target. With `output` set, the frame `write_frame` (0-based; default the
+// last of `frames`) is written there as PNG; with `frames` > 0 the app exits after that many.
+struct HeadlessTargetPlugin {
+  static constexpr std::string_view name = "HeadlessTargetPlugin";
+  static constexpr std::string_view description =
+      "offscreen colour target; PNG of a chosen frame; exit after N frames";
+  static constexpr std::array<std::string_view, 2> dependencies{"GpuPlugin", "RenderGraphPlugin"};
+  uint32_t width = 1280, height = 720;
+  std::string output;
+  uint64_t frames = 1;  // 0: run until something else asks to exit
+  void build(Engine& engine);
+};
+
+// Render-world resource of HeadlessTargetPlugin: the texture it owns.
+struct HeadlessTarget {
+  gpu::Texture color;
+  gpu::TextureView view;
+  uint32_t width = 0, height = 0;
+};
+
+}  // namespace stipple

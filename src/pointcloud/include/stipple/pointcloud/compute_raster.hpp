@@ -1,0 +1,83 @@
+#pragma once
+// The compute rasterizer (seed 001; WebGPU pipeline of seed 003, chapter 4): batches of points
+// in compute workgroups, adaptive coordinate precision, a visibility buffer resolved with 64-bit
+// atomicMin where wgpu-native has ShaderInt64AtomicMinMax, else the 32-bit two-pass fallback
+// (depth atomicMin, colour atomicAdd within a depth tolerance), optional high-quality shading.
+//
+// Passes on the render graph: raster-clear, raster-depth (the geometry pass), then
+// raster-accumulate (HQS or fallback) or raster-resolve (64-bit), and raster-display, a
+// full-screen render pass into the imported colour target (any colour format).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "stipple/math/camera.hpp"
+#include "stipple/pointcloud/batches.hpp"
+#include "stipple/renderer/gpu.hpp"
+#include "stipple/renderer/render_graph.hpp"
+
+namespace stipple::pc {
+
+// Batched points on the GPU. Clouds larger than one storage binding (or with more batches than
+// one dispatch allows) are split at batch boundaries into segments, each with its own buffers
+// and dispatches; point indices in the visibility buffer are global (segment base + local).
+struct GpuBatchedCloud {
+  struct Segment {
+    gpu::Buffer coarse, medium, fine, color;
+    gpu::Buffer batches;  // GpuBatch per batch, rewritten each frame (camera-relative offsets)
+    gpu::Buffer params;   // uniforms, rewritten each frame
+    uint32_t first_batch = 0, batch_count = 0;
+    uint64_t first_point = 0;
+    uint32_t point_count = 0;
+  };
+  std::vector<Segment> segments;
+  std::vector<Batch> batches;  // CPU copy: double boxes for the per-frame offsets
+  uint64_t point_count = 0;
+  uint64_t bytes = 0;  // GPU memory of the point and batch buffers
+};
+
+struct UploadOptions {
+  uint64_t max_segment_points = 0;  // 0: from the device limits (tests force small segments)
+};
+GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& cloud,
+                                     const UploadOptions& options = {});
+
+// Whether this context can run the 64-bit visibility buffer (STIPPLE_RASTER_FALLBACK=1 says no).
+bool has_visibility64(const gpu::Context& ctx);
+// Features to request for it (pass to gpu::ContextOptions::optional_features).
+std::vector<WGPUFeatureName> compute_raster_features();
+
+struct ComputeRasterPipeline {
+  bool visibility64 = false;
+  WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
+  gpu::ComputePipeline clear, raster64, depth32, accumulate, resolve;
+  gpu::RenderPipeline display;
+  gpu::Buffer counters;  // RasterCounters as u32s, cleared each frame
+};
+
+struct ComputeRasterOptions {
+  bool hqs = false;             // high-quality shading (seed 001, section 3.6)
+  float hqs_tolerance = 0.01f;  // relative depth range that is averaged
+  int force_bits = 0;           // debug: 10, 20 or 30 for every batch
+  float min_batch_px = 0.0f;    // LOD: skip batches smaller than this on screen
+  glm::vec3 background{0.07f, 0.08f, 0.1f};
+};
+
+// `force_fallback` runs the 32-bit two-pass pipeline even where 64-bit atomics exist.
+ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
+                                                     WGPUTextureFormat color_format,
+                                                     bool force_fallback = false);
+
+// Adds the rasterizer's passes, drawing into `color_target` (an imported writable texture of
+// width x height). The cloud and pipeline must outlive the graph's execution.
+void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& pipeline,
+                               GpuBatchedCloud& cloud, const Camera& camera,
+                               const ComputeRasterOptions& options, uint32_t width, uint32_t height,
+                               const std::string& color_target = "color");
+
+// The counters of the last executed frame (blocks until it is done).
+RasterCounters read_raster_counters(gpu::Context& ctx, const ComputeRasterPipeline& pipeline);
+
+}  // namespace stipple::pc

@@ -1,0 +1,100 @@
+#pragma once
+// Points prepared for rendering: chunks of float positions relative to a double-precision
+// chunk origin (world space, Y-up) with the attributes the colour modes need, packed. Colouring
+// happens in the shader (point_renderer), so switching colour modes needs no re-upload.
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include "stipple/io/point_batch.hpp"
+#include "stipple/math/aabb.hpp"
+
+namespace stipple::io {
+struct SceneParams;
+}
+
+namespace stipple::pc {
+
+enum class ColorMode { Auto, Rgb, Intensity, Classification, Elevation, ReturnNumber, Constant };
+ColorMode parse_color_mode(const std::string& name);
+const char* color_mode_name(ColorMode mode);
+
+struct PointChunk {
+  glm::dvec3 origin{0.0};  // world space (Y-up), double
+  // 20 bytes, read by the shaders as `Point` (vertex pulling from a storage buffer).
+  struct Vertex {
+    float x, y, z;  // relative to origin
+    uint32_t rgba;  // 8-bit RGB from the source (R in the low byte); 0 when it has none
+    // intensity (bits 0-15), classification (16-23), return number (24-27), number of
+    // returns (28-31).
+    uint32_t attributes;
+  };
+  std::vector<Vertex> vertices;
+  Aabb bounds;           // world space (Y-up), of this chunk's points
+  double spacing = 0.0;  // mean point spacing (metres) over the chunk's horizontal extent
+};
+static_assert(sizeof(PointChunk::Vertex) == 20);
+
+uint32_t pack_attributes(uint16_t intensity, uint8_t classification, uint8_t return_number,
+                         uint8_t number_of_returns);
+
+struct CloudAttributes {
+  // Which attributes the source has (a colour mode without its attribute falls back).
+  bool has_rgb = false, has_intensity = false, has_classification = false, has_returns = false;
+  // 2nd and 98th percentiles over a sample of the points (finish_cloud): default ramp ranges
+  // that ignore outliers (a stray bird or a pit would otherwise flatten the ramp).
+  glm::dvec2 elevation_percentiles{0.0, 1.0};  // source Z (= world Y)
+  glm::dvec2 intensity_percentiles{0.0, 255.0};
+};
+
+struct PointCloud {
+  std::vector<PointChunk> chunks;
+  Aabb source_bounds;  // in the source frame (Z-up: projected CRS units, or local ENU metres)
+  Aabb world_bounds;   // Y-up world space
+  uint64_t point_count = 0;
+  bool geographic = false;  // source was lon/lat: positions converted to a local ENU frame
+  CloudAttributes attributes;
+};
+
+// The colour mode actually shown for this cloud: Auto becomes RGB when the source has colours,
+// elevation otherwise; modes whose attribute is missing fall back to elevation.
+ColorMode resolve_color_mode(const CloudAttributes& attributes, ColorMode requested);
+
+struct LoadOptions {
+  size_t chunk_points = 1 << 20;
+  bool progress = true;
+};
+
+// Reads LAS/LAZ/COPC files chunk by chunk into one cloud. Throws stipple::Error.
+PointCloud load_point_cloud(const std::vector<std::filesystem::path>& files,
+                            const LoadOptions& options);
+
+// Appends a batch of source points (Z-up) to the cloud. `rgb_bits` says whether the batch's
+// RGB holds 8- or 16-bit values. Call finish_cloud() after the last batch.
+void append_batch(PointCloud& cloud, const io::PointBatch& batch, int rgb_bits,
+                  size_t chunk_points);
+// The colour ramps' default range: the `lo` and `hi` quantiles (0.02 and 0.98) of sampled values,
+// each sample standing for `weights[i]` points (none: one each); a flat sample gets a unit
+// range. LAS input and streamed tiles both take their ramps from it.
+glm::dvec2 percentile_range(std::vector<double> values, std::vector<double> weights, double lo,
+                            double hi);
+
+// Computes per-chunk spacing and the cloud's attribute percentiles.
+void finish_cloud(PointCloud& cloud);
+
+// The built-in procedural scene as a cloud, generated in parallel (1M-point chunks).
+
+// Chunks hold at most chunk_points points (capped at 1M, the generation block).
+PointCloud generate_scene_cloud(const io::SceneParams& params, size_t chunk_points = 1 << 20);
+
+uint32_t pack_rgba(uint8_t r, uint8_t g, uint8_t b, uint8_t a = 255);
+
+// ASPRS LAS 1.4 standard classes 0-18 (then "unclassified" up to 31), RGB in 0..1.
+const std::array<glm::vec3, 32>& classification_palette();
+
+}  // namespace stipple::pc

@@ -1,0 +1,299 @@
+#include "stipple/pointcloud/batches.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <mutex>
+
+#include "stipple/core/error.hpp"
+#include "stipple/core/log.hpp"
+#include "stipple/core/progress.hpp"
+#include "stipple/core/thread_pool.hpp"
+#include "stipple/io/point_batch.hpp"
+#include "stipple/io/procedural.hpp"
+#include "stipple/pointcloud/point_cloud.hpp"
+
+namespace stipple::pc {
+
+SpatialOrder parse_spatial_order(const std::string& name) {
+  if (name == "none") return SpatialOrder::None;
+  if (name == "morton") return SpatialOrder::Morton;
+  if (name == "hilbert") return SpatialOrder::Hilbert;
+  fail("unknown point order '{}' (none, morton, hilbert)", name);
+}
+
+namespace {
+uint64_t spread3(uint32_t v) {
+  // Spreads the low 21 bits so that bit i lands at bit 3i.
+  uint64_t x = v & 0x1fffff;
+  x = (x | x << 32) & 0x1f00000000ffffull;
+  x = (x | x << 16) & 0x1f0000ff0000ffull;
+  x = (x | x << 8) & 0x100f00f00f00f00full;
+  x = (x | x << 4) & 0x10c30c30c30c30c3ull;
+  x = (x | x << 2) & 0x1249249249249249ull;
+  return x;
+}
+}  // namespace
+
+uint64_t morton_key(uint32_t x, uint32_t y, uint32_t z) {
+  return spread3(x) << 2 | spread3(y) << 1 | spread3(z);
+}
+
+uint64_t hilbert_key(uint32_t x, uint32_t y, uint32_t z) {
+  // Skilling's transform (AIP Conf. Proc. 707, 2004): rotate/reflect the coordinates into the
+  // "transposed" Hilbert index, whose interleaved bits are the key.
+  constexpr int kBits = 21;
+  uint32_t X[3] = {x & 0x1fffff, y & 0x1fffff, z & 0x1fffff};
+  for (uint32_t q = 1u << (kBits - 1); q > 1; q >>= 1) {
+    uint32_t p = q - 1;
+    for (int i = 0; i < 3; ++i) {
+      if (X[i] & q) {
+        X[0] ^= p;  // invert the low bits of the first axis
+      } else {
+        uint32_t t = (X[0] ^ X[i]) & p;  // exchange the low bits of axis 0 and i
+        X[0] ^= t;
+        X[i] ^= t;
+      }
+    }
+  }
+  for (int i = 1; i < 3; ++i) X[i] ^= X[i - 1];  // Gray encode
+  uint32_t t = 0;
+  for (uint32_t q = 1u << (kBits - 1); q > 1; q >>= 1)
+    if (X[2] & q) t ^= q - 1;
+  for (uint32_t& v : X) v ^= t;
+  return morton_key(X[0], X[1], X[2]);
+}
+
+QuantizedPoint quantize(const glm::dvec3& p, const glm::dvec3& min, const glm::dvec3& size) {
+  constexpr double kScale = double(1u << 30);
+  uint32_t q[3];
+  for (int a = 0; a < 3; ++a) {
+    double t = size[a] > 0 ? (p[a] - min[a]) / size[a] : 0.0;
+    q[a] = uint32_t(std::clamp(std::floor(t * kScale), 0.0, kScale - 1));
+  }
+  auto part = [&](int shift) {
+    return (q[0] >> shift & 1023u) | (q[1] >> shift & 1023u) << 10 | (q[2] >> shift & 1023u) << 20;
+  };
+  return {part(20), part(10), part(0)};
+}
+
+glm::dvec3 dequantize(const QuantizedPoint& q, int bits, const glm::dvec3& min,
+                      const glm::dvec3& size) {
+  glm::dvec3 p;
+  for (int a = 0; a < 3; ++a) {
+    int s = 10 * a;
+    double v = double(q.coarse >> s & 1023u) * 0x1p-10;
+    if (bits >= 20) v += double(q.medium >> s & 1023u) * 0x1p-20;
+    if (bits >= 30) v += double(q.fine >> s & 1023u) * 0x1p-30;
+    v += bits >= 30 ? 0x1p-31 : bits >= 20 ? 0x1p-21 : 0x1p-11;  // cell centre
+    p[a] = min[a] + v * size[a];
+  }
+  return p;
+}
+
+namespace {
+
+// Sorts and batches one run of points, writing batches and per-point words at the given places.
+// Returns the number of batches written (ceil(n / batch_points)).
+size_t batch_into(std::span<const glm::dvec3> positions, std::span<const uint32_t> colors,
+                  SpatialOrder order, uint32_t batch_points, uint64_t first_index, Batch* batches,
+                  uint32_t* coarse, uint32_t* medium, uint32_t* fine, uint32_t* color) {
+  const size_t n = positions.size();
+  std::vector<uint32_t> perm(n);
+  for (size_t i = 0; i < n; ++i) perm[i] = uint32_t(i);
+  if (order != SpatialOrder::None && n > 1) {
+    Aabb box;
+    for (const auto& p : positions) box.extend(p);
+    double extent = std::max({box.size().x, box.size().y, box.size().z, 1e-9});
+    double scale = double((1u << 21) - 1) / extent;  // a cube: cells are cubes
+    std::vector<std::pair<uint64_t, uint32_t>> keyed(n);
+    for (size_t i = 0; i < n; ++i) {
+      glm::dvec3 c = (positions[i] - box.min) * scale;
+      uint32_t x = uint32_t(c.x), y = uint32_t(c.y), z = uint32_t(c.z);
+      keyed[i] = {order == SpatialOrder::Morton ? morton_key(x, y, z) : hilbert_key(x, y, z),
+                  uint32_t(i)};
+    }
+    std::sort(keyed.begin(), keyed.end());
+    for (size_t i = 0; i < n; ++i) perm[i] = keyed[i].second;
+  }
+  size_t count = 0;
+  for (size_t b = 0; b < n; b += batch_points, ++count) {
+    size_t e = std::min(n, b + batch_points);
+    Aabb box;
+    for (size_t i = b; i < e; ++i) box.extend(positions[perm[i]]);
+    Batch& batch = batches[count];
+    batch.min = box.min;
+    batch.size = box.size();
+    batch.first = first_index + b;
+    batch.count = uint32_t(e - b);
+    for (size_t i = b; i < e; ++i) {
+      QuantizedPoint q = quantize(positions[perm[i]], batch.min, batch.size);
+      coarse[i] = q.coarse;
+      medium[i] = q.medium;
+      fine[i] = q.fine;
+      color[i] = colors[perm[i]];
+    }
+  }
+  return count;
+}
+
+void finish_bounds(BatchedCloud& out) {
+  out.world_bounds = Aabb{};
+  for (const Batch& b : out.batches) {
+    out.world_bounds.extend(b.min);
+    out.world_bounds.extend(b.min + b.size);
+  }
+}
+
+}  // namespace
+
+void append_batches(BatchedCloud& out, std::span<const glm::dvec3> positions,
+                    std::span<const uint32_t> colors, SpatialOrder order, uint32_t batch_points) {
+  STIPPLE_ASSERT(positions.size() == colors.size(), "one colour per point");
+  STIPPLE_ASSERT(batch_points > 0, "batches hold points");
+  size_t base = out.color.size(), n = positions.size();
+  size_t batch_base = out.batches.size();
+  out.batches.resize(batch_base + (n + batch_points - 1) / batch_points);
+  out.coarse.resize(base + n);
+  out.medium.resize(base + n);
+  out.fine.resize(base + n);
+  out.color.resize(base + n);
+  batch_into(positions, colors, order, batch_points, base, out.batches.data() + batch_base,
+             out.coarse.data() + base, out.medium.data() + base, out.fine.data() + base,
+             out.color.data() + base);
+  finish_bounds(out);
+}
+
+BatchedCloud build_batches(const PointCloud& cloud, SpatialOrder order, uint32_t batch_points) {
+  std::vector<glm::dvec3> positions;
+  std::vector<uint32_t> colors;
+  positions.reserve(cloud.point_count);
+  colors.reserve(cloud.point_count);
+  for (const PointChunk& chunk : cloud.chunks)
+    for (const auto& v : chunk.vertices) {
+      positions.push_back(chunk.origin + glm::dvec3(v.x, v.y, v.z));
+      colors.push_back(v.rgba);
+    }
+  BatchedCloud out;
+  append_batches(out, positions, colors, order, batch_points);
+  return out;
+}
+
+BatchedCloud generate_batched_scene(const io::SceneParams& params, SpatialOrder order,
+                                    uint32_t batch_points, bool progress) {
+  // The scene is scanned line by line, so a run of consecutive indices is a strip across it;
+  // runs of ~128 sqrt(N) points make strips about as tall as a batch is wide.
+  uint64_t n = params.point_count;
+  uint64_t piece =
+      std::clamp<uint64_t>(uint64_t(128.0 * std::sqrt(double(n))) / batch_points * batch_points,
+                           uint64_t(batch_points) * 64, uint64_t(batch_points) * 800);
+  uint64_t pieces = (n + piece - 1) / piece;
+  uint64_t batches_per_piece = piece / batch_points;
+  BatchedCloud out;
+  out.coarse.resize(n);
+  out.medium.resize(n);
+  out.fine.resize(n);
+  out.color.resize(n);
+  out.batches.resize((n + batch_points - 1) / batch_points);
+
+  Progress bar(progress ? "generating" : "", progress ? n : 0);
+  std::mutex bar_mutex;
+  ThreadPool pool;
+  pool.parallel_for(pieces, 1, [&](size_t begin, size_t end) {
+    io::PointBatch generated;
+    std::vector<glm::dvec3> positions;
+    std::vector<uint32_t> colors;
+    for (size_t p = begin; p < end; ++p) {
+      uint64_t first = p * piece, count = std::min(piece, n - first);
+      generated.clear();
+      io::generate_scene(params, first, count, generated);
+      positions.resize(count);
+      colors.resize(count);
+      for (size_t i = 0; i < count; ++i) {
+        positions[i] = z_up_to_y_up(generated.positions[i]);
+        auto c = generated.rgb[i];
+        colors[i] = pack_rgba(uint8_t(c.r), uint8_t(c.g), uint8_t(c.b));
+      }
+      batch_into(positions, colors, order, batch_points, first,
+                 out.batches.data() + p * batches_per_piece, out.coarse.data() + first,
+                 out.medium.data() + first, out.fine.data() + first, out.color.data() + first);
+      if (progress) {
+        std::lock_guard lock(bar_mutex);
+        bar.advance(count);
+      }
+    }
+  });
+  if (progress) bar.finish();
+  finish_bounds(out);
+  return out;
+}
+
+// ---- culling ---------------------------------------------------------------------------------
+
+int precision_bits(float size_px) {
+  // Half the quantization grid in pixels (seed 001, section 3.3): no new holes from rounding.
+  return size_px < 500.0f ? 10 : size_px < 500'000.0f ? 20 : 30;
+}
+
+BatchVisibility classify_batch(const glm::mat4& view_proj, const glm::vec3& offset,
+                               const glm::vec3& size, const CullSettings& settings) {
+  BatchVisibility v;
+  bool out[5] = {true, true, true, true, true};  // left, right, bottom, top, near
+  bool behind = false;
+  glm::vec2 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+  for (int i = 0; i < 8; ++i) {
+    glm::vec3 corner =
+        offset + size * glm::vec3(float(i & 1), float(i >> 1 & 1), float(i >> 2 & 1));
+    glm::vec4 c = view_proj * glm::vec4(corner, 1.0f);
+    out[0] = out[0] && c.x < -c.w;
+    out[1] = out[1] && c.x > c.w;
+    out[2] = out[2] && c.y < -c.w;
+    out[3] = out[3] && c.y > c.w;
+    out[4] = out[4] && c.z > c.w;  // reverse Z: nearer than the near plane
+    if (c.z > c.w || c.w <= 0.0f) {
+      behind = true;
+    } else {
+      glm::vec2 s(c.x / c.w * 0.5f + 0.5f, 0.5f - c.y / c.w * 0.5f);
+      s *= glm::vec2(float(settings.width), float(settings.height));
+      lo = glm::min(lo, s);
+      hi = glm::max(hi, s);
+    }
+  }
+  if (out[0] || out[1] || out[2] || out[3] || out[4]) return v;
+  v.size_px = behind ? std::numeric_limits<float>::infinity() : std::max(hi.x - lo.x, hi.y - lo.y);
+  if (v.size_px < settings.min_batch_px) {
+    v.lod_skip = true;
+    return v;
+  }
+  v.visible = true;
+  v.bits = settings.force_bits ? settings.force_bits : precision_bits(v.size_px);
+  return v;
+}
+
+glm::mat4 raster_view_proj(const Camera& camera, uint32_t width, uint32_t height) {
+  return glm::mat4(camera.projection(double(width) / height) * camera.view_rotation());
+}
+
+RasterCounters reference_counters(const std::vector<Batch>& batches, const Camera& camera,
+                                  const CullSettings& settings) {
+  RasterCounters c;
+  glm::mat4 vp = raster_view_proj(camera, settings.width, settings.height);
+  for (const Batch& b : batches) {
+    ++c.batches_processed;
+    BatchVisibility v =
+        classify_batch(vp, glm::vec3(b.min - camera.position), glm::vec3(b.size), settings);
+    if (v.lod_skip) ++c.batches_lod_skipped;
+    if (!v.visible) {
+      if (!v.lod_skip) ++c.batches_culled;
+      continue;
+    }
+    ++c.batches_rendered;
+    c.points_rendered += b.count;
+    int k = v.bits / 10 - 1;
+    ++c.batches_by_bits[k];
+    c.points_by_bits[k] += b.count;
+  }
+  return c;
+}
+
+}  // namespace stipple::pc

@@ -1,0 +1,348 @@
+#include "stipple/pointcloud/compute_raster.hpp"
+
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+
+#include <webgpu/wgpu.h>
+#include <glm/gtc/type_ptr.hpp>
+
+#include "stipple/core/error.hpp"
+#include "stipple/core/log.hpp"
+#include "stipple/renderer/shader_preprocessor.hpp"
+
+namespace stipple::pc {
+namespace {
+
+// Mirrors Params in compute_raster_common.wgsl.
+struct Params {
+  float view_proj[16];
+  uint32_t width, height;
+  uint32_t segment_base, batch_count;
+  uint32_t force_bits;
+  float min_batch_px;
+  float depth_tolerance;
+  uint32_t depth_stride, depth_word;
+  uint32_t segment_points;
+  uint32_t pad[2];
+  float background[4];
+};
+static_assert(sizeof(Params) == 128);
+
+// Mirrors GpuBatch.
+struct GpuBatch {
+  float offset[3];
+  uint32_t count;
+  float size[3];
+  uint32_t first;
+};
+static_assert(sizeof(GpuBatch) == 32);
+
+constexpr uint32_t kCounterWords = 11;  // see C_* in compute_raster_common.wgsl
+
+// Writes big arrays in slices, letting the queue drain between them, so the implementation's
+// staging memory stays bounded (a whole 4 GB write would stage 4 GB more).
+gpu::Buffer upload_words(gpu::Context& ctx, const uint32_t* data, uint64_t count,
+                         std::string_view label) {
+  uint64_t bytes = std::max<uint64_t>(count * 4, 4);
+  gpu::Buffer buffer = gpu::create_buffer(
+      ctx, bytes, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst | WGPUBufferUsage_CopySrc,
+      label);
+  constexpr uint64_t kSlice = 64ull << 20;
+  uint64_t since_wait = 0;
+  for (uint64_t offset = 0; offset < count * 4; offset += kSlice) {
+    uint64_t n = std::min(kSlice, count * 4 - offset);
+    gpu::write_buffer(ctx, buffer.get(), offset, reinterpret_cast<const uint8_t*>(data) + offset,
+                      n);
+    since_wait += n;
+    if (since_wait >= (1ull << 30)) {
+      ctx.wait_idle();
+      since_wait = 0;
+    }
+  }
+  return buffer;
+}
+
+gpu::ComputePipeline make_compute(gpu::Context& ctx, const char* file) {
+  gpu::ShaderModule shader = gpu::create_shader_from_file(ctx, file);
+  gpu::ComputePipeline pipeline =
+      gpu::create_compute_pipeline(ctx, shader.get(), "main", nullptr, file);
+  ctx.check(file);
+  return pipeline;
+}
+
+}  // namespace
+
+GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& cloud,
+                                     const UploadOptions& options) {
+  GpuBatchedCloud out;
+  out.batches = cloud.batches;
+  out.point_count = cloud.point_count();
+  // One storage binding per array: the segment's points must fit the binding and the buffer
+  // limits (kept at 2 GiB so u32 byte offsets stay safe), its batches one dispatch dimension.
+  uint64_t max_bytes = std::min<uint64_t>(
+      {ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize, 1ull << 31});
+  uint64_t max_points = max_bytes / 4;
+  if (options.max_segment_points) max_points = std::min(max_points, options.max_segment_points);
+  uint32_t max_batches = std::max<uint32_t>(1, ctx.limits.maxComputeWorkgroupsPerDimension);
+  if (out.point_count >= (1ull << 32))
+    fail("the compute rasterizer indexes points with 32 bits: {} points are too many",
+         out.point_count);
+
+  size_t b = 0;
+  while (b < cloud.batches.size()) {
+    GpuBatchedCloud::Segment seg;
+    seg.first_batch = uint32_t(b);
+    seg.first_point = cloud.batches[b].first;
+    uint64_t points = 0;
+    while (b < cloud.batches.size() && seg.batch_count < max_batches &&
+           (points + cloud.batches[b].count <= max_points || seg.batch_count == 0)) {
+      if (cloud.batches[b].first != seg.first_point + points)
+        fail("batches must cover consecutive points (batch {})", b);
+      points += cloud.batches[b].count;
+      ++seg.batch_count;
+      ++b;
+    }
+    if (points > max_points) fail("a batch of {} points exceeds a storage binding", points);
+    seg.point_count = uint32_t(points);
+    const uint64_t f = seg.first_point;
+    seg.coarse = upload_words(ctx, cloud.coarse.data() + f, points, "raster-coarse");
+    seg.medium = upload_words(ctx, cloud.medium.data() + f, points, "raster-medium");
+    seg.fine = upload_words(ctx, cloud.fine.data() + f, points, "raster-fine");
+    seg.color = upload_words(ctx, cloud.color.data() + f, points, "raster-color");
+    seg.batches =
+        gpu::create_buffer(ctx, uint64_t(seg.batch_count) * sizeof(GpuBatch),
+                           WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "raster-batches");
+    seg.params = gpu::create_buffer(
+        ctx, sizeof(Params), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "raster-params");
+    out.bytes += points * 16 + uint64_t(seg.batch_count) * sizeof(GpuBatch);
+    out.segments.push_back(std::move(seg));
+  }
+  ctx.wait_idle();
+  ctx.check("uploading batched points");
+  return out;
+}
+
+std::vector<WGPUFeatureName> compute_raster_features() {
+  return {WGPUFeatureName(WGPUNativeFeature_ShaderInt64),
+          WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax)};
+}
+
+bool has_visibility64(const gpu::Context& ctx) {
+  if (const char* env = std::getenv("STIPPLE_RASTER_FALLBACK"); env && *env && *env != '0')
+    return false;
+  return ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_ShaderInt64)) &&
+         ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax));
+}
+
+ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
+                                                     WGPUTextureFormat color_format,
+                                                     bool force_fallback) {
+  ComputeRasterPipeline p;
+  p.visibility64 = !force_fallback && has_visibility64(ctx);
+  p.color_format = color_format;
+  p.clear = make_compute(ctx, "compute_raster_clear.wgsl");
+  if (p.visibility64) {
+    p.raster64 = make_compute(ctx, "compute_raster64.wgsl");
+    p.resolve = make_compute(ctx, "compute_raster_resolve.wgsl");
+  } else {
+    p.depth32 = make_compute(ctx, "compute_raster_depth32.wgsl");
+  }
+  p.accumulate = make_compute(ctx, "compute_raster_accumulate.wgsl");
+
+  gpu::ShaderModule display = gpu::create_shader_from_file(ctx, "compute_raster_display.wgsl");
+  p.display = gpu::create_fullscreen_pipeline(ctx, {.module = display.get(),
+                                                    .vertex_entry = "vs_main",
+                                                    .fragment_entry = "fs_main",
+                                                    .format = color_format,
+                                                    .label = "raster-display"});
+
+  p.counters = gpu::create_buffer(
+      ctx, kCounterWords * 4 + 4,
+      WGPUBufferUsage_Storage | WGPUBufferUsage_CopySrc | WGPUBufferUsage_CopyDst,
+      "raster-counters");
+  ctx.check("creating the compute rasterizer");
+  STIPPLE_DEBUG("compute rasterizer: {}",
+                p.visibility64 ? "64-bit visibility buffer" : "32-bit two-pass fallback");
+  return p;
+}
+
+void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p,
+                               GpuBatchedCloud& cloud, const Camera& camera,
+                               const ComputeRasterOptions& options, uint32_t width, uint32_t height,
+                               const std::string& color_target) {
+  const bool use64 = p.visibility64;
+  const bool accumulate = options.hqs || !use64;
+  const uint64_t pixels = uint64_t(width) * height;
+  const std::string depth_name = "raster-depth-buffer", accum_name = "raster-accum";
+  const uint32_t groups_x = (width + 15) / 16, groups_y = (height + 15) / 16;
+
+  // Per-frame uniforms and camera-relative batch tables (double subtraction, then float).
+  auto upload_frame = [&cloud, camera, options, width, height, use64](gpu::Context& ctx) {
+    Params params{};
+    glm::mat4 vp = raster_view_proj(camera, width, height);
+    std::memcpy(params.view_proj, glm::value_ptr(vp), sizeof(params.view_proj));
+    params.width = width;
+    params.height = height;
+    params.force_bits = uint32_t(options.force_bits);
+    params.min_batch_px = options.min_batch_px;
+    // Without HQS only the nearest depth itself is kept; a hair of tolerance absorbs rounding
+    // differences between the two passes' compiled code.
+    params.depth_tolerance = options.hqs ? options.hqs_tolerance : 1e-6f;
+    params.depth_stride = use64 ? 2 : 1;
+    params.depth_word = use64 ? 1 : 0;
+    params.background[0] = options.background.r;
+    params.background[1] = options.background.g;
+    params.background[2] = options.background.b;
+    params.background[3] = 1.0f;
+    std::vector<GpuBatch> table;
+    for (auto& seg : cloud.segments) {
+      params.segment_base = uint32_t(seg.first_point);
+      params.batch_count = seg.batch_count;
+      params.segment_points = seg.point_count;
+      gpu::write_buffer(ctx, seg.params.get(), 0, params);
+      table.resize(seg.batch_count);
+      for (uint32_t i = 0; i < seg.batch_count; ++i) {
+        const Batch& b = cloud.batches[seg.first_batch + i];
+        glm::vec3 offset(b.min - camera.position), size(b.size);
+        table[i] = {{offset.x, offset.y, offset.z},
+                    b.count,
+                    {size.x, size.y, size.z},
+                    uint32_t(b.first - seg.first_point)};
+      }
+      if (!table.empty())
+        gpu::write_buffer(ctx, seg.batches.get(), 0, table.data(), table.size() * sizeof(GpuBatch));
+    }
+  };
+
+  graph
+      .add_pass("raster-clear", gpu::PassKind::Compute,
+                [&p, &cloud, upload_frame, depth_name, accum_name, groups_x,
+                 groups_y](gpu::PassContext& pc) {
+                  gpu::Context& ctx = pc.gpu();
+                  upload_frame(ctx);
+                  wgpuCommandEncoderClearBuffer(pc.encoder(), p.counters.get(), 0, WGPU_WHOLE_SIZE);
+                  if (cloud.segments.empty()) return;
+                  auto layout = gpu::bind_group_layout_of(p.clear);
+                  auto group =
+                      gpu::create_bind_group(ctx, layout.get(),
+                                             {gpu::bind_buffer(0, cloud.segments[0].params.get()),
+                                              gpu::bind_buffer(1, pc.buffer(depth_name)),
+                                              gpu::bind_buffer(2, pc.buffer(accum_name))});
+                  auto pass = pc.begin_compute_pass();
+                  gpu::dispatch(pass.get(), p.clear.get(), {group.get()}, groups_x, groups_y);
+                  wgpuComputePassEncoderEnd(pass.get());
+                })
+      .create_buffer(depth_name, {pixels * (use64 ? 8 : 4), WGPUBufferUsage_Storage})
+      .create_buffer(accum_name, {pixels * 16, WGPUBufferUsage_Storage});
+
+  graph
+      .add_pass(
+          "raster-depth", gpu::PassKind::Compute,
+          [&p, &cloud, use64, depth_name](gpu::PassContext& pc) {
+            gpu::Context& ctx = pc.gpu();
+            const gpu::ComputePipeline& pipeline = use64 ? p.raster64 : p.depth32;
+            auto layout = gpu::bind_group_layout_of(pipeline);
+            std::vector<gpu::BindGroup> groups;
+            WGPUBuffer depth = pc.buffer(depth_name);
+            for (auto& seg : cloud.segments) {
+              // 64-bit: the visibility buffer also as 32-bit words (binding 6).
+              std::vector<gpu::Binding> bindings = {
+                  gpu::bind_buffer(0, seg.params.get()), gpu::bind_buffer(1, seg.batches.get()),
+                  gpu::bind_buffer(2, seg.coarse.get()), gpu::bind_buffer(3, seg.medium.get()),
+                  gpu::bind_buffer(4, seg.fine.get()),   gpu::bind_buffer(5, depth),
+                  gpu::bind_buffer(7, p.counters.get())};
+              if (use64) bindings.push_back(gpu::bind_buffer(6, depth));
+              groups.push_back(gpu::create_bind_group(ctx, layout.get(), bindings));
+            }
+            auto pass = pc.begin_compute_pass();
+            for (size_t s = 0; s < cloud.segments.size(); ++s)
+              gpu::dispatch(pass.get(), pipeline.get(), {groups[s].get()},
+                            cloud.segments[s].batch_count);
+            wgpuComputePassEncoderEnd(pass.get());
+          })
+      .write(depth_name);
+
+  if (accumulate) {
+    graph
+        .add_pass(
+            "raster-accumulate", gpu::PassKind::Compute,
+            [&p, &cloud, depth_name, accum_name](gpu::PassContext& pc) {
+              gpu::Context& ctx = pc.gpu();
+              auto layout = gpu::bind_group_layout_of(p.accumulate);
+              std::vector<gpu::BindGroup> groups;
+              for (auto& seg : cloud.segments)
+                groups.push_back(gpu::create_bind_group(
+                    ctx, layout.get(),
+                    {gpu::bind_buffer(0, seg.params.get()), gpu::bind_buffer(1, seg.batches.get()),
+                     gpu::bind_buffer(2, seg.coarse.get()), gpu::bind_buffer(3, seg.medium.get()),
+                     gpu::bind_buffer(4, seg.fine.get()), gpu::bind_buffer(5, seg.color.get()),
+                     gpu::bind_buffer(6, pc.buffer(depth_name)),
+                     gpu::bind_buffer(7, pc.buffer(accum_name))}));
+              auto pass = pc.begin_compute_pass();
+              for (size_t s = 0; s < cloud.segments.size(); ++s)
+                gpu::dispatch(pass.get(), p.accumulate.get(), {groups[s].get()},
+                              cloud.segments[s].batch_count);
+              wgpuComputePassEncoderEnd(pass.get());
+            })
+        .read(depth_name)
+        .write(accum_name);
+  } else {
+    graph
+        .add_pass("raster-resolve", gpu::PassKind::Compute,
+                  [&p, &cloud, depth_name, accum_name, groups_x, groups_y](gpu::PassContext& pc) {
+                    gpu::Context& ctx = pc.gpu();
+                    auto layout = gpu::bind_group_layout_of(p.resolve);
+                    std::vector<gpu::BindGroup> groups;
+                    for (auto& seg : cloud.segments)
+                      groups.push_back(
+                          gpu::create_bind_group(ctx, layout.get(),
+                                                 {gpu::bind_buffer(0, seg.params.get()),
+                                                  gpu::bind_buffer(1, pc.buffer(depth_name)),
+                                                  gpu::bind_buffer(2, seg.color.get()),
+                                                  gpu::bind_buffer(3, pc.buffer(accum_name))}));
+                    auto pass = pc.begin_compute_pass();
+                    for (size_t s = 0; s < cloud.segments.size(); ++s)
+                      gpu::dispatch(pass.get(), p.resolve.get(), {groups[s].get()}, groups_x,
+                                    groups_y);
+                    wgpuComputePassEncoderEnd(pass.get());
+                  })
+        .read(depth_name)
+        .write(accum_name);
+  }
+
+  graph
+      .add_pass("raster-display", gpu::PassKind::Render,
+                [&p, &cloud, accum_name, color_target](gpu::PassContext& pc) {
+                  gpu::Context& ctx = pc.gpu();
+                  auto layout = gpu::bind_group_layout_of(p.display);
+                  if (cloud.segments.empty()) return;
+                  auto group =
+                      gpu::create_bind_group(ctx, layout.get(),
+                                             {gpu::bind_buffer(0, cloud.segments[0].params.get()),
+                                              gpu::bind_buffer(1, pc.buffer(accum_name))});
+                  gpu::draw_fullscreen(pc, pc.view(color_target), p.display.get(), {group.get()},
+                                       WGPUColor{0, 0, 0, 1});
+                })
+      .read(accum_name)
+      .write(color_target);
+}
+
+RasterCounters read_raster_counters(gpu::Context& ctx, const ComputeRasterPipeline& p) {
+  auto bytes = gpu::read_buffer(ctx, p.counters.get(), 0, kCounterWords * 4);
+  uint32_t w[kCounterWords];
+  std::memcpy(w, bytes.data(), sizeof(w));
+  RasterCounters c;
+  c.batches_processed = w[0];
+  c.batches_rendered = w[1];
+  c.batches_culled = w[2];
+  c.batches_lod_skipped = w[3];
+  c.points_rendered = w[4];
+  for (int k = 0; k < 3; ++k) {
+    c.batches_by_bits[k] = w[5 + k];
+    c.points_by_bits[k] = w[8 + k];
+  }
+  return c;
+}
+
+}  // namespace stipple::pc

@@ -1,0 +1,282 @@
+#include "stipple/pointcloud/point_cloud_plugin.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include <glm/geometric.hpp>
+
+#include "stipple/core/error.hpp"
+#include "stipple/core/log.hpp"
+#include "stipple/engine/camera.hpp"
+#include "stipple/engine/engine.hpp"
+#include "stipple/engine/render_plugins.hpp"
+#include "stipple/engine/sync.hpp"
+#include "stipple/engine/transform.hpp"
+#include "stipple/pointcloud/compute_raster.hpp"
+#include "stipple/pointcloud/picking.hpp"
+#include "stipple/pointcloud/point_renderer.hpp"
+
+namespace stipple::pc {
+namespace {
+
+// Render-world component on the cloud's twin.
+struct RenderPointCloud {
+  std::shared_ptr<const pc::PointCloud> cloud;
+  std::vector<Aabb> bounds;  // per cloud chunk
+  uint64_t generation = 0;
+  glm::dvec3 translation{0.0};  // from the entity's GlobalTransform (rotation/scale unsupported)
+
+  uint64_t uploaded_generation = std::numeric_limits<uint64_t>::max();
+  pc::GpuPointCloud all;  // every non-empty chunk, upload order (drawn ones moved out)
+  std::vector<Aabb> gpu_bounds;
+  std::vector<uint32_t> gpu_counts;
+  // The pass reads this cloud when the graph executes (Draw), so the chunks to draw are moved
+  // into it in Queue and back at the next Queue. Boxed: its address must not move.
+  std::unique_ptr<pc::GpuPointCloud> drawn = std::make_unique<pc::GpuPointCloud>();
+  std::vector<uint32_t> drawn_ids;
+  std::vector<uint32_t> last_ids;  // the previous frame's selection
+  // The compute rasterizer's batches (built on first use), boxed for the same reason.
+  std::unique_ptr<pc::GpuBatchedCloud> batched;
+  uint64_t batched_generation = std::numeric_limits<uint64_t>::max();
+};
+
+// Render-world resource: the pipelines for the current target format.
+struct PointPipelineCache {
+  std::unique_ptr<pc::PointPipelines> pipelines;
+  std::unique_ptr<pc::ComputeRasterPipeline> raster;
+  WGPUTextureFormat format = WGPUTextureFormat_Undefined;
+};
+
+PointCloudData make_data(pc::PointCloud cloud, uint64_t generation) {
+  PointCloudData data;
+  data.chunk_bounds = chunk_bounds(cloud);
+  data.cloud = std::make_shared<const pc::PointCloud>(std::move(cloud));
+  data.generation = generation;
+  return data;
+}
+
+void extract_point_clouds(Registry& main) {
+  Registry& render = *main.resource<RenderWorldRef>();
+  render.insert_resource(main.resource<PointDrawSettings>());
+  main.view<PointCloudData, RenderEntity>().each(
+      [&](Entity e, const PointCloudData& data, const RenderEntity& twin) {
+        auto* r = render.try_get<RenderPointCloud>(twin.entity);
+        if (!r) r = &render.emplace<RenderPointCloud>(twin.entity);
+        if (r->generation != data.generation || !r->cloud) {
+          r->cloud = data.cloud;
+          r->bounds = data.chunk_bounds;
+          r->generation = data.generation;
+        }
+        const auto* global = main.try_get<GlobalTransform>(e);
+        r->translation = global ? global->translation() : glm::dvec3(0.0);
+      });
+}
+
+void upload_point_clouds(Registry& render) {
+  gpu::Context& ctx = *render.resource<GpuContext>();
+  render.view<RenderPointCloud>().each([&](RenderPointCloud& r) {
+    if (!r.cloud || r.uploaded_generation == r.generation) return;
+    r.drawn->chunks.clear();
+    r.drawn_ids.clear();
+    r.all = pc::upload_point_cloud(ctx, *r.cloud);
+    // The drawn subset (point budget) needs its own CLOD argument slots, one per chunk at most.
+    r.drawn->attributes = r.all.attributes;
+    r.drawn->clod_args_stride = r.all.clod_args_stride;
+    r.drawn->clod_args = gpu::create_buffer(
+        ctx, uint64_t(std::max<size_t>(1, r.all.chunks.size())) * r.all.clod_args_stride,
+        WGPUBufferUsage_Storage | WGPUBufferUsage_Indirect | WGPUBufferUsage_CopyDst |
+            WGPUBufferUsage_CopySrc,
+        "clod-args-drawn");
+    // upload_point_cloud skips empty chunks: keep bounds and counts aligned with what it made.
+    r.gpu_bounds.clear();
+    r.gpu_counts.clear();
+    for (size_t i = 0; i < r.cloud->chunks.size(); ++i) {
+      if (r.cloud->chunks[i].vertices.empty()) continue;
+      r.gpu_bounds.push_back(r.bounds[i]);
+      r.gpu_counts.push_back(uint32_t(r.cloud->chunks[i].vertices.size()));
+    }
+    r.uploaded_generation = r.generation;
+  });
+}
+
+// The one call into the point pipeline.
+void add_scene_passes(gpu::RenderGraph& graph, pc::PointPipelines& pipelines,
+                      pc::GpuPointCloud& cloud, const Camera& camera,
+                      const PointDrawSettings& settings, uint32_t width, uint32_t height) {
+  pc::add_point_cloud_passes(graph, pipelines, cloud, camera, settings.render, width, height);
+}
+
+void queue_point_clouds(Registry& render) {
+  auto& fg = render.resource<FrameGraph>();
+  if (!fg.active) return;
+  const auto& target = render.resource<RenderTarget>();
+  const ExtractedCamera* extracted = first_extracted_camera(render);
+  if (!extracted) return;
+  auto& cache = render.resource<PointPipelineCache>();
+  const auto& settings = render.resource<PointDrawSettings>();
+  gpu::Context& ctx = *render.resource<GpuContext>();
+  if (cache.format != target.format) {
+    cache.pipelines.reset();
+    cache.raster.reset();
+    cache.format = target.format;
+  }
+  if (!settings.compute && !cache.pipelines)
+    cache.pipelines =
+        std::make_unique<pc::PointPipelines>(pc::create_point_pipelines(ctx, target.format));
+  if (settings.compute && !cache.raster)
+    cache.raster = std::make_unique<pc::ComputeRasterPipeline>(
+        pc::create_compute_raster_pipeline(ctx, target.format));
+  auto& stats = render.resource<RenderStats>();
+  bool drawn_one = false;
+  render.view<RenderPointCloud>().each([&](RenderPointCloud& r) {
+    if (r.uploaded_generation != r.generation) return;
+    // Chunks back from the last frame.
+    for (size_t i = 0; i < r.drawn_ids.size(); ++i)
+      r.all.chunks[r.drawn_ids[i]] = std::move(r.drawn->chunks[i]);
+    r.drawn->chunks.clear();
+    r.drawn->point_count = 0;
+    if (drawn_one) return;  // one pass per frame for now: the first cloud
+    Camera camera = to_camera(*extracted);
+    camera.position -= r.translation;  // a translated cloud is the camera moved the other way
+    if (settings.compute) {
+      // The compute rasterizer draws every batch it does not cull (no budget: it is the path
+      // for billions of points).
+      if (!r.batched || r.batched_generation != r.generation) {
+        r.batched = std::make_unique<pc::GpuBatchedCloud>(
+            pc::upload_batched_cloud(ctx, pc::build_batches(*r.cloud, pc::SpatialOrder::Morton)));
+        r.batched_generation = r.generation;
+      }
+      pc::ComputeRasterOptions options;
+      options.hqs = settings.hqs;
+      options.background = settings.render.background;
+      pc::add_compute_raster_passes(fg.graph, *cache.raster, *r.batched, camera, options,
+                                    target.width, target.height);
+      stats.points_drawn += r.batched->point_count;
+      stats.points_total = r.batched->point_count;
+      drawn_one = true;
+      return;
+    }
+    std::vector<uint32_t> ids =
+        select_chunks(r.gpu_bounds, r.gpu_counts, camera.position, settings.budget);
+    // Each chunk's bind groups point at its CLOD argument slot (its index in the drawn view):
+    // a different selection or order must rebuild them.
+    if (ids != r.last_ids) r.drawn->bind_groups_for = nullptr;
+    r.last_ids = ids;
+    r.drawn_ids = std::move(ids);
+    for (uint32_t id : r.drawn_ids) {
+      r.drawn->point_count += r.all.chunks[id].count;
+      r.drawn->chunks.push_back(std::move(r.all.chunks[id]));
+    }
+    add_scene_passes(fg.graph, *cache.pipelines, *r.drawn, camera, settings, target.width,
+                     target.height);
+    stats.points_drawn += r.drawn->point_count;
+    stats.points_total = r.all.point_count;
+    drawn_one = true;
+  });
+}
+
+}  // namespace
+
+pc::PointCloud load_inputs(const PointCloudInputs& inputs) {
+  pc::PointCloud cloud;
+  if (inputs.files.empty()) {
+    io::SceneParams scene = inputs.scene;
+    cloud = pc::generate_scene_cloud(scene, inputs.chunk_points);
+    STIPPLE_INFO("built-in scene: {} points", cloud.point_count);
+  } else {
+    pc::LoadOptions options;
+    options.chunk_points = inputs.chunk_points;
+    options.progress = inputs.progress;
+    cloud = pc::load_point_cloud(inputs.files, options);
+  }
+  return cloud;
+}
+
+std::vector<Aabb> chunk_bounds(const pc::PointCloud& cloud) {
+  std::vector<Aabb> bounds(cloud.chunks.size());
+  for (size_t i = 0; i < cloud.chunks.size(); ++i) {
+    const auto& chunk = cloud.chunks[i];
+    Aabb local;
+    for (const auto& v : chunk.vertices) local.extend(glm::dvec3(v.x, v.y, v.z));
+    if (!local.empty()) bounds[i] = {chunk.origin + local.min, chunk.origin + local.max};
+  }
+  return bounds;
+}
+
+std::vector<uint32_t> select_chunks(const std::vector<Aabb>& bounds,
+                                    const std::vector<uint32_t>& counts,
+                                    const glm::dvec3& camera_position, uint64_t budget) {
+  std::vector<uint32_t> ids(bounds.size());
+  std::iota(ids.begin(), ids.end(), 0u);
+  if (budget == 0) return ids;
+  std::vector<double> distance(bounds.size());
+  for (size_t i = 0; i < bounds.size(); ++i) {
+    glm::dvec3 nearest = glm::clamp(camera_position, bounds[i].min, bounds[i].max);
+    distance[i] = glm::distance(nearest, camera_position);
+  }
+  std::stable_sort(ids.begin(), ids.end(),
+                   [&](uint32_t a, uint32_t b) { return distance[a] < distance[b]; });
+  uint64_t total = 0;
+  size_t keep = 0;
+  while (keep < ids.size() && total + counts[ids[keep]] <= budget) total += counts[ids[keep++]];
+  ids.resize(keep);
+  return ids;
+}
+
+std::optional<glm::dvec3> pick_point(const PointCloudData& data, const glm::dvec3& origin,
+                                     const glm::dvec3& direction, double tan_radius) {
+  if (!data.cloud) return std::nullopt;
+  const PickRay ray{origin, glm::normalize(direction), tan_radius};
+  std::optional<PickHit> best;
+  const auto& chunks = data.cloud->chunks;
+  for (size_t c = 0; c < chunks.size(); ++c)
+    pick_in_chunk(chunks[c], data.chunk_bounds[c], ray, best);
+  if (!best) return std::nullopt;
+  return best->point;
+}
+
+namespace {
+
+// ScenePickers entry: every loaded cloud, whatever the point budget draws.
+std::optional<PickHit> pick_point_clouds(Registry& main, const PickRay& ray) {
+  std::optional<PickHit> best;
+  main.view<PointCloudData>().each([&](const PointCloudData& data) {
+    if (!data.cloud) return;
+    const auto& chunks = data.cloud->chunks;
+    for (size_t c = 0; c < chunks.size(); ++c)
+      pick_in_chunk(chunks[c], data.chunk_bounds[c], ray, best);
+  });
+  return best;
+}
+
+}  // namespace
+
+void PointCloudPlugin::build(Engine& engine) {
+  Registry& main = engine.main();
+  pc::PointCloud cloud = load_inputs(inputs);
+  if (cloud.point_count == 0) fail("nothing to render: the input holds no points");
+  SceneInfo info;
+  info.world_bounds = cloud.world_bounds;
+  info.points = cloud.point_count;
+  info.attributes = cloud.attributes;
+  info.name = inputs.files.empty() ? "procedural scene" : inputs.files.front().filename().string();
+  main.insert_resource(info);
+
+  Entity e = main.create();
+  main.emplace<PointCloudData>(e, make_data(std::move(cloud), 0));
+  main.emplace<Transform>(e);
+  main.emplace<SyncTo<RenderWorldTag>>(e);
+  main.insert_resource(settings);
+  engine.render().insert_resource(settings);
+  engine.render().insert_resource(PointPipelineCache{});
+
+  add_scene_picker(main, pick_point_clouds);
+
+  engine.add_system(MainStage::Extract, extract_point_clouds, "extract_point_clouds");
+  engine.add_system(RenderStage::Prepare, upload_point_clouds, "upload_point_clouds");
+  engine.add_system(RenderStage::Queue, queue_point_clouds, "queue_point_clouds");
+}
+
+}  // namespace stipple::pc

@@ -1,0 +1,1014 @@
+// The tiler pipeline (Potree 2 / Entwine style, written for stipple):
+//  1. headers: source CRS of each input -> ECEF (PROJ), one local ENU frame for the tileset,
+//     the octree cube from the header boxes (densely sampled through the transform, padded);
+//  2. counting pass: every point is transformed and counted in a grid at level Lc (<= 128^3);
+//  3. chunking: the count pyramid is cut top-down into the largest octree nodes holding at
+//     most `chunk_points` (sized from --max-memory and the thread count);
+//  4. distribution pass: points are transformed again and appended to one temporary file per
+//     chunk (raw TilePoint records);
+//  5. indexing: chunks in parallel on the pool; each builds its subtree top-down: a node takes a
+//     grid subsample at its level's spacing, the rest go to its 8 children, a node of at most
+//     `max_node_points` keeps everything (leaf). Every point lands in exactly one node;
+//  6. upper levels: from the deepest chunk roots up, a parent subsamples the union of its
+//     children's points at its spacing; the selected points move up (additive refinement);
+//  7. tileset.json, then DIR.partial-XXXXXX is renamed to DIR.
+// Spacing halves per level; geometricError = spacing of the tile's level (factor 1: the point
+// spacing the tile shows, which is what a client hides by not refining; CesiumJS's point
+// attenuation reads it the same way).
+#include "stipple/tiler/tiler.hpp"
+
+#include <fcntl.h>
+#include <stdlib.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <future>
+#include <map>
+#include <mutex>
+#include <semaphore>
+#include <set>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+
+#include "stipple/core/error.hpp"
+#include "stipple/core/log.hpp"
+#include "stipple/core/progress.hpp"
+#include "stipple/core/thread_pool.hpp"
+#include "stipple/io/las.hpp"
+#include "stipple/tiler/geo_frame.hpp"
+#include "stipple/tiler/glb_writer.hpp"
+#include "stipple/tiler/pnts_writer.hpp"
+#include "stipple/tiler/sampling.hpp"
+
+namespace stipple::tiler {
+
+namespace fs = std::filesystem;
+
+uint64_t parse_size(const std::string& text) {
+  if (text.empty()) fail("empty size");
+  size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(text, &used);
+  } catch (...) {
+    fail("'{}' is not a size (e.g. 2G, 512M)", text);
+  }
+  std::string unit = text.substr(used);
+  double mult = 1;
+  if (unit == "k" || unit == "K" || unit == "KB" || unit == "KiB")
+    mult = 1024.0;
+  else if (unit == "m" || unit == "M" || unit == "MB" || unit == "MiB")
+    mult = 1024.0 * 1024;
+  else if (unit == "g" || unit == "G" || unit == "GB" || unit == "GiB")
+    mult = 1024.0 * 1024 * 1024;
+  else if (!unit.empty())
+    fail("'{}' is not a size (e.g. 2G, 512M)", text);
+  if (!(v > 0)) fail("size '{}' must be positive", text);
+  return uint64_t(v * mult);
+}
+
+namespace {
+
+struct NodeKey {
+  int level = 0;
+  uint32_t x = 0, y = 0, z = 0;
+  auto operator<=>(const NodeKey&) const = default;
+  NodeKey child(int i) const {
+    return {level + 1, 2 * x + (i & 1), 2 * y + ((i >> 1) & 1), 2 * z + ((i >> 2) & 1)};
+  }
+  NodeKey parent() const { return {level - 1, x / 2, y / 2, z / 2}; }
+  std::string name() const { return fmt::format("{}-{}-{}-{}", level, x, y, z); }
+};
+
+struct NodeInfo {
+  uint64_t points = 0;
+  Box content;  // of the written content; empty when the tile has none
+};
+
+struct Input {
+  std::string path;
+  std::string crs;
+  io::LasHeader header;
+};
+
+// One EcefTransform per thread and CRS (PROJ objects are not thread-safe).
+const EcefTransform& thread_transform(const std::string& crs) {
+  thread_local std::map<std::string, std::unique_ptr<EcefTransform>> cache;
+  auto& t = cache[crs];
+  if (!t) t = std::make_unique<EcefTransform>(crs);
+  return *t;
+}
+
+// Closes a file descriptor when the scope ends, error paths included.
+struct FdCloser {
+  int fd = -1;
+  ~FdCloser() {
+    if (fd >= 0) ::close(fd);
+  }
+};
+
+void write_all(int fd, const fs::path& path, const void* data, size_t size) {
+  const char* p = static_cast<const char*>(data);
+  while (size > 0) {
+    ssize_t w = ::write(fd, p, size);
+    if (w <= 0) fail("{}: write failed ({})", path.string(), std::strerror(errno));
+    p += w, size -= size_t(w);
+  }
+}
+
+// Writes `size` bytes to `path`, truncating (O_TRUNC) or appending (O_APPEND); a failed close
+// is a failed write.
+void put_file(const fs::path& path, int mode, const void* data, size_t size) {
+  FdCloser file{::open(path.c_str(), O_WRONLY | O_CREAT | mode, 0644)};
+  if (file.fd < 0) fail("{}: cannot open ({})", path.string(), std::strerror(errno));
+  write_all(file.fd, path, data, size);
+  if (::close(std::exchange(file.fd, -1)) != 0)
+    fail("{}: write failed ({})", path.string(), std::strerror(errno));
+}
+
+void write_file(const fs::path& path, const void* data, size_t size) {
+  put_file(path, O_TRUNC, data, size);
+}
+
+void append_file(const fs::path& path, const void* data, size_t size) {
+  put_file(path, O_APPEND, data, size);
+}
+
+void read_points(const fs::path& path, std::vector<TilePoint>& pts) {
+  pts.clear();
+  std::error_code ec;
+  uint64_t size = fs::file_size(path, ec);
+  if (ec) return;
+  pts.resize(size / sizeof(TilePoint));
+  std::ifstream in(path, std::ios::binary);
+  in.read(reinterpret_cast<char*>(pts.data()), std::streamsize(pts.size() * sizeof(TilePoint)));
+  if (!in) fail("{}: cannot read temporary points", path.string());
+}
+
+std::vector<TilePoint> read_points(const fs::path& path) {
+  std::vector<TilePoint> pts;
+  read_points(path, pts);
+  return pts;
+}
+
+// Removes the partial output unless the run commits.
+struct PartialDir {
+  fs::path path;
+  bool committed = false;
+  ~PartialDir() {
+    if (!committed && !path.empty()) {
+      std::error_code ec;
+      fs::remove_all(path, ec);
+    }
+  }
+};
+
+class Tiler {
+ public:
+  explicit Tiler(const TileOptions& o) : opt_(o) {}
+  TileStats run();
+
+ private:
+  void open_inputs();
+  void make_frame_and_cube();
+  template <typename Process>
+  void read_pass(const char* label, Process process);
+  void to_local(const Input& in, io::PointBatch& batch, std::vector<glm::dvec3>& out);
+  void make_records(const Input& in, io::PointBatch& batch, TilePoint* out);
+  void append_to_chunks(const TilePoint* recs, size_t n);
+  void choose_resident_chunks(const std::vector<uint32_t>& counts);
+  void distribute(const fs::path& staged, uint64_t count);
+  void distribute_in_memory(uint64_t count);
+  uint32_t cell_of(const glm::dvec3& p) const;
+  uint32_t cell_of(const TilePoint& p) const { return cell_of(glm::dvec3(p.x, p.y, p.z)); }
+  void phase(const char* name) {
+    auto now = std::chrono::steady_clock::now();
+    STIPPLE_INFO("tile: phase {:<26} {:8.3f} s", name,
+                 std::chrono::duration<double>(now - phase_start_).count());
+    phase_start_ = now;
+  }
+  void plan_chunks(const std::vector<uint32_t>& counts);
+  void split_oversized_chunks();
+  void index_chunk(size_t chunk);
+  void index_node(const NodeKey& key, std::span<TilePoint> pts, bool chunk_root);
+  void build_upper_levels();
+  void write_content(const NodeKey& key, std::span<const TilePoint> pts);
+  void record(const NodeKey& key, std::span<const TilePoint> pts);
+  void write_tileset();
+  glm::dvec3 node_min(const NodeKey& k) const {
+    return cube_min_ + glm::dvec3(k.x, k.y, k.z) * node_size(k.level);
+  }
+  double node_size(int level) const { return cube_size_ / double(uint64_t(1) << level); }
+  double spacing(int level) const { return root_spacing_ / double(uint64_t(1) << level); }
+
+  const TileOptions& opt_;
+  std::vector<Input> inputs_;
+  uint64_t total_points_ = 0;
+  ContentOptions content_;
+  LocalFrame frame_;
+  glm::dvec3 cube_min_{0};
+  double cube_size_ = 1, root_spacing_ = 1;
+  int count_level_ = 7;
+  size_t batch_points_ = 1 << 20, chunk_points_ = 0;
+  int max_level_ = 24;
+  std::unique_ptr<ThreadPool> pool_;
+  fs::path dir_, tmp_;
+  std::chrono::steady_clock::time_point phase_start_ = std::chrono::steady_clock::now();
+
+  struct Chunk {
+    NodeKey key;
+    uint64_t count = 0;
+    fs::path file;
+    std::mutex mutex;
+    bool resident = false;  // points at resident_[offset, offset + count), not in file
+    uint64_t offset = 0;
+    uint64_t expected = 0;  // points counted in its cells (out-of-core distribution)
+  };
+  // In-memory mode (the records of every input fit the budget twice over): the reading pass
+  // stages records in memory and the chunks stay resident; no temporary files for them.
+  bool in_memory_ = false;
+  std::unique_ptr<TilePoint[]> staged_mem_;
+  std::unique_ptr<TilePoint[]> resident_;  // every chunk's points, chunk after chunk
+  std::atomic<uint64_t> staged_fill_{0};
+  std::vector<std::unique_ptr<Chunk>> chunks_;
+  std::vector<int32_t> cell_chunk_;
+
+  std::mutex lattice_mutex_;
+  LatticeStats lattice_;
+  std::mutex nodes_mutex_;
+  std::map<NodeKey, NodeInfo> nodes_;
+  std::map<NodeKey, fs::path> pending_roots_;  // chunk roots waiting for the upper levels
+  std::atomic<uint64_t> written_{0};
+  std::unique_ptr<Progress> index_progress_;
+  std::mutex progress_mutex_;
+};
+
+void Tiler::open_inputs() {
+  if (opt_.inputs.empty()) fail("no input files");
+  for (const std::string& path : opt_.inputs) {
+    Input in;
+    in.path = path;
+    in.header = io::read_las_header(path);
+    // The reader detects 8-bit colour stored in 16-bit fields from the first points
+    // (read_las_header cannot): make_records scales by it.
+    if (in.header.has_rgb) in.header.rgb_bits = io::LasReader(path).header().rgb_bits;
+    in.crs = source_crs_definition(in.header, opt_.crs);
+    total_points_ += in.header.point_count;
+    inputs_.push_back(std::move(in));
+  }
+  if (total_points_ == 0) fail("the inputs hold no points");
+  if (total_points_ >= (uint64_t(1) << 32) * 64) fail("too many points");
+  content_.rgb = false, content_.gps_time = false;
+  content_.precision = 1e300;
+  for (const Input& in : inputs_) {
+    content_.rgb |= in.header.has_rgb;
+    content_.gps_time |= in.header.has_gps_time;
+    const EcefTransform& t = thread_transform(in.crs);
+    double h = std::min(in.header.scale.x, in.header.scale.y) * t.metres_per_unit();
+    // Heights: in the horizontal unit for projected CRSs, metres for geographic ones.
+    double v = in.header.scale.z * (t.geographic() ? 1.0 : t.metres_per_unit());
+    content_.precision = std::min({content_.precision, h, v});
+  }
+}
+
+void Tiler::to_local(const Input& in, io::PointBatch& batch, std::vector<glm::dvec3>& out) {
+  out.resize(batch.positions.size());
+  LatticeStats stats;
+  // A tenth of the input precision: the interpolation never shows in the output.
+  source_to_local(thread_transform(in.crs), frame_, batch.positions.data(), out.size(), out.data(),
+                  content_.precision / 10, &stats);
+  std::lock_guard lock(lattice_mutex_);
+  lattice_.points += stats.points;
+  lattice_.exact_points += stats.exact_points;
+  lattice_.nodes += stats.nodes;
+  lattice_.max_sample_error = std::max(lattice_.max_sample_error, stats.max_sample_error);
+}
+
+void Tiler::make_records(const Input& in, io::PointBatch& batch, TilePoint* out) {
+  thread_local std::vector<glm::dvec3> local;
+  to_local(in, batch, local);
+  const size_t n = batch.size();
+  const bool rgb = !batch.rgb.empty(), gps = !batch.gps_time.empty();
+  const bool inten = !batch.intensity.empty(), cls = !batch.classification.empty();
+  const bool ret = !batch.return_number.empty();
+  const int shift = in.header.rgb_bits == 8 ? 0 : 8;
+  for (size_t i = 0; i < n; ++i) {
+    TilePoint& t = out[i];
+    t.x = local[i].x, t.y = local[i].y, t.z = local[i].z;
+    t.gps_time = gps ? batch.gps_time[i] : 0.0;
+    t.intensity = inten ? batch.intensity[i] : 0;
+    if (rgb) {
+      t.r = uint8_t(std::min(255, batch.rgb[i].x >> shift));
+      t.g = uint8_t(std::min(255, batch.rgb[i].y >> shift));
+      t.b = uint8_t(std::min(255, batch.rgb[i].z >> shift));
+    } else {
+      t.r = t.g = t.b = 255;
+    }
+    t.classification = cls ? batch.classification[i] : 0;
+    t.return_number = ret ? batch.return_number[i] : 0;
+    t.pad = 0;
+  }
+}
+
+// Sorts a block of records by chunk and appends each run to its chunk's temporary file.
+void Tiler::append_to_chunks(const TilePoint* recs, size_t n) {
+  thread_local std::vector<TilePoint> sorted;
+  thread_local std::vector<int32_t> chunk_of;
+  thread_local std::vector<uint32_t> offsets, fill;
+  chunk_of.resize(n);
+  offsets.assign(chunks_.size() + 1, 0);
+  for (size_t i = 0; i < n; ++i) {
+    chunk_of[i] = cell_chunk_[cell_of(recs[i])];
+    STIPPLE_ASSERT(chunk_of[i] >= 0, "a counted cell has no chunk");
+    ++offsets[size_t(chunk_of[i]) + 1];
+  }
+  for (size_t c = 0; c < chunks_.size(); ++c) offsets[c + 1] += offsets[c];
+  fill.assign(offsets.begin(), offsets.end() - 1);
+  sorted.resize(n);
+  for (size_t i = 0; i < n; ++i) sorted[fill[size_t(chunk_of[i])]++] = recs[i];
+  for (size_t c = 0; c < chunks_.size(); ++c) {
+    uint32_t s = offsets[c], e = offsets[c + 1];
+    if (s == e) continue;
+    Chunk& ch = *chunks_[c];
+    std::lock_guard lock(ch.mutex);
+    if (ch.resident) {
+      if (ch.count + (e - s) > ch.expected)
+        fail("internal error: chunk {} receives more points than were counted", ch.key.name());
+      std::memcpy(resident_.get() + ch.offset + ch.count, sorted.data() + s,
+                  size_t(e - s) * sizeof(TilePoint));
+    } else {
+      append_file(ch.file, sorted.data() + s, size_t(e - s) * sizeof(TilePoint));
+    }
+    ch.count += e - s;
+  }
+}
+
+// Out of core, chunks are kept in memory while their records fit half the budget (the counting
+// pass told their sizes exactly); only the rest go to temporary files. Temporary files cost
+// a kernel copy in and out, and beyond a few hundred MB of dirty pages the kernel throttles
+// writers to the disk's speed.
+void Tiler::choose_resident_chunks(const std::vector<uint32_t>& counts) {
+  for (size_t cell = 0; cell < counts.size(); ++cell)
+    if (cell_chunk_[cell] >= 0) chunks_[size_t(cell_chunk_[cell])]->expected += counts[cell];
+  const uint64_t budget = opt_.max_memory / 2 / sizeof(TilePoint);
+  uint64_t total = 0;
+  for (auto& c : chunks_) {
+    if (total + c->expected > budget) continue;
+    c->resident = true;
+    c->offset = total;
+    total += c->expected;
+  }
+  if (total) resident_.reset(new TilePoint[total]);
+  STIPPLE_INFO("tile: {} of {} points in chunks held in memory, the rest in temporary files", total,
+               total_points_);
+}
+
+// Distribution pass over staged records, in blocks read in parallel (pread).
+void Tiler::distribute(const fs::path& staged, uint64_t count) {
+  const FdCloser file{::open(staged.c_str(), O_RDONLY)};
+  const int fd = file.fd;
+  if (fd < 0) fail("{}: cannot open ({})", staged.string(), std::strerror(errno));
+  const uint64_t block = batch_points_;
+  const size_t blocks = size_t((count + block - 1) / block);
+  Progress progress("distributing", count);
+  pool_->parallel_for(blocks, 1, [&](size_t bb, size_t be) {
+    thread_local std::vector<TilePoint> recs;
+    for (size_t b = bb; b < be; ++b) {
+      const uint64_t first = b * block;
+      const size_t n = size_t(std::min<uint64_t>(block, count - first));
+      recs.resize(n);
+      char* dst = reinterpret_cast<char*>(recs.data());
+      size_t want = n * sizeof(TilePoint);
+      off_t at = off_t(first * sizeof(TilePoint));
+      while (want > 0) {
+        ssize_t r = ::pread(fd, dst, want, at);
+        if (r <= 0) fail("{}: cannot read temporary points", staged.string());
+        dst += r, want -= size_t(r), at += r;
+      }
+      append_to_chunks(recs.data(), n);
+      std::lock_guard lock(progress_mutex_);
+      progress.advance(n);
+    }
+  });
+  progress.finish();
+}
+
+// In-memory distribution: chunk of every staged record, per-block histograms, then a parallel
+// scatter straight into each chunk's exact-size vector.
+void Tiler::distribute_in_memory(uint64_t count) {
+  const uint64_t block = batch_points_;
+  const size_t blocks = size_t((count + block - 1) / block), nc = chunks_.size();
+  const TilePoint* recs = staged_mem_.get();
+  std::vector<uint32_t> chunk_of(count);
+  std::vector<uint64_t> offsets(blocks * nc, 0);
+  pool_->parallel_for(blocks, 1, [&](size_t bb, size_t be) {
+    for (size_t b = bb; b < be; ++b) {
+      uint64_t* hist = &offsets[b * nc];
+      const uint64_t end = std::min<uint64_t>(count, (b + 1) * block);
+      for (uint64_t i = b * block; i < end; ++i) {
+        int32_t c = cell_chunk_[cell_of(recs[i])];
+        STIPPLE_ASSERT(c >= 0, "a counted cell has no chunk");
+        chunk_of[i] = uint32_t(c);
+        ++hist[c];
+      }
+    }
+  });
+  uint64_t base = 0;
+  for (size_t c = 0; c < nc; ++c) {
+    Chunk& ch = *chunks_[c];
+    ch.offset = base;
+    for (size_t b = 0; b < blocks; ++b) {
+      uint64_t h = offsets[b * nc + c];
+      offsets[b * nc + c] = base;
+      base += h;
+    }
+    ch.count = base - ch.offset;
+    ch.resident = true;
+  }
+  resident_.reset(new TilePoint[count]);  // uninitialised: every slot is written below
+  TilePoint* out = resident_.get();
+  pool_->parallel_for(blocks, 1, [&](size_t bb, size_t be) {
+    for (size_t b = bb; b < be; ++b) {
+      uint64_t* fill = &offsets[b * nc];
+      const uint64_t end = std::min<uint64_t>(count, (b + 1) * block);
+      for (uint64_t i = b * block; i < end; ++i) out[fill[chunk_of[i]]++] = recs[i];
+    }
+  });
+}
+
+void Tiler::make_frame_and_cube() {
+  // Frame origin: mean ECEF of the inputs' box centres.
+  glm::dvec3 sum(0);
+  for (const Input& in : inputs_) {
+    glm::dvec3 c = (in.header.min + in.header.max) * 0.5;
+    thread_transform(in.crs).transform(&c, 1);
+    sum += c;
+  }
+  frame_ = make_local_frame(sum / double(inputs_.size()));
+  // Box: header boxes sampled 9x9x3 through the transform (curvature, projection), padded.
+  Box box;
+  for (const Input& in : inputs_) {
+    std::vector<glm::dvec3> s;
+    for (int i = 0; i <= 8; ++i)
+      for (int j = 0; j <= 8; ++j)
+        for (int k = 0; k <= 2; ++k) {
+          glm::dvec3 f(i / 8.0, j / 8.0, k / 2.0);
+          s.push_back(in.header.min + (in.header.max - in.header.min) * f);
+        }
+    thread_transform(in.crs).transform(s.data(), s.size());
+    for (const glm::dvec3& p : s) box.add(frame_.to_local(p));
+  }
+  glm::dvec3 ext = box.max - box.min;
+  double size = std::max({ext.x, ext.y, ext.z, 1.0});
+  size = size * 1.01 + 1.0;
+  glm::dvec3 centre = (box.min + box.max) * 0.5;
+  cube_min_ = centre - glm::dvec3(size * 0.5);
+  cube_size_ = size;
+  root_spacing_ = opt_.spacing > 0 ? opt_.spacing : size / 128.0;
+  // Deep enough for any sane data; bounds recursion on duplicate points.
+  max_level_ =
+      std::clamp(int(std::ceil(std::log2(size / std::max(content_.precision, 1e-4)))) + 2, 4, 30);
+}
+
+uint32_t Tiler::cell_of(const glm::dvec3& p) const {
+  const double n = double(1u << count_level_);
+  uint32_t c[3];
+  for (int k = 0; k < 3; ++k)
+    c[k] = uint32_t(std::clamp(std::floor((p[k] - cube_min_[k]) / cube_size_ * n), 0.0, n - 1));
+  return (c[2] << (2 * count_level_)) | (c[1] << count_level_) | c[0];
+}
+
+// Every input is cut into ranges of about batch_points_ points (whole LAZ chunks for LAZ) and
+// `process(input, batch)` runs for each range on the pool. Ranges are decoded on the workers by
+// readers that seek, so LAZ decompression, the heaviest part of reading, uses every core. The
+// ranges are the same in every pass (the lattice transform of a batch is then bit-identical).
+template <typename Process>
+void Tiler::read_pass(const char* label, Process process) {
+  Progress progress(label, total_points_);
+  struct Range {
+    size_t input;
+    uint64_t first, count;
+  };
+  std::vector<Range> ranges;
+  for (size_t k = 0; k < inputs_.size(); ++k) {
+    const Input& in = inputs_[k];
+    uint64_t step = batch_points_;
+    if (const uint64_t chunk = in.header.compressed ? in.header.laz_chunk_points : 0)
+      step = std::max<uint64_t>(1, step / chunk) * chunk;
+    for (uint64_t first = 0; first < in.header.point_count; first += step)
+      ranges.push_back({k, first, std::min(step, in.header.point_count - first)});
+  }
+  // Readers and batches are recycled: opening a reader parses the header and VLRs (and LASzip's
+  // chunk table), and a fresh batch would fault in tens of MB of new pages each time.
+  std::mutex mutex;
+  std::vector<std::vector<std::unique_ptr<io::LasReader>>> readers(inputs_.size());
+  std::vector<std::unique_ptr<io::PointBatch>> batches;
+  std::atomic<uint64_t> done{0};
+  pool_->parallel_for(ranges.size(), 1, [&](size_t b, size_t e) {
+    for (size_t r = b; r < e; ++r) {
+      const Range& range = ranges[r];
+      const Input& in = inputs_[range.input];
+      std::unique_ptr<io::LasReader> reader;
+      std::unique_ptr<io::PointBatch> batch;
+      {
+        std::lock_guard lock(mutex);
+        auto& idle = readers[range.input];
+        if (!idle.empty()) reader = std::move(idle.back()), idle.pop_back();
+        if (!batches.empty()) batch = std::move(batches.back()), batches.pop_back();
+      }
+      if (!reader) reader = std::make_unique<io::LasReader>(in.path);
+      if (!batch) batch = std::make_unique<io::PointBatch>();
+      batch->clear();
+      reader->seek(range.first);
+      if (reader->read(*batch, range.count) != range.count)
+        fail("{}: holds fewer points than its header declares", in.path);
+      process(in, *batch);
+      done += range.count;
+      std::lock_guard lock(mutex);
+      readers[range.input].push_back(std::move(reader));
+      batches.push_back(std::move(batch));
+      std::lock_guard progress_lock(progress_mutex_);
+      progress.set(done.load());
+    }
+  });
+  progress.finish();
+}
+
+void Tiler::plan_chunks(const std::vector<uint32_t>& counts) {
+  // Count pyramid, level Lc at the bottom; then cut top-down.
+  std::vector<std::vector<uint64_t>> pyramid(count_level_ + 1);
+  pyramid[count_level_].assign(counts.begin(), counts.end());
+  for (int l = count_level_ - 1; l >= 0; --l) {
+    const uint32_t n = 1u << l;
+    pyramid[l].assign(size_t(n) * n * n, 0);
+    const auto& fine = pyramid[l + 1];
+    for (uint32_t z = 0; z < 2 * n; ++z)
+      for (uint32_t y = 0; y < 2 * n; ++y)
+        for (uint32_t x = 0; x < 2 * n; ++x)
+          pyramid[l][((z / 2) * n + y / 2) * n + x / 2] +=
+              fine[(size_t(z) * 2 * n + y) * 2 * n + x];
+  }
+  cell_chunk_.assign(counts.size(), -1);
+  std::vector<NodeKey> stack{NodeKey{}};
+  while (!stack.empty()) {
+    NodeKey k = stack.back();
+    stack.pop_back();
+    const uint32_t n = 1u << k.level;
+    uint64_t c = pyramid[k.level][(size_t(k.z) * n + k.y) * n + k.x];
+    if (c == 0) continue;
+    if (c > chunk_points_ && k.level < count_level_) {
+      for (int i = 0; i < 8; ++i) stack.push_back(k.child(i));
+      continue;
+    }
+    auto chunk = std::make_unique<Chunk>();
+    chunk->key = k;
+    chunk->file = tmp_ / ("chunk-" + k.name() + ".bin");
+    // Mark the chunk's fine cells.
+    const int shift = count_level_ - k.level;
+    const uint32_t span = 1u << shift;
+    for (uint32_t z = 0; z < span; ++z)
+      for (uint32_t y = 0; y < span; ++y)
+        for (uint32_t x = 0; x < span; ++x) {
+          uint32_t cx = (k.x << shift) + x, cy = (k.y << shift) + y, cz = (k.z << shift) + z;
+          cell_chunk_[(cz << (2 * count_level_)) | (cy << count_level_) | cx] =
+              int32_t(chunks_.size());
+        }
+    chunks_.push_back(std::move(chunk));
+  }
+}
+
+// A chunk over budget (a very dense fine cell) is split into its 8 children by streaming.
+void Tiler::split_oversized_chunks() {
+  for (size_t i = 0; i < chunks_.size(); ++i) {
+    Chunk& c = *chunks_[i];
+    if (c.count <= chunk_points_ * 3 / 2 || c.key.level >= max_level_ - 2) continue;
+    if (c.resident) {
+      write_file(c.file, resident_.get() + c.offset, c.count * sizeof(TilePoint));
+      c.resident = false;
+    }
+    std::vector<std::unique_ptr<Chunk>> kids(8);
+    for (int k = 0; k < 8; ++k) {
+      kids[k] = std::make_unique<Chunk>();
+      kids[k]->key = c.key.child(k);
+      kids[k]->file = tmp_ / ("chunk-" + kids[k]->key.name() + ".bin");
+    }
+    glm::dvec3 centre = node_min(c.key) + glm::dvec3(node_size(c.key.level + 1));
+    std::ifstream in(c.file, std::ios::binary);
+    std::vector<TilePoint> block(1 << 16);
+    std::vector<std::vector<TilePoint>> out(8);
+    while (in) {
+      in.read(reinterpret_cast<char*>(block.data()),
+              std::streamsize(block.size() * sizeof(TilePoint)));
+      size_t n = size_t(in.gcount()) / sizeof(TilePoint);
+      for (size_t j = 0; j < n; ++j) {
+        const TilePoint& p = block[j];
+        out[(p.x >= centre.x) | ((p.y >= centre.y) << 1) | ((p.z >= centre.z) << 2)].push_back(p);
+      }
+      for (int k = 0; k < 8; ++k) {
+        if (out[k].empty()) continue;
+        append_file(kids[k]->file, out[k].data(), out[k].size() * sizeof(TilePoint));
+        kids[k]->count += out[k].size();
+        out[k].clear();
+      }
+    }
+    in.close();
+    fs::remove(c.file);
+    chunks_.erase(chunks_.begin() + long(i));
+    --i;
+    for (auto& kid : kids)
+      if (kid->count) chunks_.push_back(std::move(kid));
+  }
+}
+
+void Tiler::record(const NodeKey& key, std::span<const TilePoint> pts) {
+  NodeInfo info;
+  info.points = pts.size();
+  info.content = bounds_of(pts);
+  std::lock_guard lock(nodes_mutex_);
+  nodes_[key] = info;
+}
+
+void Tiler::write_content(const NodeKey& key, std::span<const TilePoint> pts) {
+  record(key, pts);
+  if (pts.empty()) return;
+  std::vector<uint8_t> bytes =
+      opt_.format == Format::Glb ? write_glb(pts, content_) : write_pnts(pts, content_);
+  const char* ext = opt_.format == Format::Glb ? ".glb" : ".pnts";
+  write_file(dir_ / "tiles" / (key.name() + ext), bytes.data(), bytes.size());
+  written_ += pts.size();
+}
+
+// Works in place on its span: the points are partitioned into [child 0 .. child 7 | this node]
+// and the children recurse on their sub-spans, so indexing allocates nothing per node.
+void Tiler::index_node(const NodeKey& key, std::span<TilePoint> pts, bool chunk_root) {
+  std::span<TilePoint> mine = pts;
+  std::array<size_t, 9> starts{};
+  if (pts.size() > opt_.max_node_points && key.level < max_level_) {
+    thread_local std::vector<uint8_t> bucket;
+    grid_select(pts, node_min(key), spacing(key.level), opt_.max_node_points, bucket);
+    const glm::dvec3 centre = node_min(key) + glm::dvec3(node_size(key.level + 1));
+    const size_t n = pts.size();
+    std::array<size_t, 9> sizes{};
+    for (size_t i = 0; i < n; ++i) {
+      const TilePoint& p = pts[i];
+      uint8_t b =
+          bucket[i]
+              ? 8
+              : uint8_t((p.x >= centre.x) | ((p.y >= centre.y) << 1) | ((p.z >= centre.z) << 2));
+      bucket[i] = b;
+      ++sizes[b];
+    }
+    // American flag sort: each point swapped straight into its bucket's region.
+    std::array<size_t, 9> next{}, ends{};
+    for (size_t b = 0, at = 0; b < 9; ++b) starts[b] = next[b] = at, at += sizes[b], ends[b] = at;
+    for (size_t b = 0; b < 9; ++b) {
+      while (next[b] < ends[b]) {
+        const uint8_t c = bucket[next[b]];
+        if (c == b) {
+          ++next[b];
+        } else {
+          std::swap(pts[next[b]], pts[next[c]]);
+          std::swap(bucket[next[b]], bucket[next[c]]);
+          ++next[c];
+        }
+      }
+    }
+    mine = pts.subspan(starts[8]);
+  } else {
+    starts.fill(pts.size());  // a leaf: no children
+  }
+  if (chunk_root) {
+    // Its final content is known only after the upper levels took their share.
+    fs::path file = tmp_ / ("root-" + key.name() + ".bin");
+    write_file(file, mine.data(), mine.size() * sizeof(TilePoint));
+    std::lock_guard lock(nodes_mutex_);
+    pending_roots_[key] = file;
+  } else {
+    write_content(key, mine);
+  }
+  {
+    std::lock_guard lock(progress_mutex_);
+    index_progress_->advance(mine.size());
+  }
+  for (int i = 0; i < 8; ++i) {
+    const size_t b = starts[i], e = i == 7 ? starts[8] : starts[i + 1];
+    if (e > b) index_node(key.child(i), pts.subspan(b, e - b), false);
+  }
+}
+
+void Tiler::index_chunk(size_t i) {
+  Chunk& c = *chunks_[i];
+  thread_local std::vector<TilePoint> from_file;
+  std::span<TilePoint> pts;
+  if (c.resident) {
+    pts = {resident_.get() + c.offset, c.count};
+  } else {
+    read_points(c.file, from_file);
+    fs::remove(c.file);
+    pts = from_file;
+    if (pts.size() != c.count)
+      fail("temporary chunk {} holds {} points, {} expected", c.key.name(), pts.size(), c.count);
+  }
+  index_node(c.key, pts, true);
+}
+
+void Tiler::build_upper_levels() {
+  while (true) {
+    int deepest = 0;
+    for (auto& [k, f] : pending_roots_) deepest = std::max(deepest, k.level);
+    if (deepest == 0) break;
+    std::map<NodeKey, std::vector<NodeKey>> parents;
+    for (auto& [k, f] : pending_roots_)
+      if (k.level == deepest) parents[k.parent()].push_back(k);
+    std::vector<std::pair<NodeKey, std::vector<NodeKey>>> work(parents.begin(), parents.end());
+    std::map<NodeKey, fs::path> made;
+    std::mutex made_mutex;
+    auto build = [&](size_t w) {
+      const auto& [parent, kids] = work[w];
+      std::vector<size_t> ends;
+      std::vector<TilePoint> all;
+      for (const NodeKey& k : kids) {
+        std::vector<TilePoint> p = read_points(pending_roots_.at(k));
+        all.insert(all.end(), p.begin(), p.end());
+        ends.push_back(all.size());
+      }
+      std::vector<uint8_t> selected;
+      grid_select(all, node_min(parent), spacing(parent.level), opt_.max_node_points, selected);
+      std::vector<TilePoint> up;
+      size_t at = 0;
+      for (size_t c = 0; c < kids.size(); ++c) {
+        std::vector<TilePoint> stay;
+        for (; at < ends[c]; ++at) (selected[at] ? up : stay).push_back(all[at]);
+        write_content(kids[c], stay);
+        fs::remove(pending_roots_.at(kids[c]));
+      }
+      fs::path file = tmp_ / ("root-" + parent.name() + ".bin");
+      write_file(file, up.data(), up.size() * sizeof(TilePoint));
+      std::lock_guard lock(made_mutex);
+      made[parent] = file;
+    };
+    // Parallel when a worker's nine nodes fit the memory budget comfortably.
+    const uint64_t per_task = 9 * opt_.max_node_points * sizeof(TilePoint) * 2;
+    if (per_task * pool_->size() < opt_.max_memory / 4) {
+      pool_->parallel_for(work.size(), 1, [&](size_t b, size_t e) {
+        for (size_t w = b; w < e; ++w) build(w);
+      });
+    } else {
+      for (size_t w = 0; w < work.size(); ++w) build(w);
+    }
+    for (auto& [parent, kids] : work)
+      for (const NodeKey& k : kids) pending_roots_.erase(k);
+    for (auto& [k, f] : made) pending_roots_[k] = f;
+  }
+  for (auto& [k, f] : pending_roots_) {
+    std::vector<TilePoint> pts = read_points(f);
+    write_content(k, pts);
+    fs::remove(f);
+  }
+  pending_roots_.clear();
+}
+
+void Tiler::write_tileset() {
+  using nlohmann::json;
+  std::map<NodeKey, std::vector<NodeKey>> children;
+  for (auto& [k, info] : nodes_)
+    if (k.level > 0) children[k.parent()].push_back(k);
+  // Boxes: content union children, padded a little so float rounding never leaves a point out.
+  const double pad = std::max(0.001, content_.precision);
+  const char* ext = opt_.format == Format::Glb ? ".glb" : ".pnts";
+  std::function<json(const NodeKey&, Box&)> tile = [&](const NodeKey& k, Box& box) {
+    const NodeInfo& info = nodes_.at(k);
+    box = info.content;
+    json kids = json::array();
+    for (const NodeKey& c : children[k]) {
+      Box cb;
+      kids.push_back(tile(c, cb));
+      box.add(cb);
+    }
+    glm::dvec3 lo = box.min - pad, hi = box.max + pad;
+    glm::dvec3 c = (lo + hi) * 0.5, h = (hi - lo) * 0.5;
+    json t = {{"boundingVolume", {{"box", {c.x, c.y, c.z, h.x, 0, 0, 0, h.y, 0, 0, 0, h.z}}}},
+              {"geometricError", spacing(k.level)},
+              {"refine", "ADD"}};
+    if (info.points > 0) t["content"] = {{"uri", "tiles/" + k.name() + ext}};
+    if (!kids.empty()) t["children"] = std::move(kids);
+    return t;
+  };
+  Box root_box;
+  json root = tile(NodeKey{}, root_box);
+  const glm::dmat3& m = frame_.enu_to_ecef;
+  const glm::dvec3& o = frame_.origin_ecef;
+  // Column-major ENU -> ECEF.
+  root["transform"] = {m[0].x, m[0].y, m[0].z, 0, m[1].x, m[1].y, m[1].z, 0,
+                       m[2].x, m[2].y, m[2].z, 0, o.x,    o.y,    o.z,    1};
+  json tileset = {
+      {"asset",
+       {{"version", opt_.format == Format::Glb ? "1.1" : "1.0"}, {"generator", "stipple tile"}}},
+      {"geometricError", 2 * root_spacing_},
+      {"root", root},
+      {"extras",
+       {{"stipple",
+         {{"points", total_points_},
+          {"rootSpacing", root_spacing_},
+          {"geometricErrorPerSpacing", 1.0},
+          {"cube", {cube_min_.x, cube_min_.y, cube_min_.z, cube_size_}}}}}}};
+  std::string text = tileset.dump(1);
+  write_file(dir_ / "tileset.json", text.data(), text.size());
+}
+
+TileStats Tiler::run() {
+  auto start = std::chrono::steady_clock::now();
+  fs::path out = fs::absolute(opt_.output).lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();
+  if (fs::exists(out) && !opt_.force) fail("{} exists; pass --force to replace it", out.string());
+  phase_start_ = start;
+  open_inputs();
+  make_frame_and_cube();
+
+  unsigned threads =
+      opt_.threads ? opt_.threads : std::max(1u, std::thread::hardware_concurrency());
+  pool_ = std::make_unique<ThreadPool>(threads);
+  // Memory plan (bytes per point in flight): a read batch ~170 (PointBatch + local positions +
+  // records + sorted copy); a point being indexed ~120 (twice its record + hash slots).
+  const uint64_t budget = opt_.max_memory;
+  // Shares: 1/8 read batches, 1/4 indexing, the rest for the process itself, grids, allocator
+  // slack and the upper levels.
+  batch_points_ = std::clamp<uint64_t>(budget / 8 / ((threads + 2) * 170), 4096, 1 << 20);
+  count_level_ = 7;
+  while (count_level_ > 3 && (uint64_t(1) << (3 * count_level_)) * 8 > budget / 8) --count_level_;
+  chunk_points_ = std::max<uint64_t>(budget / 4 / (threads * 120), 20000);
+  // Staged records and resident chunks (2 x 40 bytes a point) within half the budget.
+  in_memory_ = total_points_ * 2 * sizeof(TilePoint) <= budget / 2;
+  if (in_memory_) staged_mem_.reset(new TilePoint[total_points_]);
+
+  fs::path parent = out.parent_path();
+  if (!fs::is_directory(parent)) fail("{}: no such directory", parent.string());
+  std::string templ = (parent / (out.filename().string() + ".partial-XXXXXX")).string();
+  if (!::mkdtemp(templ.data()))
+    fail("cannot create a directory beside {} ({})", out.string(), std::strerror(errno));
+  PartialDir partial{templ};
+  dir_ = partial.path;
+  tmp_ = dir_ / ".tmp";
+  fs::create_directories(tmp_);
+  fs::create_directories(dir_ / "tiles");
+  STIPPLE_INFO(
+      "tile: {} points from {} input(s), cube {:.1f} m, root spacing {:.3f} m, precision {:.4f} m, "
+      "batches of {}, count grid {}^3, chunks of <= {} points, {} threads",
+      total_points_, inputs_.size(), cube_size_, root_spacing_, content_.precision, batch_points_,
+      1 << count_level_, chunk_points_, threads);
+  phase("headers, frame, cube");
+
+  {
+    // Three ways through the inputs (count cells, plan chunks, distribute to chunks):
+    //  - in memory (the records fit half the budget twice): one reading pass stages records in
+    //    memory; distribution scatters them into one resident array;
+    //  - re-read (out of core, uncompressed LAS): a counting pass decodes and transforms
+    //    positions only, a second pass decodes again and appends records to the chunk files.
+    //    Decoding LAS from the page cache and the lattice transform cost less than writing and
+    //    reading back a staging file of 40-byte records;
+    //  - staged (out of core, LAZ in the inputs: decompressing twice would cost more): one
+    //    reading pass writes records to a staging file, read back in parallel.
+    const bool reread = !in_memory_ && std::none_of(inputs_.begin(), inputs_.end(),
+                                                    [](auto& in) { return in.header.compressed; });
+    std::vector<std::atomic<uint32_t>> counts(size_t(1) << (3 * count_level_));
+    const fs::path staged = tmp_ / "staged.bin";
+    std::mutex stage_mutex;
+    uint64_t staged_points = 0;
+    if (reread) {
+      read_pass("counting", [&](const Input& in, io::PointBatch& batch) {
+        thread_local std::vector<glm::dvec3> local;
+        to_local(in, batch, local);
+        for (const glm::dvec3& p : local)
+          counts[cell_of(p)].fetch_add(1, std::memory_order_relaxed);
+      });
+    } else {
+      int fd = -1;
+      if (!in_memory_) {
+        fd = ::open(staged.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        if (fd < 0) fail("{}: cannot create ({})", staged.string(), std::strerror(errno));
+      }
+      const FdCloser closer{fd};
+      read_pass("reading", [&](const Input& in, io::PointBatch& batch) {
+        const size_t n = batch.size();
+        thread_local std::vector<TilePoint> local;
+        TilePoint* recs = nullptr;
+        if (in_memory_) {
+          uint64_t at = staged_fill_.fetch_add(n);
+          if (at + n > total_points_)
+            fail("the inputs hold more points than the {} their headers declare", total_points_);
+          recs = staged_mem_.get() + at;
+        } else {
+          local.resize(n);
+          recs = local.data();
+        }
+        make_records(in, batch, recs);
+        for (size_t i = 0; i < n; ++i)
+          counts[cell_of(recs[i])].fetch_add(1, std::memory_order_relaxed);
+        if (in_memory_) return;
+        std::lock_guard lock(stage_mutex);
+        write_all(fd, staged, recs, n * sizeof(TilePoint));
+        staged_points += n;
+      });
+    }
+    if (in_memory_) staged_points = staged_fill_.load();
+    STIPPLE_INFO(
+        "tile: PROJ on {} lattice nodes for {} points ({} transformed point by point), largest "
+        "sampled interpolation error {:.2e} m",
+        lattice_.nodes, lattice_.points, lattice_.exact_points, lattice_.max_sample_error);
+    phase(reread ? "read + transform + count" : "read + transform + stage + count");
+    std::vector<uint32_t> plain(counts.size());
+    for (size_t i = 0; i < counts.size(); ++i) plain[i] = counts[i].load();
+    std::vector<std::atomic<uint32_t>>().swap(counts);
+    plan_chunks(plain);
+    if (!in_memory_) choose_resident_chunks(plain);
+    phase("plan chunks");
+    if (in_memory_) {
+      distribute_in_memory(staged_points);
+      staged_mem_.reset();
+    } else if (reread) {
+      read_pass("distributing", [&](const Input& in, io::PointBatch& batch) {
+        thread_local std::vector<TilePoint> recs;
+        recs.resize(batch.size());
+        make_records(in, batch, recs.data());
+        append_to_chunks(recs.data(), recs.size());
+      });
+    } else {
+      distribute(staged, staged_points);
+      fs::remove(staged);
+    }
+    std::vector<int32_t>().swap(cell_chunk_);
+    phase("distribute");
+  }
+  uint64_t distributed = 0;
+  for (auto& c : chunks_) {
+    distributed += c->count;
+    if (!in_memory_ && c->resident && c->count != c->expected)
+      fail("internal error: chunk {} holds {} points, {} were counted", c->key.name(), c->count,
+           c->expected);
+  }
+  if (distributed != total_points_)
+    fail("the inputs hold {} points, not the {} their headers declare", distributed, total_points_);
+  split_oversized_chunks();
+  phase("split oversized chunks");
+  // Biggest chunks first keeps the pool busy to the end.
+  std::sort(chunks_.begin(), chunks_.end(), [](auto& a, auto& b) { return a->count > b->count; });
+
+  index_progress_ = std::make_unique<Progress>("indexing", total_points_);
+  pool_->parallel_for(chunks_.size(), 1, [&](size_t b, size_t e) {
+    for (size_t i = b; i < e; ++i) index_chunk(i);
+  });
+  resident_.reset();
+  phase("index chunks");
+  build_upper_levels();
+  index_progress_->finish();
+  phase("upper levels");
+  if (written_ != total_points_)
+    fail("internal error: {} points written, {} read", written_.load(), total_points_);
+  write_tileset();
+  fs::remove_all(tmp_);
+  phase("tileset.json");
+
+  // Commit: the finished directory replaces the output in one rename.
+  if (fs::exists(out)) {
+    fs::path old = out;
+    old += fmt::format(".old-{}", ::getpid());
+    fs::rename(out, old);
+    fs::rename(dir_, out);
+    fs::remove_all(old);
+  } else {
+    fs::rename(dir_, out);
+  }
+  partial.committed = true;
+  phase("commit");
+
+  TileStats stats;
+  stats.points = total_points_;
+  stats.chunks = chunks_.size();
+  stats.root_spacing = root_spacing_;
+  for (auto& [k, info] : nodes_) {
+    stats.tiles += info.points > 0;
+    stats.depth = std::max(stats.depth, k.level);
+  }
+  stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return stats;
+}
+
+}  // namespace
+
+TileStats build_tileset(const TileOptions& options) {
+  Tiler tiler(options);
+  return tiler.run();
+}
+
+}  // namespace stipple::tiler

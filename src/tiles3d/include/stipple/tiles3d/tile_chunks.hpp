@@ -1,0 +1,34 @@
+#pragma once
+// A tile's decoded content converted for rendering: chunks in the engine's world frame (double
+// origins, float offsets). The streamer's workers make them right after decoding
+// (StreamerOptions::prepare), so the thread that drives the engine never touches points.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <glm/mat4x4.hpp>
+
+#include "stipple/io/pnts.hpp"
+#include "stipple/pointcloud/point_cloud.hpp"
+
+namespace stipple::tiles3d {
+
+// One tile's content as render-ready chunks (world space, double origins). Never modified once
+// built; the render world holds it while the tile's GPU buffers live.
+struct TileChunks {
+  uint32_t tile = 0;
+  std::vector<pc::PointChunk> chunks;
+  uint64_t points = 0;
+  pc::CloudAttributes attributes;  // which attributes the tile has
+  // Up to 128 intensities strided evenly through the tile: the drawn tiles' samples, weighted by
+  // their point counts, give the intensity ramp's percentiles.
+  std::vector<uint16_t> intensity_sample;
+  uint64_t memory_bytes() const;
+};
+
+// A tile's decoded contents as chunks in the engine's world frame (on a streamer worker).
+std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dmat4& tile_transform,
+                                                   const glm::dmat4& world_from_tileset,
+                                                   const std::vector<io::PointContent>& contents);
+
+}  // namespace stipple::tiles3d

@@ -1,0 +1,164 @@
+#include "stipple/tiles3d/render_load.hpp"
+
+#include <algorithm>
+#include <initializer_list>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "stipple/core/error.hpp"
+#include "stipple/core/log.hpp"
+#include "stipple/math/geo.hpp"
+
+namespace stipple::tiles3d {
+
+bool is_tileset_input(const std::string& input) {
+  return io::is_url(input) || io::is_tileset_uri(input);
+}
+
+glm::dmat4 world_from_tileset(const io::Tileset& ts) {
+  const glm::dmat4 y_up(1, 0, 0, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1);
+  if (ts.tiles.empty()) return y_up;
+  glm::dvec3 c = ts.tiles[0].box.center;
+  if (glm::length(c) < 1e6) return y_up;  // a local frame already
+  glm::dvec3 llh = geo::ecef_to_geodetic(c);
+  glm::dmat3 enu = geo::enu_basis(llh.x, llh.y);
+  glm::dmat4 local(glm::transpose(enu));  // ECEF -> ENU rotation
+  local = local * glm::translate(glm::dmat4(1.0), -c);
+  return y_up * local;
+}
+
+Aabb world_bounds(const io::Tileset& ts, const glm::dmat4& m) {
+  Aabb box;
+  if (ts.tiles.empty()) return box;
+  const io::Obb& o = ts.tiles[0].box;
+  for (int i = 0; i < 8; ++i) {
+    glm::dvec3 p = o.center;
+    for (int k = 0; k < 3; ++k) p += o.half_axes[k] * ((i >> k) & 1 ? 1.0 : -1.0);
+    box.extend(glm::dvec3(m * glm::dvec4(p, 1.0)));
+  }
+  return box;
+}
+
+namespace {
+
+// A per-point scalar attribute under any of the names writers use (pnts batch tables: INTENSITY;
+// glb: _INTENSITY, or the EXT_structural_metadata property name); null when absent.
+const std::vector<double>* scalar_attribute(const io::PointContent& content,
+                                            std::initializer_list<const char*> names) {
+  for (const char* name : names) {
+    auto it = content.attributes.find(name);
+    if (it != content.attributes.end() && it->second.components == 1 &&
+        it->second.values.size() == content.point_count)
+      return &it->second.values;
+  }
+  return nullptr;
+}
+
+uint32_t clamp_to(double v, uint32_t max) {
+  return v > 0 ? uint32_t(std::min(v, double(max))) : 0u;
+}
+
+}  // namespace
+
+void append_content(pc::PointCloud& cloud, const io::PointContent& content,
+                    const glm::dmat4& tile_transform, const glm::dmat4& world_from_tileset) {
+  if (content.point_count == 0) return;
+  // LAS attributes carried by the tile drive the intensity, classification and return colour
+  // modes, as for LAS input.
+  const auto* intensity =
+      scalar_attribute(content, {"intensity", "INTENSITY", "_INTENSITY", "Intensity"});
+  const auto* classification = scalar_attribute(
+      content, {"classification", "CLASSIFICATION", "_CLASSIFICATION", "Classification"});
+  const auto* returns = scalar_attribute(
+      content, {"return_number", "RETURN_NUMBER", "_RETURN_NUMBER", "ReturnNumber"});
+  const auto* return_count = scalar_attribute(
+      content, {"number_of_returns", "NUMBER_OF_RETURNS", "_NUMBER_OF_RETURNS", "NumberOfReturns"});
+  glm::dmat4 m = world_from_tileset * tile_transform;
+  pc::PointChunk chunk;
+  chunk.origin = glm::dvec3(m * glm::dvec4(content.center, 1.0));
+  glm::dmat3 linear(m);  // offsets from the centre only need the linear part
+  chunk.vertices.reserve(content.point_count);
+  for (size_t i = 0; i < content.point_count; ++i) {
+    glm::dvec3 p = linear * glm::dvec3(content.positions[i]);
+    uint32_t rgba = content.rgba.empty() ? pc::pack_rgba(220, 220, 220) : content.rgba[i];
+    const uint32_t attributes =
+        pc::pack_attributes(uint16_t(intensity ? clamp_to((*intensity)[i], 65535) : 0),
+                            uint8_t(classification ? clamp_to((*classification)[i], 255) : 0),
+                            uint8_t(returns ? clamp_to((*returns)[i], 15) : 0),
+                            uint8_t(return_count ? clamp_to((*return_count)[i], 15) : 0));
+    chunk.vertices.push_back({float(p.x), float(p.y), float(p.z), rgba | 0xff000000u, attributes});
+    glm::dvec3 world = chunk.origin + p;
+    chunk.bounds.extend(world);
+    cloud.world_bounds.extend(world);
+    cloud.source_bounds.extend(glm::dvec3(
+        tile_transform * glm::dvec4(content.center + glm::dvec3(content.positions[i]), 1.0)));
+  }
+  cloud.point_count += content.point_count;
+  pc::CloudAttributes& a = cloud.attributes;
+  a.has_rgb = a.has_rgb || !content.rgba.empty();
+  a.has_intensity = a.has_intensity || intensity;
+  a.has_classification = a.has_classification || classification;
+  a.has_returns = a.has_returns || returns;
+  cloud.chunks.push_back(std::move(chunk));
+}
+
+RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoadOptions& options) {
+  io::TilesetOptions ts_options = options.streamer.tileset;
+  ts_options.fetch = options.streamer.fetch;
+  auto tileset = std::make_shared<io::Tileset>(
+      options.streamer.fetcher ? io::parse_tileset(options.streamer.fetcher(uri), uri,
+                                                   options.streamer.fetcher, ts_options)
+                               : io::load_tileset(uri, ts_options));
+  RenderLoadResult out;
+  for (const auto& e : tileset->errors) out.errors.push_back({0, e});
+  View view;
+  view.width = options.width;
+  view.height = options.height;
+  view.world_from_tileset = world_from_tileset(*tileset);
+  if (options.camera) {
+    view.camera = *options.camera;
+  } else {
+    view.camera = frame_box(world_bounds(*tileset, view.world_from_tileset),
+                            double(options.width) / options.height, options.azimuth,
+                            options.elevation, options.fov);
+  }
+  TileStreamer streamer(tileset, options.streamer);
+  const Selection* selection = nullptr;
+  for (size_t i = 0; i < options.max_updates; ++i) {
+    selection = &streamer.update(view);
+    if (streamer.idle()) break;
+    streamer.wait_for_progress();
+  }
+  for (auto& e : streamer.take_errors()) out.errors.push_back(std::move(e));
+  out.camera = view.camera;
+  out.stats = streamer.stats();
+  out.budget_limited = selection->budget_limited;
+  out.sse_threshold = selection->sse_threshold;
+  if (out.budget_limited && selection->render.empty())
+    STIPPLE_WARN(
+        "{}: the memory budget ({:.1f} MiB) is smaller than the coarsest tiles this view "
+        "needs: nothing is drawn",
+        uri, double(options.streamer.traversal.memory_budget) / (1 << 20));
+  else if (out.budget_limited)
+    STIPPLE_WARN(
+        "{}: the memory budget ({:.1f} MiB) limited detail: screen-space error {:.1f} px "
+        "instead of {:.1f}",
+        uri, double(options.streamer.traversal.memory_budget) / (1 << 20), out.sse_threshold,
+        options.streamer.traversal.max_sse);
+  for (uint32_t t : selection->render) {
+    const auto* contents = streamer.content(t);
+    if (!contents) continue;
+    for (const auto& c : *contents)
+      append_content(out.cloud, c, tileset->tiles[t].transform, view.world_from_tileset);
+    ++out.tiles_rendered;
+  }
+  pc::finish_cloud(out.cloud);
+  STIPPLE_INFO(
+      "{}: {} tiles read ({} external tilesets, {} subtrees), {} rendered, {} points, "
+      "{} errors",
+      uri, tileset->tiles.size(), tileset->external_tilesets, tileset->subtrees, out.tiles_rendered,
+      out.cloud.point_count, out.errors.size());
+  return out;
+}
+
+}  // namespace stipple::tiles3d

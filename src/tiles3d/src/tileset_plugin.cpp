@@ -1,0 +1,355 @@
+#include "stipple/tiles3d/tileset_plugin.hpp"
+
+#include <algorithm>
+#include <limits>
+#include <unordered_map>
+
+#include "stipple/core/error.hpp"
+#include "stipple/core/log.hpp"
+#include "stipple/engine/camera.hpp"
+#include "stipple/engine/engine.hpp"
+#include "stipple/engine/render_plugins.hpp"
+#include "stipple/engine/viewport.hpp"
+#include "stipple/pointcloud/point_renderer.hpp"
+#include "stipple/pointcloud/scene.hpp"
+#include "stipple/tiles3d/render_load.hpp"
+
+namespace stipple::tiles3d {
+namespace {
+
+// Render-world resource, replaced in every Extract: what to draw this frame.
+struct TilesetDrawList {
+  std::vector<std::shared_ptr<const TileChunks>> draw;  // traversal order
+  std::vector<uint32_t> resident;                       // sorted tile ids with chunks
+  pc::CloudAttributes attributes;
+};
+
+// Render-world resource: GPU tiles and the per-frame drawn view.
+struct TilesetGpu {
+  struct Tile {
+    std::shared_ptr<const TileChunks> data;  // keeps the CPU chunks as long as the GPU data
+    pc::GpuPointCloud gpu;                   // chunks in page ranges (or dedicated buffers)
+  };
+  std::unordered_map<uint32_t, Tile> tiles;
+  // The pass reads this cloud when the graph executes (Draw), so the drawn tiles' chunks are
+  // moved into it in Queue and back in the next Prepare. Boxed: its address must not move.
+  std::unique_ptr<pc::GpuPointCloud> drawn = std::make_unique<pc::GpuPointCloud>();
+  std::vector<std::pair<uint32_t, uint32_t>> drawn_tiles;  // (tile, GPU chunks) in drawn order
+  std::vector<std::pair<uint32_t, uint32_t>> last_drawn;
+  uint32_t clod_capacity = 0;  // chunk slots of drawn->clod_args
+  bool dirty = true;           // bind groups of the drawn view must be rebuilt
+  std::unique_ptr<pc::PointPipelines> pipelines;
+  WGPUTextureFormat format = WGPUTextureFormat_Undefined;
+  uint64_t page_bytes = 0;
+  std::unique_ptr<pc::PagedPoints> pages;  // created on first upload; null: dedicated buffers
+};
+
+}  // namespace
+
+std::optional<pc::PickHit> pick_tileset_point(const TilesetStream& stream, const pc::PickRay& ray) {
+  std::optional<pc::PickHit> best;
+  for (uint32_t t : stream.draw) {
+    if (t >= stream.chunks.size() || !stream.chunks[t]) continue;
+    for (const auto& chunk : stream.chunks[t]->chunks)
+      pc::pick_in_chunk(chunk, chunk.bounds, ray, best);
+  }
+  return best;
+}
+
+namespace {
+
+std::optional<pc::PickHit> pick_tileset(Registry& main, const pc::PickRay& ray) {
+  const auto* stream = main.try_resource<TilesetStream>();
+  return stream ? pick_tileset_point(*stream, ray) : std::nullopt;
+}
+
+// MainStage::Update: one streamer update with the first camera.
+void update_tileset(Registry& main) {
+  auto& s = main.resource<TilesetStream>();
+  auto& stats = main.resource<TilesetStats>();
+  const Camera* camera = nullptr;
+  main.view<Camera>().each([&](const Camera& c) {
+    if (!camera) camera = &c;
+  });
+  s.draw.clear();
+  if (!camera) return;
+  View view;
+  view.camera = *camera;
+  view.width = s.width;
+  view.height = s.height;
+  if (const auto* viewport = main.try_resource<Viewport>(); viewport && viewport->valid()) {
+    view.width = viewport->width;
+    view.height = viewport->height;
+  }
+  view.world_from_tileset = s.world_from_tileset;
+  const Selection& selection = s.streamer->update(view);
+  for (const auto& e : s.streamer->take_errors()) {
+    STIPPLE_WARN("tile {}: {}", e.tile, e.message);
+    ++stats.errors;
+  }
+
+  // Evicted (or failed) tiles disappear; loaded ones come with the chunks their worker made.
+  const auto& states = s.streamer->states();
+  if (s.chunks.size() < states.size()) s.chunks.resize(states.size());
+  stats.resident_tiles = 0;
+  stats.resident_points = 0;
+  for (size_t t = 0; t < states.size(); ++t) {
+    const PreparedTile* prepared = s.streamer->prepared(uint32_t(t));
+    if (!prepared) {
+      s.chunks[t].reset();
+      continue;
+    }
+    if (s.chunks[t] != prepared->chunks) s.chunks[t] = prepared->chunks;
+    ++stats.resident_tiles;
+    stats.resident_points += s.chunks[t]->points;
+  }
+  stats.drawn_tiles = 0;
+  stats.drawn_points = 0;
+  for (uint32_t t : selection.render) {
+    if (t >= s.chunks.size() || !s.chunks[t] || s.chunks[t]->points == 0) continue;
+    s.draw.push_back(t);
+    ++stats.drawn_tiles;
+    stats.drawn_points += s.chunks[t]->points;
+  }
+  const auto streamer_stats = s.streamer->stats();
+  stats.resident_bytes = streamer_stats.resident_bytes;
+  stats.peak_resident_bytes = streamer_stats.peak_resident_bytes;
+  stats.loads_completed = streamer_stats.loads_completed;
+  stats.evictions = streamer_stats.evictions;
+  stats.discarded_over_budget = streamer_stats.discarded_over_budget;
+  stats.budget_limited = streamer_stats.budget_limited;
+  stats.sse_threshold = streamer_stats.sse_threshold;
+  stats.idle = s.streamer->idle();
+  stats.memory_budget = s.streamer->traversal_options().memory_budget;  // the panel may change it
+  ++stats.frames;
+  auto& info = main.resource<pc::SceneInfo>();
+  info.points = std::max(info.points, stats.drawn_points);
+  pc::CloudAttributes& scene = info.attributes;
+  uint64_t signature = 0;
+  for (uint32_t t : s.draw) {
+    const pc::CloudAttributes& a = s.chunks[t]->attributes;
+    scene.has_rgb = scene.has_rgb || a.has_rgb;
+    scene.has_intensity = scene.has_intensity || a.has_intensity;
+    scene.has_classification = scene.has_classification || a.has_classification;
+    scene.has_returns = scene.has_returns || a.has_returns;
+    if (a.has_intensity) signature = signature * 1000003u + t + 1;
+  }
+  // Intensity ramp: 2nd and 98th percentiles of the drawn tiles' samples, each weighted by the
+  // points it stands for (as LAS input's ramp is over all its points); recomputed only when the
+  // drawn set changes.
+  if (signature != 0 && signature != s.intensity_signature) {
+    // (A tile with intensities has a non-empty sample.)
+    s.intensity_signature = signature;
+    std::vector<double> values, weights;
+    for (uint32_t t : s.draw) {
+      const TileChunks& tile = *s.chunks[t];
+      if (tile.intensity_sample.empty()) continue;
+      const double w = double(tile.points) / double(tile.intensity_sample.size());
+      for (uint16_t v : tile.intensity_sample) {
+        values.push_back(v);
+        weights.push_back(w);
+      }
+    }
+    scene.intensity_percentiles =
+        pc::percentile_range(std::move(values), std::move(weights), 0.02, 0.98);
+  }
+}
+
+void extract_tileset(Registry& main) {
+  Registry& render = *main.resource<RenderWorldRef>();
+  render.insert_resource(main.resource<pc::PointDrawSettings>());
+  const auto& s = main.resource<TilesetStream>();
+  TilesetDrawList list;
+  list.attributes = main.resource<pc::SceneInfo>().attributes;
+  list.draw.reserve(s.draw.size());
+  for (uint32_t t : s.draw) list.draw.push_back(s.chunks[t]);
+  for (size_t t = 0; t < s.chunks.size(); ++t)
+    if (s.chunks[t]) list.resident.push_back(uint32_t(t));
+  render.insert_resource(std::move(list));
+}
+
+// Chunks moved into the drawn view last Queue go back to their tiles.
+void return_drawn(TilesetGpu& g) {
+  size_t next = 0;
+  for (auto [tile, count] : g.drawn_tiles) {
+    auto& chunks = g.tiles.at(tile).gpu.chunks;
+    for (uint32_t i = 0; i < count; ++i) chunks[i] = std::move(g.drawn->chunks[next++]);
+  }
+  g.drawn->chunks.clear();
+  g.drawn->point_count = 0;
+  g.last_drawn = std::move(g.drawn_tiles);
+  g.drawn_tiles.clear();
+}
+
+void prepare_tileset(Registry& render) {
+  auto& g = render.resource<TilesetGpu>();
+  return_drawn(g);
+  gpu::Context& ctx = *render.resource<GpuContext>();
+  auto& stats = render.resource<TilesetGpuStats>();
+  if (g.pages) pc::collect_frees(ctx, *g.pages);
+  const auto* list = render.try_resource<TilesetDrawList>();
+  if (list) {
+    // Free the GPU data of tiles the main world no longer holds (page ranges once the frames
+    // that may read them are done).
+    for (auto it = g.tiles.begin(); it != g.tiles.end();) {
+      if (!std::binary_search(list->resident.begin(), list->resident.end(), it->first)) {
+        if (g.pages) pc::free_chunks_deferred(*g.pages, it->second.gpu.chunks);
+        it = g.tiles.erase(it);
+        ++stats.frees;
+        g.dirty = true;
+      } else {
+        ++it;
+      }
+    }
+    bool uploaded = false;
+    for (const auto& data : list->draw) {
+      auto& tile = g.tiles[data->tile];
+      if (tile.data == data) continue;
+      if (g.page_bytes > 0 && !g.pages)
+        g.pages = std::make_unique<pc::PagedPoints>(pc::create_paged_points(ctx, g.page_bytes));
+      // A tile reloaded under the same id: its old data goes first.
+      if (g.pages) pc::free_chunks_deferred(*g.pages, tile.gpu.chunks);
+      tile.data = data;
+      tile.gpu = {};
+      for (const auto& chunk : data->chunks) {
+        if (chunk.vertices.empty()) continue;
+        if (g.pages)
+          pc::upload_chunk_paged(ctx, *g.pages, tile.gpu, chunk);
+        else
+          pc::upload_chunk(ctx, tile.gpu, chunk);
+      }
+      ++stats.uploads;
+      uploaded = true;
+      g.dirty = true;
+    }
+    if (uploaded) ctx.check("uploading tiles");
+  }
+  stats.gpu_tiles = uint32_t(g.tiles.size());
+  stats.gpu_points = 0;
+  for (const auto& [id, tile] : g.tiles) stats.gpu_points += tile.gpu.point_count;
+  stats.paged = g.page_bytes > 0;
+  if (g.pages) {
+    stats.pages = *g.pages->stats;
+    stats.allocator = g.pages->allocator->stats();
+    stats.pending_frees = g.pages->pending.size();
+  }
+}
+
+// PostDraw: the frame's work is submitted; ranges freed from now on wait for it.
+void mark_tileset_frame(Registry& render) {
+  auto& g = render.resource<TilesetGpu>();
+  if (g.pages && render.resource<FrameGraph>().executed)
+    pc::mark_frame_submitted(*render.resource<GpuContext>(), *g.pages);
+}
+
+void queue_tileset(Registry& render) {
+  auto& fg = render.resource<FrameGraph>();
+  if (!fg.active) return;
+  const auto* list = render.try_resource<TilesetDrawList>();
+  if (!list) return;
+  const auto& target = render.resource<RenderTarget>();
+  const ExtractedCamera* extracted = first_extracted_camera(render);
+  if (!extracted) return;
+  auto& g = render.resource<TilesetGpu>();
+  const auto& settings = render.resource<pc::PointDrawSettings>();
+  gpu::Context& ctx = *render.resource<GpuContext>();
+  if (!g.pipelines || g.format != target.format) {
+    g.pipelines =
+        std::make_unique<pc::PointPipelines>(pc::create_point_pipelines(ctx, target.format));
+    g.format = target.format;
+    g.dirty = true;
+  }
+  // The drawn view: the selected tiles' chunks, in traversal order.
+  pc::GpuPointCloud& drawn = *g.drawn;
+  for (const auto& data : list->draw) {
+    auto& tile = g.tiles.at(data->tile);
+    uint32_t count = uint32_t(tile.gpu.chunks.size());
+    for (auto& chunk : tile.gpu.chunks) {
+      drawn.point_count += chunk.count;
+      drawn.chunks.push_back(std::move(chunk));
+    }
+    g.drawn_tiles.emplace_back(data->tile, count);
+  }
+  // Its own CLOD argument slots, one per chunk: grown to the largest chunk count seen.
+  if (drawn.chunks.size() > g.clod_capacity || !drawn.clod_args) {
+    g.clod_capacity = std::max<uint32_t>(64, uint32_t(drawn.chunks.size()) * 2);
+    drawn.clod_args_stride = std::max<uint32_t>(256, ctx.limits.minStorageBufferOffsetAlignment);
+    drawn.clod_args = gpu::create_buffer(ctx, uint64_t(g.clod_capacity) * drawn.clod_args_stride,
+                                         WGPUBufferUsage_Storage | WGPUBufferUsage_Indirect |
+                                             WGPUBufferUsage_CopyDst | WGPUBufferUsage_CopySrc,
+                                         "clod-args-tiles");
+    g.dirty = true;
+  }
+  // Bind groups name the chunk's CLOD slot: rebuilt when the drawn list changes.
+  if (g.dirty || g.drawn_tiles != g.last_drawn) drawn.bind_groups_for = nullptr;
+  g.dirty = false;
+  drawn.attributes = list->attributes;
+  auto& stats = render.resource<RenderStats>();
+  stats.points_total = render.resource<TilesetGpuStats>().gpu_points;
+  if (drawn.chunks.empty()) return;  // nothing resident yet: the target keeps its clear
+  Camera camera = to_camera(*extracted);
+  pc::add_point_cloud_passes(fg.graph, *g.pipelines, drawn, camera, settings.render, target.width,
+                             target.height);
+  stats.points_drawn += drawn.point_count;
+}
+
+}  // namespace
+
+void TilesetPlugin::build(Engine& engine) {
+  Registry& main = engine.main();
+  io::TilesetOptions ts_options = streamer.tileset;
+  ts_options.fetch = streamer.fetch;
+  TilesetStream s;
+  auto tileset = std::make_shared<io::Tileset>(io::load_tileset(uri, ts_options));
+  s.tileset = tileset;
+  for (const auto& e : s.tileset->errors) STIPPLE_WARN("{}: {}", uri, e);
+  if (s.tileset->tiles.empty()) fail("{}: the tileset has no tiles", uri);
+  s.world_from_tileset = world_from_tileset(*s.tileset);
+  s.world_bounds = world_bounds(*s.tileset, s.world_from_tileset);
+  s.width = width;
+  s.height = height;
+  // Workers convert each decoded tile to world-space chunks and drop the decoded form.
+  StreamerOptions options = streamer;
+  options.prepare = [world = s.world_from_tileset](uint32_t tile, const glm::dmat4& transform,
+                                                   std::vector<io::PointContent>& contents) {
+    auto chunks = make_tile_chunks(tile, transform, world, contents);
+    std::vector<io::PointContent>().swap(contents);
+    const uint64_t bytes = chunks->memory_bytes();
+    return PreparedTile{std::move(chunks), bytes};
+  };
+  s.streamer = std::make_shared<TileStreamer>(tileset, std::move(options));
+  s.chunks.resize(s.tileset->tiles.size());
+
+  pc::SceneInfo info;
+  info.world_bounds = s.world_bounds;
+  info.name = uri.substr(uri.find_last_of("/\\") + 1);
+  if (info.name.empty()) info.name = uri;
+  // Elevation ramp over the root volume (the data arrives later).
+  info.attributes.elevation_percentiles = {s.world_bounds.min.y, s.world_bounds.max.y};
+  TilesetStats stats;
+  stats.memory_budget = streamer.traversal.memory_budget;
+  STIPPLE_INFO("{}: {} tiles, streaming (budget {:.1f} MiB)", uri, s.tileset->tiles.size(),
+               double(streamer.traversal.memory_budget) / (1 << 20));
+  main.insert_resource(std::move(info));
+  main.insert_resource(std::move(s));
+  main.insert_resource(stats);
+  pc::PointDrawSettings settings;
+  settings.render = render;
+  settings.budget = budget;
+  main.insert_resource(settings);
+  engine.render().insert_resource(settings);
+  TilesetGpu g;
+  g.page_bytes = gpu_page_bytes;
+  engine.render().insert_resource(std::move(g));
+  engine.render().insert_resource(TilesetGpuStats{});
+
+  pc::add_scene_picker(main, pick_tileset);
+
+  engine.add_system(MainStage::Update, update_tileset, "update_tileset");
+  engine.add_system(MainStage::Extract, extract_tileset, "extract_tileset");
+  engine.add_system(RenderStage::Prepare, prepare_tileset, "prepare_tileset");
+  engine.add_system(RenderStage::Queue, queue_tileset, "queue_tileset");
+  engine.add_system(RenderStage::PostDraw, mark_tileset_frame, "mark_tileset_frame");
+}
+
+}  // namespace stipple::tiles3d

@@ -1,0 +1,84 @@
+// `stipple view` in a virtual X server (xvfb-run): the window renders the data through the
+// surface, the UI panel is drawn over it, and --frames/--screenshot end the run with a PNG.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "stipple/io/las.hpp"
+#include "stipple/io/point_batch.hpp"
+#include "stipple/renderer/png.hpp"
+#include "test_util.hpp"
+
+using namespace stipple;
+namespace fs = std::filesystem;
+
+namespace {
+
+class View : public ::testing::TestWithParam<std::string> {};
+
+}  // namespace
+
+TEST_P(View, WindowShowsAutzenWithThePanel) {
+  STIPPLE_REQUIRE_DATA(path, "laz/autzen_trim.laz");
+  if (test::run_command("command -v xvfb-run").exit_code != 0)
+    GTEST_SKIP() << "xvfb-run is not installed";
+  fs::path dir =
+      fs::temp_directory_path() / fmt::format("stipple_view_{}_{}", GetParam(), ::getpid());
+  fs::create_directories(dir);
+  auto view = [&](const std::string& name, const std::string& extra) {
+    return test::run_command(
+        fmt::format("xvfb-run -a -s '-screen 0 1600x900x24' {} view {} --backend {} --frames 60 "
+                    "--screenshot {} {}",
+                    STIPPLE_BINARY, path.string(), GetParam(), (dir / name).string(), extra));
+  };
+  test::CommandResult plain = view("plain.png", "--no-ui");
+  if (plain.exit_code != 0 && plain.output.find("cannot open a window") != std::string::npos)
+    GTEST_SKIP() << "no X display could be made: " << plain.output;
+  ASSERT_EQ(plain.exit_code, 0) << plain.output;
+  test::CommandResult with_ui = view("ui.png", "");
+  ASSERT_EQ(with_ui.exit_code, 0) << with_ui.output;
+
+  gpu::Image image = gpu::read_png(dir / "plain.png");
+  ASSERT_EQ(image.width, 1280u);
+  ASSERT_EQ(image.height, 720u);
+  // The data's own mean colour (8-bit values stored in 16-bit fields).
+  size_t colored = 0;
+  const auto data_mean = test::mean_rgb(path, &colored);
+  ASSERT_EQ(colored, 110000u);
+  const uint8_t bg[3] = {18, 20, 26};  // the default background 0.07, 0.08, 0.1
+  auto stats = test::coverage_stats(image, bg, 1);
+  EXPECT_GT(stats.coverage, 0.10);
+  EXPECT_LT(stats.coverage, 0.5);
+  // Tolerance as in the headless autzen test: within 8 levels of the data's mean per channel.
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(stats.mean[c], data_mean[c], 8.0) << "channel " << c;
+
+  // With the panel: the same picture, plus the panel in the top-left corner.
+  gpu::Image ui = gpu::read_png(dir / "ui.png");
+  ASSERT_EQ(ui.width, image.width);
+  ASSERT_EQ(ui.height, image.height);
+  size_t panel_diff = 0, panel_pixels = 0, outside_diff = 0;
+  for (uint32_t y = 0; y < image.height; ++y)
+    for (uint32_t x = 0; x < image.width; ++x) {
+      size_t i = (size_t(y) * image.width + x) * 4;
+      bool differs = false;
+      for (int c = 0; c < 3; ++c) differs |= std::abs(image.rgba[i + c] - ui.rgba[i + c]) > 1;
+      bool in_panel = x >= 20 && x < 200 && y >= 20 && y < 120;  // inside any panel layout
+      panel_pixels += in_panel;
+      panel_diff += in_panel && differs;
+      outside_diff += (x >= 500 || y >= 520) && differs;
+    }
+  EXPECT_GT(double(panel_diff) / double(panel_pixels), 0.3);
+  EXPECT_EQ(outside_diff, 0u);
+  fs::remove_all(dir);
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, View, ::testing::Values("dawn", "wgpu"),
+                         [](const auto& info) { return info.param; });

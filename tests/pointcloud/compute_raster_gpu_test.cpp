@@ -1,0 +1,234 @@
+// The compute rasterizer on lavapipe, for both WebGPU implementations. wgpu-native has 64-bit
+// atomics (visibility buffer); Dawn runs the 32-bit two-pass fallback.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "stipple/io/las.hpp"
+#include "stipple/io/procedural.hpp"
+#include "stipple/pointcloud/batches.hpp"
+#include "stipple/pointcloud/compute_raster.hpp"
+#include "stipple/pointcloud/point_cloud.hpp"
+#include "stipple/pointcloud/point_renderer.hpp"
+#include "stipple/renderer/gpu.hpp"
+#include "test_util.hpp"
+
+using namespace stipple;
+
+namespace {
+
+class ComputeRaster : public ::testing::TestWithParam<std::string> {
+ protected:
+  std::unique_ptr<gpu::Context> context() {
+    gpu::ContextOptions options;
+    options.backend = GetParam();
+    options.optional_features = pc::compute_raster_features();
+    return gpu::create_context(options);
+  }
+};
+
+const uint8_t kBlack[3] = {0, 0, 0};
+
+struct Rendered {
+  gpu::Image image;
+  pc::RasterCounters counters;
+  bool visibility64 = false;
+};
+
+Rendered render_compute(gpu::Context& ctx, const pc::BatchedCloud& cloud, const Camera& camera,
+                        pc::ComputeRasterOptions options, uint32_t w, uint32_t h,
+                        bool force_fallback = false, uint64_t max_segment_points = 0) {
+  auto gpu_cloud = pc::upload_batched_cloud(ctx, cloud, {max_segment_points});
+  auto target = gpu::create_offscreen_target(ctx, w, h);
+  auto pipeline = pc::create_compute_raster_pipeline(ctx, target.color_format, force_fallback);
+  options.background = {0, 0, 0};
+  gpu::RenderGraph graph;
+  graph.import_texture("color", target.color.get(), target.color_view.get(),
+                       {w, h, target.color_format, WGPUTextureUsage_RenderAttachment},
+                       gpu::Access::Writable);
+  pc::add_compute_raster_passes(graph, pipeline, gpu_cloud, camera, options, w, h);
+  gpu::TransientPool pool;
+  graph.execute(ctx, pool);
+  Rendered r;
+  r.image = gpu::read_texture(ctx, target.color.get(), w, h, target.color_format);
+  r.counters = pc::read_raster_counters(ctx, pipeline);
+  r.visibility64 = pipeline.visibility64;
+  ctx.check("compute raster test");
+  return r;
+}
+
+gpu::Image render_billboard(gpu::Context& ctx, const pc::PointCloud& cloud, const Camera& camera,
+                            uint32_t w, uint32_t h) {
+  auto gpu_cloud = pc::upload_point_cloud(ctx, cloud);
+  auto target = gpu::create_offscreen_target(ctx, w, h);
+  auto pipelines = pc::create_point_pipelines(ctx, target.color_format);
+  // The billboard path at its plainest: 1-pixel squares, depth-tested, RGB, no EDL.
+  pc::PointRenderSettings style;
+  style.point_size = 1.0f;
+  style.round = false;
+  style.splat = pc::SplatMode::Naive;
+  style.edl = false;
+  style.color = pc::ColorMode::Rgb;
+  style.background = {0, 0, 0};
+  pc::draw_points(ctx, pipelines, gpu_cloud, camera, style, target.color.get(),
+                  target.color_view.get(), w, h);
+  return gpu::read_texture(ctx, target.color.get(), w, h, target.color_format);
+}
+
+void expect_similar(const gpu::Image& a, const gpu::Image& b, double coverage_tol, double mean_tol,
+                    const char* what) {
+  auto sa = test::coverage_stats(a, kBlack, 0), sb = test::coverage_stats(b, kBlack, 0);
+  ASSERT_GT(sa.coverage, 0.01) << what;
+  std::printf("%s: coverage %.4f vs %.4f, mean (%.1f %.1f %.1f) vs (%.1f %.1f %.1f)\n", what,
+              sa.coverage, sb.coverage, sa.mean[0], sa.mean[1], sa.mean[2], sb.mean[0], sb.mean[1],
+              sb.mean[2]);
+  EXPECT_NEAR(sb.coverage / sa.coverage, 1.0, coverage_tol) << what;
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(sb.mean[c], sa.mean[c], mean_tol) << what << " ch " << c;
+}
+
+}  // namespace
+
+TEST_P(ComputeRaster, BackendPicksVisibilityBufferOrFallback) {
+  auto ctx = context();
+  // wgpu-native on lavapipe has 64-bit atomics; Dawn (bun-webgpu 0.1.7) has none.
+  EXPECT_EQ(pc::has_visibility64(*ctx), GetParam() == "wgpu");
+}
+
+TEST_P(ComputeRaster, AgreesWithBillboardsOnAutzen) {
+  STIPPLE_REQUIRE_DATA(path, "las/autzen_trim.las");
+  auto ctx = context();
+  pc::LoadOptions load;
+  load.progress = false;
+  auto cloud = pc::load_point_cloud({path}, load);
+  const uint32_t w = 640, h = 360;
+  Camera camera = frame_box(cloud.world_bounds, double(w) / h);
+  auto batched = pc::build_batches(cloud, pc::SpatialOrder::Morton);
+  auto billboard = render_billboard(*ctx, cloud, camera, w, h);
+  auto compute = render_compute(*ctx, batched, camera, {}, w, h);
+  EXPECT_EQ(compute.visibility64, GetParam() == "wgpu");
+  // Both draw every point into the one pixel it projects to; they differ in which point wins
+  // a pixel (nearest by depth buffer vs visibility buffer, 10-bit positions for small batches)
+  // and at pixel edges: coverage within 1 % (measured: equal to 4 digits), mean colour within
+  // 1.5 levels (measured: 0.1), fewer than 10 % of pixels off by more than 8 levels.
+  expect_similar(billboard, compute.image, 0.01, 1.5, "compute vs billboard");
+  EXPECT_LT(test::differing_fraction(billboard, compute.image, 8), 0.10);
+}
+
+TEST_P(ComputeRaster, CountersMatchCpuReference) {
+  auto ctx = context();
+  io::SceneParams scene;
+  scene.point_count = 400'000;
+  auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Morton);
+  const uint32_t w = 320, h = 180;
+  // Low over the scene, looking across it: some batches behind, some beside, some far.
+  Aabb box = io::scene_bounds(scene);
+  glm::dvec3 c = box.center();
+  Camera camera;
+  camera.fov_y = glm::radians(50.0);
+  camera.look_at(z_up_to_y_up({c.x - 20, c.y - 30, c.z + 30}),
+                 z_up_to_y_up({c.x + 60, c.y + 80, c.z - 40}));
+  camera.near_plane = 0.5;
+  // The LOD threshold: the median projected size of the visible batches, so about half go.
+  std::vector<float> sizes;
+  glm::mat4 vp = pc::raster_view_proj(camera, w, h);
+  for (const auto& b : batched.batches) {
+    auto v = pc::classify_batch(vp, glm::vec3(b.min - camera.position), glm::vec3(b.size), {w, h});
+    if (v.visible) sizes.push_back(v.size_px);
+  }
+  ASSERT_FALSE(sizes.empty());
+  std::sort(sizes.begin(), sizes.end());
+  for (float min_px : {0.0f, sizes[sizes.size() / 2]}) {
+    pc::ComputeRasterOptions options;
+    options.min_batch_px = min_px;
+    auto r = render_compute(*ctx, batched, camera, options, w, h);
+    pc::CullSettings s{w, h, min_px, 0};
+    auto ref = pc::reference_counters(batched.batches, camera, s);
+    EXPECT_EQ(r.counters.batches_processed, batched.batches.size());
+    EXPECT_EQ(r.counters.batches_processed, ref.batches_processed);
+    EXPECT_GT(ref.batches_culled, 0u);
+    EXPECT_GT(ref.batches_rendered, 0u);
+    if (min_px > 0) {
+      EXPECT_GT(ref.batches_lod_skipped, 0u);
+    }
+    EXPECT_EQ(r.counters.batches_rendered, ref.batches_rendered) << min_px;
+    EXPECT_EQ(r.counters.batches_culled, ref.batches_culled) << min_px;
+    EXPECT_EQ(r.counters.batches_lod_skipped, ref.batches_lod_skipped) << min_px;
+    EXPECT_EQ(r.counters.points_rendered, ref.points_rendered) << min_px;
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(r.counters.batches_by_bits[k], ref.batches_by_bits[k]) << min_px << " " << k;
+      EXPECT_EQ(r.counters.points_by_bits[k], ref.points_by_bits[k]) << min_px << " " << k;
+    }
+  }
+}
+
+TEST_P(ComputeRaster, PrecisionLevelsAgreeForSmallBatches) {
+  auto ctx = context();
+  io::SceneParams scene;
+  scene.point_count = 300'000;
+  auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Hilbert);
+  const uint32_t w = 320, h = 180;
+  Camera camera = frame_box(batched.world_bounds, double(w) / h);
+  pc::ComputeRasterOptions options;
+  options.force_bits = 30;
+  auto full = render_compute(*ctx, batched, camera, options, w, h);
+  // Every batch is a few pixels wide here, so 10 bits (1/1024 of a batch) are sub-pixel.
+  EXPECT_EQ(full.counters.batches_by_bits[2], full.counters.batches_rendered);
+  EXPECT_EQ(pc::reference_counters(batched.batches, camera, {w, h}).batches_by_bits[0],
+            full.counters.batches_rendered);
+  for (int bits : {10, 20}) {
+    options.force_bits = bits;
+    auto r = render_compute(*ctx, batched, camera, options, w, h);
+    EXPECT_EQ(r.counters.batches_by_bits[bits / 10 - 1], r.counters.batches_rendered);
+    auto sf = test::coverage_stats(full.image, kBlack, 0);
+    auto sr = test::coverage_stats(r.image, kBlack, 0);
+    EXPECT_NEAR(sr.coverage, sf.coverage, 0.002) << bits;
+    // Only points within a 1/2048-of-a-batch distance of a pixel edge can move.
+    EXPECT_LT(test::differing_fraction(full.image, r.image, 0), 0.02) << bits;
+  }
+}
+
+TEST_P(ComputeRaster, FallbackMatchesVisibilityBuffer) {
+  auto ctx = context();
+  io::SceneParams scene;
+  scene.point_count = 300'000;
+  auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Morton);
+  const uint32_t w = 320, h = 180;
+  Camera camera = frame_box(batched.world_bounds, double(w) / h, 10.0, 25.0);
+  auto fallback = render_compute(*ctx, batched, camera, {}, w, h, /*force_fallback=*/true);
+  EXPECT_FALSE(fallback.visibility64);
+  auto automatic = render_compute(*ctx, batched, camera, {}, w, h);
+  if (!automatic.visibility64) GTEST_SKIP() << "no 64-bit atomics: only the fallback runs here";
+  // Same nearest depth per pixel; they differ only where several points share it exactly
+  // (the fallback averages them, the visibility buffer keeps the lowest index).
+  EXPECT_EQ(test::coverage_stats(fallback.image, kBlack, 0).covered,
+            test::coverage_stats(automatic.image, kBlack, 0).covered);
+  EXPECT_LT(test::differing_fraction(fallback.image, automatic.image, 2), 0.01);
+}
+
+TEST_P(ComputeRaster, SegmentsAndHqs) {
+  auto ctx = context();
+  io::SceneParams scene;
+  scene.point_count = 200'000;
+  auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Morton);
+  const uint32_t w = 320, h = 180;
+  Camera camera = frame_box(batched.world_bounds, double(w) / h);
+  auto one = render_compute(*ctx, batched, camera, {}, w, h);
+  // Segments of 5 batches: 4 dispatches' worth of buffers, indices offset per segment.
+  auto split = render_compute(*ctx, batched, camera, {}, w, h, false, 5 * pc::kBatchPoints);
+  EXPECT_EQ(test::differing_fraction(one.image, split.image, 0), 0.0);
+  EXPECT_EQ(split.counters.points_rendered, one.counters.points_rendered);
+  // High-quality shading averages the points within 1 % of the nearest depth: same coverage,
+  // colours blended (different, but close on average).
+  pc::ComputeRasterOptions hqs;
+  hqs.hqs = true;
+  auto blended = render_compute(*ctx, batched, camera, hqs, w, h);
+  EXPECT_EQ(test::coverage_stats(blended.image, kBlack, 0).covered,
+            test::coverage_stats(one.image, kBlack, 0).covered);
+  expect_similar(one.image, blended.image, 0.001, 4.0, "hqs");
+  EXPECT_GT(test::differing_fraction(one.image, blended.image, 0), 0.01);
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, ComputeRaster, ::testing::Values("dawn", "wgpu"),
+                         [](const auto& info) { return info.param; });
