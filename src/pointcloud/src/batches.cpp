@@ -1,6 +1,7 @@
 #include "stipple/pointcloud/batches.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -62,6 +63,76 @@ uint64_t hilbert_key(uint32_t x, uint32_t y, uint32_t z) {
     if (X[2] & q) t ^= q - 1;
   for (uint32_t& v : X) v ^= t;
   return morton_key(X[0], X[1], X[2]);
+}
+
+namespace {
+
+// The state table of the Hilbert curve that hilbert_key draws: per state, the rank of each of a
+// cell's 8 children (by Morton octant, x the high bit) along the curve and the children's
+// states. Derived once from hilbert_key itself (a cell's state is the order it visits its
+// children in), so the two can never disagree.
+struct HilbertTable {
+  std::vector<std::array<uint8_t, 8>> rank, next;
+};
+
+const HilbertTable& hilbert_table() {
+  static const HilbertTable table = [] {
+    constexpr int kLevels = 10, kBits = 21;
+    struct Cell {
+      int level;
+      uint32_t x, y, z;
+    };
+    auto child = [](const Cell& c, int o) {
+      return Cell{c.level + 1, c.x << 1 | uint32_t(o >> 2 & 1), c.y << 1 | uint32_t(o >> 1 & 1),
+                  c.z << 1 | uint32_t(o & 1)};
+    };
+    // The order in which a cell's children are visited: their keys at a representative point.
+    auto ranks = [&](const Cell& c) {
+      std::array<std::pair<uint64_t, int>, 8> keys;
+      for (int o = 0; o < 8; ++o) {
+        Cell k = child(c, o);
+        const int shift = kBits - k.level;
+        keys[o] = {hilbert_key(k.x << shift, k.y << shift, k.z << shift), o};
+      }
+      std::sort(keys.begin(), keys.end());
+      std::array<uint8_t, 8> r{};
+      for (int i = 0; i < 8; ++i) r[keys[i].second] = uint8_t(i);
+      return r;
+    };
+    HilbertTable t;
+    std::vector<Cell> representative;
+    auto state_of = [&](const Cell& c) {
+      auto r = ranks(c);
+      for (size_t s = 0; s < t.rank.size(); ++s)
+        if (t.rank[s] == r) return uint8_t(s);
+      t.rank.push_back(r);
+      t.next.push_back({});
+      representative.push_back(c);
+      return uint8_t(t.rank.size() - 1);
+    };
+    state_of(Cell{0, 0, 0, 0});
+    for (size_t s = 0; s < t.rank.size(); ++s) {
+      const Cell c = representative[s];
+      if (c.level + 1 >= kLevels)
+        fail("hilbert_table: the states did not close by level {}", kLevels);
+      for (int o = 0; o < 8; ++o) t.next[s][o] = state_of(child(c, o));
+    }
+    return t;
+  }();
+  return table;
+}
+
+}  // namespace
+
+uint32_t hilbert_from_morton(uint32_t morton30) {
+  const HilbertTable& t = hilbert_table();
+  uint32_t h = 0, state = 0;
+  for (int shift = 27; shift >= 0; shift -= 3) {
+    const uint32_t o = morton30 >> shift & 7;
+    h = h << 3 | t.rank[state][o];
+    state = t.next[state][o];
+  }
+  return h;
 }
 
 QuantizedPoint quantize(const glm::dvec3& p, const glm::dvec3& min, const glm::dvec3& size) {

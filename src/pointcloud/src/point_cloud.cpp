@@ -92,6 +92,21 @@ ColorMode resolve_color_mode(const CloudAttributes& cloud, ColorMode mode) {
   return mode;
 }
 
+uint32_t batch_rgba(const io::PointBatch& batch, size_t i, int rgb_bits) {
+  if (batch.rgb.empty()) return 0;
+  auto c = batch.rgb[i];
+  if (rgb_bits == 16) c /= uint16_t(257);  // 16-bit to 8-bit with rounding of 255*257
+  return pack_rgba(uint8_t(std::min<int>(c.r, 255)), uint8_t(std::min<int>(c.g, 255)),
+                   uint8_t(std::min<int>(c.b, 255)));
+}
+
+uint32_t batch_attributes(const io::PointBatch& batch, size_t i) {
+  return pack_attributes(batch.intensity.empty() ? 0 : batch.intensity[i],
+                         batch.classification.empty() ? 1 : batch.classification[i],
+                         batch.return_number.empty() ? 1 : batch.return_number[i],
+                         batch.number_of_returns.empty() ? 1 : batch.number_of_returns[i]);
+}
+
 void append_batch(PointCloud& cloud, const io::PointBatch& batch, int rgb_bits,
                   size_t chunk_points) {
   const size_t n = batch.size();
@@ -122,19 +137,8 @@ void append_batch(PointCloud& cloud, const io::PointBatch& batch, int rgb_bits,
       cloud.world_bounds.extend(world);
       chunk.bounds.extend(world);
       glm::dvec3 rel = world - chunk.origin;
-      uint32_t color = 0;
-      if (!batch.rgb.empty()) {
-        auto c = batch.rgb[i];
-        if (rgb_bits == 16) c /= uint16_t(257);  // 16-bit to 8-bit with rounding of 255*257
-        color = pack_rgba(uint8_t(std::min<int>(c.r, 255)), uint8_t(std::min<int>(c.g, 255)),
-                          uint8_t(std::min<int>(c.b, 255)));
-      }
-      uint32_t attributes =
-          pack_attributes(batch.intensity.empty() ? 0 : batch.intensity[i],
-                          batch.classification.empty() ? 1 : batch.classification[i],
-                          batch.return_number.empty() ? 1 : batch.return_number[i],
-                          batch.number_of_returns.empty() ? 1 : batch.number_of_returns[i]);
-      chunk.vertices.push_back({float(rel.x), float(rel.y), float(rel.z), color, attributes});
+      chunk.vertices.push_back({float(rel.x), float(rel.y), float(rel.z),
+                                batch_rgba(batch, i, rgb_bits), batch_attributes(batch, i)});
     }
   }
   cloud.point_count += n;

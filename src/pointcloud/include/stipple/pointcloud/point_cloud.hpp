@@ -42,6 +42,11 @@ static_assert(sizeof(PointChunk::Vertex) == 20);
 
 uint32_t pack_attributes(uint16_t intensity, uint8_t classification, uint8_t return_number,
                          uint8_t number_of_returns);
+// Point i of a batch packed as a Vertex holds it: 8-bit RGB (`rgb_bits` says whether the batch
+// holds 8- or 16-bit values; 0 without RGB) and the attribute word (defaults for missing ones:
+// class 1, single return).
+uint32_t batch_rgba(const io::PointBatch& batch, size_t i, int rgb_bits);
+uint32_t batch_attributes(const io::PointBatch& batch, size_t i);
 
 struct CloudAttributes {
   // Which attributes the source has (a colour mode without its attribute falls back).
