@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   stipple::app::add_bench_command(cli);
   stipple::app::add_plugins_command(cli);
   stipple::app::add_tile_command(cli);
+  stipple::app::add_pointlets_command(cli);
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

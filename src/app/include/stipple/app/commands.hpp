@@ -14,5 +14,6 @@ void add_tile_command(CLI::App& cli);
 // `stipple bench points`, a subcommand of `bench`.
 void add_bench_points_command(CLI::App* bench);
 void add_view_command(CLI::App& cli);
+void add_pointlets_command(CLI::App& cli);
 
 }  // namespace stipple::app

@@ -1,0 +1,300 @@
+// Pointlets and the pointlet cache (seed 002, III-A): every input point exactly once, k as eq. 1,
+// boxes that hold their points, shuffled pointlets, LAS and LAZ alike, one run or many alike,
+// reuse while the sources are unchanged, rebuilds otherwise, and clear errors for damage.
+#include <unistd.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <stdexcept>
+#include <tuple>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "stipple/core/error.hpp"
+#include "stipple/io/las.hpp"
+#include "stipple/io/procedural.hpp"
+#include "stipple/pointcloud/batches.hpp"
+#include "stipple/pointcloud/pointlets.hpp"
+#include "test_util.hpp"
+
+using namespace stipple;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path fresh_dir(const std::string& name) {
+  fs::path d =
+      fs::temp_directory_path() / ("stipple-pointlets-" + name + "-" + std::to_string(getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+// A generated scan written as LAS (or LAZ), the way `stipple generate` writes it.
+fs::path write_scene(const fs::path& path, uint64_t points, bool compress = false) {
+  io::SceneParams scene;
+  scene.point_count = points;
+  io::LasWriteOptions o;
+  o.version_minor = 4;
+  o.point_format = 7;
+  o.compress = compress;
+  o.scale = {0.001, 0.001, 0.001};
+  o.offset = {scene.origin.x, scene.origin.y, 0.0};
+  io::LasWriter w(path, o);
+  for (uint64_t first = 0; first < points; first += 100000) {
+    io::PointBatch b;
+    io::generate_scene(scene, first, std::min<uint64_t>(100000, points - first), b);
+    w.write(b);
+  }
+  w.close();
+  return path;
+}
+
+// (lattice position, rgba, attributes) of every point, sorted: the multiset of a cloud.
+using Key = std::tuple<int64_t, int64_t, int64_t, uint32_t, uint32_t>;
+
+std::vector<Key> cache_points(const pc::PointletCache& cache) {
+  std::vector<Key> out;
+  const auto& s = cache.info().scale;
+  for (uint32_t i = 0; i < cache.pointlets().size(); ++i) {
+    const auto& e = cache.pointlets()[i];
+    for (const auto& r : cache.read_verified(i)) {
+      const glm::dvec3 p = cache.position(e, r);
+      out.emplace_back(std::llround(p.x / s.x), std::llround(p.y / s.y), std::llround(p.z / s.z),
+                       r.rgba, r.attributes);
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<Key> source_points(const fs::path& path, const glm::dvec3& s) {
+  io::LasReader reader(path);
+  io::PointBatch b;
+  std::vector<Key> out;
+  while (true) {
+    b.clear();
+    if (reader.read(b, 50000) == 0) break;
+    for (size_t i = 0; i < b.size(); ++i)
+      out.emplace_back(std::llround(b.positions[i].x / s.x), std::llround(b.positions[i].y / s.y),
+                       std::llround(b.positions[i].z / s.z),
+                       pc::batch_rgba(b, i, reader.header().rgb_bits), pc::batch_attributes(b, i));
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<uint8_t> bytes_of(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::vector<uint8_t>(std::istreambuf_iterator<char>(in), {});
+}
+
+}  // namespace
+
+TEST(Pointlets, SizeFollowsEquationOne) {
+  // k = 2^floor(log2(n / m))
+  EXPECT_EQ(pc::pointlet_size(110000, 1000), 64u);                 // n/m = 110 -> 2^6
+  EXPECT_EQ(pc::pointlet_size(1'000'000'000, 100'000), 8192u);     // 10000 -> 2^13
+  EXPECT_EQ(pc::pointlet_size(18'000'000'000, 100'000), 131072u);  // 180000 -> 2^17
+  EXPECT_EQ(pc::pointlet_size(1 << 20, 1 << 10), 1024u);           // exact powers
+  EXPECT_EQ(pc::pointlet_size(500, 1000), 1u);                     // fewer points than pointlets
+}
+
+TEST(Pointlets, HilbertFromMortonEqualsSkilling) {
+  std::mt19937 rng(5);
+  for (int i = 0; i < 200000; ++i) {
+    const uint32_t x = rng() & 1023, y = rng() & 1023, z = rng() & 1023;
+    const uint32_t morton = uint32_t(pc::morton_key(x, y, z));
+    ASSERT_EQ(pc::hilbert_from_morton(morton),
+              uint32_t(pc::hilbert_key(x << 11, y << 11, z << 11) >> 33))
+        << x << "," << y << "," << z;
+  }
+  // A Hilbert curve: consecutive indices are neighbouring cells (an 8^3 corner exhaustively).
+  std::vector<std::array<int, 3>> cell(1 << 9);
+  for (int x = 0; x < 8; ++x)
+    for (int y = 0; y < 8; ++y)
+      for (int z = 0; z < 8; ++z) {
+        const uint32_t h =
+            pc::hilbert_from_morton(uint32_t(pc::morton_key(x << 7, y << 7, z << 7)));
+        cell[h >> 21] = {x, y, z};
+      }
+  for (size_t i = 1; i < cell.size(); ++i) {
+    int d = 0;
+    for (int a = 0; a < 3; ++a) d += std::abs(cell[i][a] - cell[i - 1][a]);
+    ASSERT_EQ(d, 1) << "cells " << i - 1 << " and " << i;
+  }
+}
+
+TEST(Pointlets, EveryPointOnceInBoxesOfKShuffled) {
+  fs::path dir = fresh_dir("once");
+  fs::path las = write_scene(dir / "scene.las", 60000);
+  pc::PointletBuildOptions o;
+  o.pointlets = 500;  // k = 2^floor(log2(120)) = 64
+  o.progress = false;
+  auto stats = pc::build_pointlet_cache({las}, dir / "scene.pointlets", o);
+  EXPECT_EQ(stats.runs, 1u);
+  pc::PointletCache cache = pc::PointletCache::open(dir / "scene.pointlets");
+  const auto& info = cache.info();
+  EXPECT_EQ(info.point_count, 60000u);
+  EXPECT_EQ(info.pointlet_points, 64u);
+  EXPECT_EQ(info.pointlet_count, (60000u + 63) / 64);
+  EXPECT_TRUE(info.attributes.has_rgb);
+  // Exactly the source's points (positions on the LAS lattice, colours, attributes).
+  EXPECT_EQ(cache_points(cache), source_points(las, info.scale));
+  // Boxes contain their points; a pointlet's first half spans most of its box (shuffled, not
+  // in curve order, where the first half would cover about half).
+  double half_share = 0;
+  for (uint32_t i = 0; i < cache.pointlets().size(); ++i) {
+    const auto& e = cache.pointlets()[i];
+    auto records = cache.read_verified(i);
+    Aabb half;
+    for (size_t r = 0; r < records.size(); ++r) {
+      const glm::dvec3 p = cache.position(e, records[r]);
+      for (int a = 0; a < 3; ++a) {
+        ASSERT_GE(p[a], e.min[a]) << "pointlet " << i;
+        ASSERT_LE(p[a], e.max[a]) << "pointlet " << i;
+      }
+      if (r < records.size() / 2) half.extend(p);
+    }
+    const double full = (e.max[0] - e.min[0]) * (e.max[1] - e.min[1]);
+    if (full > 0 && !half.empty()) half_share += half.size().x * half.size().y / full;
+  }
+  half_share /= double(cache.pointlets().size());
+  EXPECT_GT(half_share, 0.7) << "the first half of a pointlet covers " << half_share
+                             << " of its box";
+  // Hilbert pointlets are compact: mean extent well under the scene's size.
+  auto m = pc::pointlet_metrics(cache.pointlets());
+  EXPECT_LT(m.mean_extent,
+            0.1 * std::max(info.source_bounds.size().x, info.source_bounds.size().y));
+  fs::remove_all(dir);
+}
+
+TEST(Pointlets, LasAndLazAndManyRunsGiveTheSamePointlets) {
+  fs::path dir = fresh_dir("same");
+  fs::path las = write_scene(dir / "scene.las", 150000);
+  fs::path laz = write_scene(dir / "scene.laz", 150000, true);
+  pc::PointletBuildOptions o;
+  o.pointlets = 1000;
+  o.progress = false;
+  pc::build_pointlet_cache({las}, dir / "las.pointlets", o);
+  pc::build_pointlet_cache({laz}, dir / "laz.pointlets", o);
+  o.memory_budget = 65536 * 24;  // runs of 65,536 points: three runs on disk, merged
+  auto stats = pc::build_pointlet_cache({las}, dir / "runs.pointlets", o);
+  EXPECT_EQ(stats.runs, 3u);
+  EXPECT_LE(stats.peak_run_bytes, o.memory_budget);
+  auto a = bytes_of(dir / "las.pointlets"), b = bytes_of(dir / "laz.pointlets"),
+       c = bytes_of(dir / "runs.pointlets");
+  ASSERT_EQ(a.size(), b.size());
+  ASSERT_EQ(a.size(), c.size());
+  // Points and table are identical; the headers differ only in the sources named.
+  const size_t body = pc::kPointletHeaderBytes;
+  EXPECT_TRUE(std::equal(a.begin() + body, a.end(), b.begin() + body));
+  EXPECT_TRUE(std::equal(a.begin() + body, a.end(), c.begin() + body));
+  // No run file is left behind.
+  for (const auto& e : fs::directory_iterator(dir))
+    EXPECT_EQ(e.path().string().find(".run-"), std::string::npos) << e.path();
+  fs::remove_all(dir);
+}
+
+TEST(Pointlets, ReusedWhileUnchangedRebuiltWhenChangedOrDamaged) {
+  fs::path dir = fresh_dir("reuse");
+  fs::path las = write_scene(dir / "scene.las", 20000);
+  fs::path caches = dir / "caches";
+  pc::PointletBuildOptions o;
+  o.pointlets = 100;
+  o.progress = false;
+  bool built = false;
+  auto first = pc::open_pointlet_cache({las}, caches, o, &built);
+  EXPECT_TRUE(built);
+  const fs::path path = pc::pointlet_cache_path({las}, caches, o);
+  EXPECT_EQ(path.parent_path(), caches);
+  pc::open_pointlet_cache({las}, caches, o, &built);
+  EXPECT_FALSE(built) << "an unchanged source must reuse the cache";
+  // Another m is another cache.
+  pc::PointletBuildOptions other = o;
+  other.pointlets = 50;
+  EXPECT_NE(pc::pointlet_cache_path({las}, caches, other), path);
+  // A changed source (new mtime) rebuilds.
+  fs::last_write_time(las, fs::last_write_time(las) + std::chrono::seconds(5));
+  pc::open_pointlet_cache({las}, caches, o, &built);
+  EXPECT_TRUE(built);
+  // Truncated, or a flipped byte in the points' table: rebuilt, not used.
+  fs::resize_file(path, fs::file_size(path) - 10);
+  EXPECT_THROW(pc::PointletCache::open(path), Error);
+  pc::open_pointlet_cache({las}, caches, o, &built);
+  EXPECT_TRUE(built);
+  {
+    std::fstream f(path, std::ios::binary | std::ios::in | std::ios::out);
+    f.seekp(std::streamoff(fs::file_size(path) - 30));
+    f.put('\x7f');
+  }
+  pc::open_pointlet_cache({las}, caches, o, &built);
+  EXPECT_TRUE(built);
+  // A build killed mid-way leaves only its temporary, which is never taken for the cache.
+  std::ofstream(path.string() + ".partial-99999-0") << "half a cache";
+  pc::open_pointlet_cache({las}, caches, o, &built);
+  EXPECT_FALSE(built);
+  fs::remove_all(dir);
+}
+
+TEST(Pointlets, DamageGivesClearErrors) {
+  fs::path dir = fresh_dir("damage");
+  fs::path las = write_scene(dir / "scene.las", 5000);
+  pc::PointletBuildOptions o;
+  o.pointlets = 10;
+  o.progress = false;
+  pc::build_pointlet_cache({las}, dir / "c.pointlets", o);
+  const auto good = bytes_of(dir / "c.pointlets");
+  auto expect_error = [&](std::vector<uint8_t> bytes, const std::string& phrase) {
+    try {
+      pc::PointletCache::from_memory(std::move(bytes), "damaged.pointlets");
+      ADD_FAILURE() << "expected an error with '" << phrase << "'";
+    } catch (const Error& e) {
+      const std::string m = e.what();
+      EXPECT_NE(m.find("damaged.pointlets"), std::string::npos) << m;
+      EXPECT_NE(m.find(phrase), std::string::npos) << m;
+    }
+  };
+  expect_error({good.begin(), good.begin() + 100}, "shorter than its header");
+  auto bad = good;
+  bad[0] = 'X';
+  expect_error(bad, "bad magic");
+  bad = good;
+  bad[8] = 2;  // version
+  expect_error(bad, "version 2");
+  bad = good;
+  bad[20] ^= 1;  // point count: the header checksum catches it
+  expect_error(bad, "checksum");
+  bad = good;
+  bad[bad.size() - 5] ^= 0x40;  // the table
+  expect_error(bad, "table's checksum");
+  bad = good;
+  bad.resize(bad.size() + 64);
+  expect_error(bad, "its header says");
+  bad = good;
+  bad[pc::kPointletHeaderBytes + 3] ^= 1;  // a point: found when that pointlet is verified
+  auto cache = pc::PointletCache::from_memory(bad, "damaged.pointlets");
+  EXPECT_THROW(cache.read_verified(0), Error);
+  std::vector<pc::PointletRecord> out;
+  EXPECT_THROW(cache.read(uint32_t(cache.pointlets().size()), 0, 1, out), Error);
+  EXPECT_THROW(cache.read(0, 0, uint32_t(cache.pointlets()[0].count + 1), out), Error);
+  fs::remove_all(dir);
+}
+
+TEST(Pointlets, AFailedBuildLeavesNothing) {
+  fs::path dir = fresh_dir("failed");
+  fs::path las = write_scene(dir / "scene.las", 30000);
+  // The file claims more points than it holds: the build stops with an error naming it.
+  fs::resize_file(las, fs::file_size(las) - 1000 * 36);
+  pc::PointletBuildOptions o;
+  o.pointlets = 100;
+  o.progress = false;
+  o.memory_budget = 65536 * 24;
+  EXPECT_THROW(pc::build_pointlet_cache({las}, dir / "c.pointlets", o), Error);
+  for (const auto& e : fs::directory_iterator(dir))
+    EXPECT_EQ(e.path().filename(), "scene.las") << "left behind: " << e.path();
+  fs::remove_all(dir);
+}
