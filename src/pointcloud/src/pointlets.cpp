@@ -81,7 +81,7 @@ T get(const uint8_t* b, size_t at) {
 
 std::vector<uint8_t> encode_header(const PointletCacheInfo& info, uint32_t table_crc) {
   std::vector<uint8_t> b(kPointletHeaderBytes, 0);
-  std::memcpy(b.data(), kMagic, 8);
+  std::memcpy(b.data() + field::magic, kMagic, 8);
   put(b, field::version, info.version);
   put(b, field::header_bytes, uint32_t(kPointletHeaderBytes));
   put(b, field::point_count, info.point_count);

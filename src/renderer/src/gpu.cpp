@@ -461,6 +461,34 @@ ComputePipeline create_compute_pipeline(Context& ctx, WGPUShaderModule module,
   return ComputePipeline(wgpuDeviceCreateComputePipeline(ctx.device.get(), &desc));
 }
 
+BindGroupLayout create_compute_layout(Context& ctx, std::initializer_list<BufferBinding> bindings,
+                                      std::string_view label) {
+  std::vector<WGPUBindGroupLayoutEntry> entries;
+  for (BufferBinding b : bindings) {
+    WGPUBindGroupLayoutEntry e = WGPU_BIND_GROUP_LAYOUT_ENTRY_INIT;
+    e.binding = uint32_t(entries.size());
+    e.visibility = WGPUShaderStage_Compute;
+    e.buffer.type = b == BufferBinding::Uniform           ? WGPUBufferBindingType_Uniform
+                    : b == BufferBinding::ReadOnlyStorage ? WGPUBufferBindingType_ReadOnlyStorage
+                                                          : WGPUBufferBindingType_Storage;
+    entries.push_back(e);
+  }
+  WGPUBindGroupLayoutDescriptor desc = WGPU_BIND_GROUP_LAYOUT_DESCRIPTOR_INIT;
+  desc.label = to_view(label);
+  desc.entryCount = entries.size();
+  desc.entries = entries.data();
+  return BindGroupLayout(wgpuDeviceCreateBindGroupLayout(ctx.device.get(), &desc));
+}
+
+PipelineLayout create_pipeline_layout(Context& ctx,
+                                      std::initializer_list<WGPUBindGroupLayout> groups) {
+  std::vector<WGPUBindGroupLayout> layouts(groups);
+  WGPUPipelineLayoutDescriptor desc = WGPU_PIPELINE_LAYOUT_DESCRIPTOR_INIT;
+  desc.bindGroupLayoutCount = layouts.size();
+  desc.bindGroupLayouts = layouts.data();
+  return PipelineLayout(wgpuDeviceCreatePipelineLayout(ctx.device.get(), &desc));
+}
+
 BindGroupLayout bind_group_layout_of(const ComputePipeline& pipeline, uint32_t group) {
   return BindGroupLayout(wgpuComputePipelineGetBindGroupLayout(pipeline.get(), group));
 }

@@ -175,6 +175,14 @@ ComputePipeline create_compute_pipeline(Context& ctx, WGPUShaderModule module,
                                         std::string_view entry, WGPUPipelineLayout layout,
                                         std::string_view label);
 
+// An explicit layout of buffer bindings 0, 1, ... for compute shaders (one layout shared by
+// entry points that use different subsets of the bindings), and a pipeline layout of groups.
+enum class BufferBinding { Uniform, ReadOnlyStorage, Storage };
+BindGroupLayout create_compute_layout(Context& ctx, std::initializer_list<BufferBinding> bindings,
+                                      std::string_view label = {});
+PipelineLayout create_pipeline_layout(Context& ctx,
+                                      std::initializer_list<WGPUBindGroupLayout> groups);
+
 // Bind group layout `group` of a pipeline whose layout was derived from its shader.
 BindGroupLayout bind_group_layout_of(const ComputePipeline& pipeline, uint32_t group = 0);
 BindGroupLayout bind_group_layout_of(const RenderPipeline& pipeline, uint32_t group = 0);
