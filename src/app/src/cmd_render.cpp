@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "stipple/app/commands.hpp"
@@ -54,7 +55,9 @@ void run_render(const RenderArgs& args) {
   Engine engine;
   engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
   if (args.pipelined) engine.add_plugin(PipelinedRenderingPlugin{});
-  const bool compute = args.scene.renderer == Renderer::Compute;
+  // The virtualized path (inputs over the host budget, or --virtual) draws with the compute
+  // rasterizer too.
+  const bool compute = args.scene.renderer == Renderer::Compute || use_virtual_path(args.scene);
   GpuPlugin gpu;
   gpu.options.backend = args.backend;
   if (compute) gpu.options.optional_features = pc::compute_raster_features();
@@ -188,10 +191,12 @@ void run_render(const RenderArgs& args) {
   if (args.frames > 1)
     std::printf("%u frames: GPU %.3f ms, wall %.3f ms per frame (median)\n", args.frames,
                 median(stats.gpu_ms), median(stats.wall_ms));
-  std::printf("rendered %llu points (%s colour, %.1f px) with %s on %s to %s (%ux%u) in %.2f s\n",
-              static_cast<unsigned long long>(stats.points_total), color_source.c_str(),
-              double(point_size), description.backend.c_str(), description.device.c_str(),
-              args.output.c_str(), args.width, args.height, seconds);
+  const std::string drawn = stats.points_drawn > 0 && stats.points_drawn < stats.points_total
+                                ? fmt::format("{} of {}", stats.points_drawn, stats.points_total)
+                                : std::to_string(stats.points_total);
+  std::printf("rendered %s points (%s colour, %.1f px) with %s on %s to %s (%ux%u) in %.2f s\n",
+              drawn.c_str(), color_source.c_str(), double(point_size), description.backend.c_str(),
+              description.device.c_str(), args.output.c_str(), args.width, args.height, seconds);
 }
 
 }  // namespace

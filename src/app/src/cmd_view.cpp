@@ -41,7 +41,7 @@ void run_view(const ViewArgs& args) {
   if (!args.single_thread) engine.add_plugin(PipelinedRenderingPlugin{});
   GpuPlugin gpu;
   gpu.options.backend = args.backend;
-  if (args.scene.renderer == Renderer::Compute)
+  if (args.scene.renderer == Renderer::Compute || use_virtual_path(args.scene))
     gpu.options.optional_features = pc::compute_raster_features();
   engine.add_plugin(std::move(gpu));
   engine.add_plugin(RenderGraphPlugin{});

@@ -1,10 +1,20 @@
 #include "stipple/app/scene.hpp"
 
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
 #include <utility>
 
+#include <fmt/format.h>
+
 #include "stipple/core/error.hpp"
+#include "stipple/core/log.hpp"
 #include "stipple/engine/engine.hpp"
+#include "stipple/io/las.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
+#include "stipple/pointcloud/virtual_cloud.hpp"
+#include "stipple/tiler/tiler.hpp"
 #include "stipple/tiles3d/render_load.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 
@@ -12,6 +22,35 @@ namespace stipple::app {
 
 bool is_tileset_scene(const SceneOptions& options) {
   return options.inputs.size() == 1 && tiles3d::is_tileset_input(options.inputs[0]);
+}
+
+namespace {
+
+uint64_t host_budget(const SceneOptions& options) {
+  if (!options.host_memory.empty()) return tiler::parse_size(options.host_memory);
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && page > 0 ? uint64_t(pages) * uint64_t(page) / 4 : uint64_t(4) << 30;
+}
+
+}  // namespace
+
+bool use_virtual_path(const SceneOptions& options, std::string* reason) {
+  if (options.inputs.empty() || is_tileset_scene(options)) return false;
+  if (options.force_virtual) {
+    if (reason) *reason = "--virtual";
+    return true;
+  }
+  // The in-memory path holds about 40 bytes a point (chunks, upload, batches).
+  uint64_t points = 0;
+  for (const auto& in : options.inputs) points += io::read_las_header(in).point_count;
+  const uint64_t need = points * 40, budget = host_budget(options);
+  if (need <= budget) return false;
+  if (reason)
+    *reason = fmt::format(
+        "{} points need about {:.1f} GiB in memory, over the host budget of "
+        "{:.1f} GiB (--host-memory)",
+        points, double(need) / (1 << 30), double(budget) / (1 << 30));
+  return true;
 }
 
 void add_scene_plugin(Engine& engine, const SceneOptions& options) {
@@ -25,6 +64,29 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
     tiles.streamer.traversal.memory_budget = options.memory_mb << 20;
     tiles.render = options.render;
     engine.add_plugin(std::move(tiles));
+    return;
+  }
+  std::string reason;
+  if (use_virtual_path(options, &reason)) {
+    std::printf("drawing from a pointlet cache (%s)%s\n", reason.c_str(),
+                compute ? "" : "; the virtualized path draws with the compute rasterizer");
+    pc::VirtualPointCloudPlugin v;
+    v.options.files.assign(options.inputs.begin(), options.inputs.end());
+    v.options.cache_dir = options.cache_dir;
+    v.options.build.pointlets = options.pointlets;
+    v.options.build.memory_budget = std::min<uint64_t>(host_budget(options) / 2, uint64_t(4) << 30);
+    v.options.bucket = options.bucket;
+    v.options.hqs = options.hqs;
+    v.render = options.render;
+    engine.add_plugin(std::move(v));
+    const auto& c = engine.main().resource<pc::VirtualCloudCache>();
+    if (c.built)
+      std::printf("built %s: %llu points in %llu pointlets of %llu in %.2f s\n", c.path.c_str(),
+                  static_cast<unsigned long long>(c.points),
+                  static_cast<unsigned long long>(c.pointlets),
+                  static_cast<unsigned long long>(c.pointlet_points), c.build.seconds);
+    else
+      std::printf("reused %s (the input is unchanged)\n", c.path.c_str());
     return;
   }
   pc::PointCloudPlugin points;
@@ -55,6 +117,23 @@ void add_scene_options(CLI::App* cmd, SceneOptions& options) {
                   "Tilesets: refine tiles while their screen-space error exceeds this (pixels)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  cmd->add_flag("--virtual", options.force_virtual,
+                "Point clouds: draw from a pointlet cache in bounded memory (seed 002; chosen "
+                "automatically for inputs larger than the host budget)");
+  cmd->add_option("--bucket", options.bucket,
+                  "Virtualized: the point bucket B, the most points drawn in a frame")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 31))
+      ->capture_default_str();
+  cmd->add_option("--pointlets", options.pointlets,
+                  "Virtualized: m of k = 2^floor(log2(n / m)), about how many pointlets")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 31))
+      ->capture_default_str();
+  cmd->add_option("--cache", options.cache_dir,
+                  "Virtualized: folder of the pointlet cache (default: beside the input, else "
+                  "~/.cache/stipple)");
+  cmd->add_option("--host-memory", options.host_memory,
+                  "Host memory budget, e.g. 4G (default: a quarter of RAM): larger inputs take the "
+                  "virtualized path");
   cmd->add_option("--memory-mb", options.memory_mb,
                   "Tilesets: resident tile memory budget in MiB (least recently used evicted)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 20))

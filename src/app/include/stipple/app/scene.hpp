@@ -31,7 +31,17 @@ struct SceneOptions {
   uint32_t seed = 1;
   double max_sse = 16.0;     // tilesets: refine while a tile's screen-space error exceeds this
   uint64_t memory_mb = 512;  // tilesets: resident tile memory budget
+  // Point clouds larger than the in-memory path's budget (or with --virtual) are drawn from a
+  // pointlet cache (pc::VirtualPointCloudPlugin, seed 002).
+  bool force_virtual = false;
+  uint64_t bucket = 25'000'000;  // B
+  uint64_t pointlets = 100'000;  // m
+  std::string cache_dir;         // empty: beside the input
+  std::string host_memory;       // empty: a quarter of RAM
 };
+
+// Whether `options` take the virtualized path (for point-cloud inputs), and why.
+bool use_virtual_path(const SceneOptions& options, std::string* reason = nullptr);
 
 // Whether `inputs` name one tileset (streamed) rather than point-cloud files.
 bool is_tileset_scene(const SceneOptions& options);
@@ -40,7 +50,8 @@ bool is_tileset_scene(const SceneOptions& options);
 // path cannot do (the compute renderer does not draw tilesets yet).
 void add_scene_plugin(Engine& engine, const SceneOptions& options);
 
-// --renderer, --hqs, --max-sse and --memory-mb, the same for `render` and `view`.
+// --renderer, --hqs, --max-sse, --memory-mb and the virtualized path's --virtual, --bucket,
+// --pointlets, --cache, --host-memory: the same for `render` and `view`.
 void add_scene_options(CLI::App* cmd, SceneOptions& options);
 
 }  // namespace stipple::app

@@ -1,0 +1,71 @@
+#pragma once
+// VirtualPointCloudPlugin: LAS/LAZ/COPC of any size drawn from their pointlet cache (seed 002)
+// in host and GPU memory bounded by the point bucket B, not by the file. The cache is built (or
+// reused) in build(); whenever the camera changes, the render world runs the pointlets' LoD on
+// the GPU (eqs. 2-3, B), reads the prefix of each visible pointlet that the LoD asks for from
+// the cache with positional reads on a worker pool (a prefix of a shuffled pointlet is a uniform
+// subsample), turns each into batches of the compute rasterizer (the pointlet's box, quantized
+// positions) and uploads them; the compute rasterizer draws them.
+//
+// This is the first stage of the seed's system: selection is synchronous (the frame waits for
+// its points) and nothing is kept between camera changes; the asynchronous virtual memory
+// system (per-pointlet host buffers, over-fetch, GPU compaction), hole filling and the
+// occlusion check come next.
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "stipple/pointcloud/point_renderer.hpp"
+#include "stipple/pointcloud/pointlet_lod.hpp"
+#include "stipple/pointcloud/pointlets.hpp"
+
+namespace stipple {
+class Engine;
+}
+
+namespace stipple::pc {
+
+struct VirtualCloudOptions {
+  std::vector<std::filesystem::path> files;
+  std::filesystem::path cache_dir;  // empty: beside the input (pointlet_cache_path)
+  PointletBuildOptions build;
+  uint64_t bucket = kDefaultPointBucket;  // B: the most points drawn in a frame
+  bool hqs = false;
+};
+
+// Main-world resource: the cache the plugin opened, and whether it had to build it.
+struct VirtualCloudCache {
+  std::string path;
+  bool built = false;
+  PointletBuildStats build;  // when built
+  uint64_t points = 0, pointlets = 0, pointlet_points = 0;
+};
+
+// Render-world resource: what the last selection did.
+struct VirtualCloudStats {
+  uint64_t selections = 0;  // camera changes served
+  uint32_t visible_pointlets = 0;
+  uint64_t selected_points = 0;  // the LoD's sum this frame (<= B)
+  uint64_t host_bytes = 0;       // points held on the host for the upload (peak over selections)
+  uint64_t gpu_bytes = 0;        // the uploaded batches
+  double lod_ms = 0, load_ms = 0, upload_ms = 0;  // the last selection
+};
+
+struct VirtualPointCloudPlugin {
+  static constexpr std::string_view name = "VirtualPointCloudPlugin";
+  static constexpr std::string_view description =
+      "draws LAS/LAZ of any size from a pointlet cache: GPU LoD per camera, prefixes read "
+      "from disk, compute rasterizer (point bucket B)";
+  static constexpr std::array<std::string_view, 3> dependencies{"GpuPlugin", "RenderGraphPlugin",
+                                                                "CameraPlugin"};
+  VirtualCloudOptions options;
+  PointRenderSettings render;  // background (the compute rasterizer draws RGB)
+  void build(Engine& engine);
+};
+
+}  // namespace stipple::pc

@@ -1,0 +1,75 @@
+// `render` through the virtualized path (seed 002): a generated LAS drawn from its pointlet
+// cache equals the in-memory compute render when the bucket holds every point, draws at most B
+// points otherwise, reuses the cache, and is chosen by itself for inputs over the host budget.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <regex>
+#include <string>
+
+#include "stipple/renderer/png.hpp"
+#include "test_util.hpp"
+
+using namespace stipple;
+namespace fs = std::filesystem;
+
+namespace {
+
+const uint8_t kBackground[3] = {18, 20, 26};  // the default 0.07, 0.08, 0.1
+
+uint64_t drawn_points(const std::string& output) {
+  std::smatch m;
+  if (std::regex_search(output, m, std::regex("rendered (\\d+) of \\d+ points")))
+    return std::stoull(m[1]);
+  if (std::regex_search(output, m, std::regex("rendered (\\d+) points"))) return std::stoull(m[1]);
+  return 0;
+}
+
+}  // namespace
+
+TEST(VirtualRender, MatchesTheInMemoryRenderAndKeepsToTheBucket) {
+  const fs::path dir = fs::temp_directory_path() / ("stipple-virtual-" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string las = (dir / "scene.las").string();
+  ASSERT_EQ(test::run_stipple("generate -n 300000 -o " + las).exit_code, 0);
+  const std::string common =
+      " --width 480 --height 270 --cache " + (dir / "cache").string() + " --pointlets 2000";
+  auto full = test::run_stipple("render " + las + " --renderer compute -o " +
+                                (dir / "memory.png").string() + " --width 480 --height 270");
+  ASSERT_EQ(full.exit_code, 0) << full.output;
+  auto virt = test::run_stipple("render " + las + " --virtual --bucket 100000000 -o " +
+                                (dir / "virtual.png").string() + common);
+  ASSERT_EQ(virt.exit_code, 0) << virt.output;
+  EXPECT_NE(virt.output.find("drawing from a pointlet cache (--virtual)"), std::string::npos)
+      << virt.output;
+  EXPECT_EQ(drawn_points(virt.output), 300000u) << virt.output;
+  // The same points at the same places: 1-pixel points quantized to different boxes may move
+  // by a pixel, so at most 3% of pixels differ by more than 8 levels.
+  auto a = gpu::read_png(dir / "memory.png"), b = gpu::read_png(dir / "virtual.png");
+  EXPECT_LT(test::differing_fraction(a, b, 8), 0.03);
+  const double coverage = test::coverage_stats(b, kBackground, 2).coverage;
+  EXPECT_GT(coverage, 0.1);
+
+  // A bucket of 30,000: at most that many points, fewer pixels covered; the cache is reused.
+  auto small = test::run_stipple("render " + las + " --virtual --bucket 30000 -o " +
+                                 (dir / "small.png").string() + common);
+  ASSERT_EQ(small.exit_code, 0) << small.output;
+  EXPECT_NE(small.output.find("reused"), std::string::npos) << small.output;
+  const uint64_t drawn = drawn_points(small.output);
+  EXPECT_LE(drawn, 30000u) << small.output;
+  EXPECT_GT(drawn, 15000u) << small.output;
+  const double small_coverage =
+      test::coverage_stats(gpu::read_png(dir / "small.png"), kBackground, 2).coverage;
+  EXPECT_LT(small_coverage, coverage);
+  EXPECT_GT(small_coverage, 0.02);
+
+  // Over the host budget, the virtualized path is taken without asking.
+  auto automatic = test::run_stipple("render " + las + " --host-memory 4M -o " +
+                                     (dir / "auto.png").string() + common);
+  ASSERT_EQ(automatic.exit_code, 0) << automatic.output;
+  EXPECT_NE(automatic.output.find("over the host budget"), std::string::npos) << automatic.output;
+  fs::remove_all(dir);
+}
