@@ -77,6 +77,8 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
     v.options.build.memory_budget = std::min<uint64_t>(host_budget(options) / 2, uint64_t(4) << 30);
     v.options.bucket = options.bucket;
     v.options.hqs = options.hqs;
+    v.options.fill_radius = options.fill_radius < 0 ? 1u : uint32_t(options.fill_radius);
+    v.options.occlusion_beta = options.occlusion_beta;
     v.render = options.render;
     engine.add_plugin(std::move(v));
     const auto& c = engine.main().resource<pc::VirtualCloudCache>();
@@ -98,6 +100,8 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
   points.settings.budget = options.budget;
   points.settings.compute = compute;
   points.settings.hqs = options.hqs;
+  points.settings.fill_radius = options.fill_radius < 0 ? 0u : uint32_t(options.fill_radius);
+  points.settings.occlusion_beta = options.occlusion_beta;
   engine.add_plugin(std::move(points));
 }
 
@@ -116,6 +120,15 @@ void add_scene_options(CLI::App* cmd, SceneOptions& options) {
   cmd->add_option("--max-sse", options.max_sse,
                   "Tilesets: refine tiles while their screen-space error exceeds this (pixels)")
       ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--fill-radius", options.fill_radius,
+                  "Compute renderer: fill empty pixels from drawn ones within this radius (seed "
+                  "002 III-D; default 1 on the virtualized path, else 0)")
+      ->check(CLI::Range(0, 8));
+  cmd->add_option("--occlusion-beta", options.occlusion_beta,
+                  "Compute renderer: drop points a nearer neighbour sees at an angle of at most "
+                  "this (radians; eq. 4 of seed 002, which uses 0.1); 0: off")
+      ->check(CLI::Range(0.0f, 1.5f))
       ->capture_default_str();
   cmd->add_flag("--virtual", options.force_virtual,
                 "Point clouds: draw from a pointlet cache in bounded memory (seed 002; chosen "

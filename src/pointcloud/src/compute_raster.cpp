@@ -1,6 +1,7 @@
 #include "stipple/pointcloud/compute_raster.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 
@@ -157,6 +158,20 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
                                                     .format = color_format,
                                                     .label = "raster-display"});
 
+  {
+    using B = gpu::BufferBinding;
+    p.fill_layout = gpu::create_compute_layout(
+        ctx, {B::Uniform, B::ReadOnlyStorage, B::ReadOnlyStorage, B::Storage}, "raster-fill");
+    p.fill_pipeline_layout = gpu::create_pipeline_layout(ctx, {p.fill_layout.get()});
+    gpu::ShaderModule fill = gpu::create_shader_from_file(ctx, "compute_raster_fill.wgsl");
+    p.occlusion = gpu::create_compute_pipeline(ctx, fill.get(), "occlusion_main",
+                                               p.fill_pipeline_layout.get(), "raster-occlusion");
+    p.fill = gpu::create_compute_pipeline(ctx, fill.get(), "fill_main",
+                                          p.fill_pipeline_layout.get(), "raster-fill");
+    const auto uniform = WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst;
+    p.occlusion_params = gpu::create_buffer(ctx, 32, uniform, "raster-occlusion-params");
+    p.fill_params = gpu::create_buffer(ctx, 32, uniform, "raster-fill-params");
+  }
   p.counters = gpu::create_buffer(
       ctx, kCounterWords * 4 + 4,
       WGPUBufferUsage_Storage | WGPUBufferUsage_CopySrc | WGPUBufferUsage_CopyDst,
@@ -311,9 +326,49 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
         .write(accum_name);
   }
 
+  // Seed 002, III-D: the occlusion check, then hole filling, each into a buffer of its own.
+  std::string shown = accum_name;
+  struct FillParams {
+    uint32_t width, height, radius, depth_stride, depth_word;
+    float beta, pixel_tan;
+    uint32_t pad;
+  };
+  const double tan_half_x = std::tan(camera.fov_y * 0.5) * double(width) / double(height);
+  const float pixel_tan = float(std::tan(2.0 * std::atan(tan_half_x) / double(width)));
+  auto add_post_pass = [&](const char* name, const gpu::ComputePipeline& pipeline,
+                           const gpu::Buffer& uniforms, uint32_t radius, const std::string& out) {
+    const FillParams fp{
+        width,     height, radius, use64 ? 2u : 1u, use64 ? 1u : 0u, options.occlusion_beta,
+        pixel_tan, 0};
+    graph
+        .add_pass(
+            name, gpu::PassKind::Compute,
+            [&p, &pipeline, &uniforms, fp, depth_name, in = shown, out, groups_x,
+             groups_y](gpu::PassContext& pc) {
+              gpu::Context& ctx = pc.gpu();
+              gpu::write_buffer(ctx, uniforms.get(), 0, fp);
+              auto group = gpu::create_bind_group(
+                  ctx, p.fill_layout.get(),
+                  {gpu::bind_buffer(0, uniforms.get()), gpu::bind_buffer(1, pc.buffer(depth_name)),
+                   gpu::bind_buffer(2, pc.buffer(in)), gpu::bind_buffer(3, pc.buffer(out))});
+              auto pass = pc.begin_compute_pass();
+              gpu::dispatch(pass.get(), pipeline.get(), {group.get()}, groups_x, groups_y);
+              wgpuComputePassEncoderEnd(pass.get());
+            })
+        .read(depth_name)
+        .read(shown)
+        .create_buffer(out, {pixels * 16, WGPUBufferUsage_Storage});
+    shown = out;
+  };
+  if (options.occlusion_beta > 0.0f && options.occlusion_radius > 0)
+    add_post_pass("raster-occlusion", p.occlusion, p.occlusion_params, options.occlusion_radius,
+                  "raster-visible");
+  if (options.fill_radius > 0)
+    add_post_pass("raster-fill", p.fill, p.fill_params, options.fill_radius, "raster-filled");
+
   graph
       .add_pass("raster-display", gpu::PassKind::Render,
-                [&p, &cloud, accum_name, color_target](gpu::PassContext& pc) {
+                [&p, &cloud, accum_name = shown, color_target](gpu::PassContext& pc) {
                   gpu::Context& ctx = pc.gpu();
                   auto layout = gpu::bind_group_layout_of(p.display);
                   if (cloud.segments.empty()) return;
@@ -324,7 +379,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                   gpu::draw_fullscreen(pc, pc.view(color_target), p.display.get(), {group.get()},
                                        WGPUColor{0, 0, 0, 1});
                 })
-      .read(accum_name)
+      .read(shown)
       .write(color_target);
 }
 

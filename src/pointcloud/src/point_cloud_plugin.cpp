@@ -150,6 +150,8 @@ void queue_point_clouds(Registry& render) {
       }
       pc::ComputeRasterOptions options;
       options.hqs = settings.hqs;
+      options.fill_radius = settings.fill_radius;
+      options.occlusion_beta = settings.occlusion_beta;
       options.background = settings.render.background;
       pc::add_compute_raster_passes(fg.graph, *cache.raster, *r.batched, camera, options,
                                     target.width, target.height);

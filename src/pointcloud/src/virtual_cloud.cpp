@@ -161,6 +161,8 @@ void queue_virtual_cloud(Registry& render) {
   }
   ComputeRasterOptions options;
   options.hqs = v.options.hqs;
+  options.fill_radius = v.options.fill_radius;
+  options.occlusion_beta = v.options.occlusion_beta;
   options.background = v.background;
   add_compute_raster_passes(fg.graph, *v.raster, *v.drawn, to_camera(*extracted), options,
                             target.width, target.height);
@@ -198,6 +200,8 @@ void VirtualPointCloudPlugin::build(Engine& engine) {
   settings.render = render;
   settings.compute = true;
   settings.hqs = options.hqs;
+  settings.fill_radius = options.fill_radius;
+  settings.occlusion_beta = options.occlusion_beta;
   engine.main().insert_resource(settings);
   engine.render().insert_resource(settings);
 

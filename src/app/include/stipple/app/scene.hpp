@@ -34,6 +34,8 @@ struct SceneOptions {
   // Point clouds larger than the in-memory path's budget (or with --virtual) are drawn from a
   // pointlet cache (pc::VirtualPointCloudPlugin, seed 002).
   bool force_virtual = false;
+  int fill_radius = -1;          // compute: hole filling radius; -1: 1 when virtualized, else 0
+  float occlusion_beta = 0.0f;   // compute: occlusion check threshold (radians); 0: off
   uint64_t bucket = 25'000'000;  // B
   uint64_t pointlets = 100'000;  // m
   std::string cache_dir;         // empty: beside the input

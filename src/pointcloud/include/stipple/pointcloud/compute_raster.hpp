@@ -55,6 +55,11 @@ struct ComputeRasterPipeline {
   gpu::ComputePipeline clear, raster64, depth32, accumulate, resolve;
   gpu::RenderPipeline display;
   gpu::Buffer counters;  // RasterCounters as u32s, cleared each frame
+  // Hole filling and the occlusion check (seed 002, III-D): one layout, two entry points.
+  gpu::BindGroupLayout fill_layout;
+  gpu::PipelineLayout fill_pipeline_layout;
+  gpu::ComputePipeline occlusion, fill;
+  gpu::Buffer occlusion_params, fill_params;
 };
 
 struct ComputeRasterOptions {
@@ -63,6 +68,12 @@ struct ComputeRasterOptions {
   int force_bits = 0;           // debug: 10, 20 or 30 for every batch
   float min_batch_px = 0.0f;    // LOD: skip batches smaller than this on screen
   glm::vec3 background{0.07f, 0.08f, 0.1f};
+  // Seed 002, III-D: empty pixels with a drawn pixel within this radius take their mean colour
+  // (0: off); points a nearer neighbour within the radius sees at an angle of at most
+  // occlusion_beta radians (eq. 4) are dropped first (0: off; the seed uses 0.1).
+  uint32_t fill_radius = 0;
+  float occlusion_beta = 0.0f;
+  uint32_t occlusion_radius = 1;
 };
 
 // `force_fallback` runs the 32-bit two-pass pipeline even where 64-bit atomics exist.

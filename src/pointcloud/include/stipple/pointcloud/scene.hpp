@@ -18,6 +18,10 @@ struct PointDrawSettings {
   uint64_t budget = 0;             // at most this many points (whole chunks, nearest first); 0: all
   bool compute = false;  // the compute rasterizer (seed 001) instead of the point pipeline
   bool hqs = false;      // compute rasterizer: high-quality shading
+  // Compute rasterizer, seed 002 III-D: hole filling radius (0: off) and the occlusion check's
+  // threshold in radians (0: off).
+  uint32_t fill_radius = 0;
+  float occlusion_beta = 0.0f;
 };
 
 // Main-world resource: what was loaded.

@@ -36,6 +36,8 @@ struct VirtualCloudOptions {
   PointletBuildOptions build;
   uint64_t bucket = kDefaultPointBucket;  // B: the most points drawn in a frame
   bool hqs = false;
+  uint32_t fill_radius = 1;     // hole filling (seed 002, III-D1); 0: off
+  float occlusion_beta = 0.0f;  // occlusion check (eq. 4) threshold in radians; 0: off
 };
 
 // Main-world resource: the cache the plugin opened, and whether it had to build it.

@@ -1,0 +1,103 @@
+// Seed 002, III-D, on the resolved pixels (colour sums and counts, and the nearest depth of each
+// pixel), two entry points run in order when enabled:
+//   occlusion_main: the visibility check of eq. 4. A point is dropped when a nearer neighbour
+//     within the radius sees it at an angle beta = |atan(lateral / (d1 - d2))| of at most the
+//     threshold, with lateral = 2 max(d1, d2) tan(FOV_x / width) times the pixel distance:
+//     background points that show through gaps of a surface in front.
+//   fill_main: hole filling. An empty pixel with at least one non-empty pixel in its n x n
+//     neighbourhood (n = 2 radius + 1) takes the mean colour of those pixels; larger holes and
+//     the background beyond the cloud's edge stay empty.
+struct FillParams {
+  width: u32,
+  height: u32,
+  radius: u32,
+  depth_stride: u32,  // u32 words per pixel of the depth buffer (2: 64-bit visibility buffer)
+  depth_word: u32,    // which word holds the depth
+  beta: f32,          // occlusion threshold, radians
+  pixel_tan: f32,     // tan(FOV_x / width)
+  _pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> fp: FillParams;
+@group(0) @binding(1) var<storage, read> depth_buffer: array<u32>;
+@group(0) @binding(2) var<storage, read> accum_in: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read_write> accum_out: array<vec4<u32>>;
+
+fn depth_of(pixel: u32) -> f32 {
+  return bitcast<f32>(depth_buffer[pixel * fp.depth_stride + fp.depth_word]);
+}
+
+@compute @workgroup_size(16, 16)
+fn occlusion_main(@builtin(global_invocation_id) id: vec3<u32>) {
+  if (id.x >= fp.width || id.y >= fp.height) {
+    return;
+  }
+  let pixel = id.y * fp.width + id.x;
+  let a = accum_in[pixel];
+  if (a.w == 0u) {
+    accum_out[pixel] = a;
+    return;
+  }
+  let d1 = depth_of(pixel);
+  let r = i32(fp.radius);
+  for (var dy = -r; dy <= r; dy++) {
+    for (var dx = -r; dx <= r; dx++) {
+      let x = i32(id.x) + dx;
+      let y = i32(id.y) + dy;
+      if ((dx == 0 && dy == 0) || x < 0 || y < 0 || x >= i32(fp.width) || y >= i32(fp.height)) {
+        continue;
+      }
+      let q = u32(y) * fp.width + u32(x);
+      if (accum_in[q].w == 0u) {
+        continue;
+      }
+      let d2 = depth_of(q);
+      if (d2 >= d1) {
+        continue;
+      }
+      let lateral = 2.0 * max(d1, d2) * fp.pixel_tan * length(vec2<f32>(f32(dx), f32(dy)));
+      if (abs(atan(lateral / (d1 - d2))) <= fp.beta) {
+        accum_out[pixel] = vec4<u32>(0u);  // behind a nearer surface: dropped
+        return;
+      }
+    }
+  }
+  accum_out[pixel] = a;
+}
+
+@compute @workgroup_size(16, 16)
+fn fill_main(@builtin(global_invocation_id) id: vec3<u32>) {
+  if (id.x >= fp.width || id.y >= fp.height) {
+    return;
+  }
+  let pixel = id.y * fp.width + id.x;
+  let a = accum_in[pixel];
+  if (a.w != 0u) {
+    accum_out[pixel] = a;
+    return;
+  }
+  // The mean of the neighbours' colours (each a sum over its count), kept at 8-bit scale.
+  var sum = vec3<f32>(0.0);
+  var n = 0u;
+  let r = i32(fp.radius);
+  for (var dy = -r; dy <= r; dy++) {
+    for (var dx = -r; dx <= r; dx++) {
+      let x = i32(id.x) + dx;
+      let y = i32(id.y) + dy;
+      if (x < 0 || y < 0 || x >= i32(fp.width) || y >= i32(fp.height)) {
+        continue;
+      }
+      let b = accum_in[u32(y) * fp.width + u32(x)];
+      if (b.w == 0u) {
+        continue;
+      }
+      sum += vec3<f32>(b.xyz) / f32(b.w);
+      n++;
+    }
+  }
+  if (n == 0u) {
+    accum_out[pixel] = vec4<u32>(0u);
+    return;
+  }
+  accum_out[pixel] = vec4<u32>(vec3<u32>(round(sum / f32(n))), 1u);
+}
