@@ -80,5 +80,41 @@ TEST_P(View, WindowShowsAutzenWithThePanel) {
   fs::remove_all(dir);
 }
 
+// The viewer over the virtualized path (seed 002): the window shows autzen from its pointlet
+// cache, with the panel's virtualized section.
+TEST_P(View, VirtualizedAutzenWithThePanel) {
+  STIPPLE_REQUIRE_DATA(path, "laz/autzen_trim.laz");
+  if (test::run_command("command -v xvfb-run").exit_code != 0)
+    GTEST_SKIP() << "xvfb-run is not installed";
+  fs::path dir =
+      fs::temp_directory_path() / fmt::format("stipple_view_virtual_{}_{}", GetParam(), ::getpid());
+  fs::create_directories(dir);
+  auto r = test::run_command(fmt::format(
+      "xvfb-run -a -s '-screen 0 1600x900x24' {} view {} --backend {} --frames 30 --virtual "
+      "--pointlets 1000 --cache {} --screenshot {}",
+      STIPPLE_BINARY, path.string(), GetParam(), (dir / "cache").string(),
+      (dir / "virtual.png").string()));
+  if (r.exit_code != 0 && r.output.find("cannot open a window") != std::string::npos)
+    GTEST_SKIP() << "no X display could be made: " << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("drawing from a pointlet cache (--virtual)"), std::string::npos)
+      << r.output;
+  gpu::Image shot = gpu::read_png(dir / "virtual.png");
+  ASSERT_EQ(shot.width, 1280u);
+  // Right of the panel (which shows the virtualized section: x < 400).
+  gpu::Image image{shot.width - 400, shot.height, {}};
+  for (uint32_t y = 0; y < shot.height; ++y)
+    image.rgba.insert(image.rgba.end(), shot.rgba.begin() + (size_t(y) * shot.width + 400) * 4,
+                      shot.rgba.begin() + (size_t(y) + 1) * shot.width * 4);
+  const uint8_t bg[3] = {18, 20, 26};
+  // 1-pixel points with hole filling: autzen covers part of the window, in its own colours.
+  size_t colored = 0;
+  const auto data_mean = test::mean_rgb(path, &colored);
+  auto stats = test::coverage_stats(image, bg, 1);
+  EXPECT_GT(stats.coverage, 0.10);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(stats.mean[c], data_mean[c], 20.0) << "channel " << c;
+  fs::remove_all(dir);
+}
+
 INSTANTIATE_TEST_SUITE_P(Backends, View, ::testing::Values("dawn", "wgpu"),
                          [](const auto& info) { return info.param; });

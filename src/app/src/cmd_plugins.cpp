@@ -14,6 +14,7 @@
 #include "stipple/engine/plugins.hpp"
 #include "stipple/engine/render_plugins.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
+#include "stipple/pointcloud/virtual_cloud.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 #include "stipple/viewer/camera_controller.hpp"
 #include "stipple/viewer/ui_plugin.hpp"
@@ -37,6 +38,7 @@ std::vector<PluginInfo> builtin_plugins() {
           plugin_info<RenderGraphPlugin>(),
           plugin_info<HeadlessTargetPlugin>(),
           plugin_info<pc::PointCloudPlugin>(),
+          plugin_info<pc::VirtualPointCloudPlugin>(),
           plugin_info<tiles3d::TilesetPlugin>(),
           plugin_info<viewer::WindowPlugin>(),
           plugin_info<viewer::InputPlugin>(),
@@ -62,12 +64,13 @@ void run_plugins(const std::string& dot_path) {
   std::printf(
       "stipple render: TimePlugin, TransformPlugin, CameraPlugin, [PipelinedRenderingPlugin "
       "with --pipelined], GpuPlugin, RenderGraphPlugin, PointCloudPlugin (TilesetPlugin for a "
-      "tileset), "
+      "tileset, VirtualPointCloudPlugin over the host budget or with --virtual), "
       "HeadlessTargetPlugin\n");
   std::printf(
       "stipple view:   TimePlugin, TransformPlugin, CameraPlugin, PipelinedRenderingPlugin "
       "[not with --single-thread], GpuPlugin, RenderGraphPlugin, PointCloudPlugin (TilesetPlugin "
-      "for a tileset), WindowPlugin, "
+      "for a tileset, VirtualPointCloudPlugin over the host budget or with --virtual), "
+      "WindowPlugin, "
       "InputPlugin, SurfaceTargetPlugin, UiPlugin [not with --no-ui], CameraControllerPlugin, "
       "ViewerPlugin\n");
   if (dot_path.empty()) return;

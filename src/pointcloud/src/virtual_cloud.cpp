@@ -139,6 +139,7 @@ void select_points(Registry& render) {
   stats.visible_pointlets =
       uint32_t(std::count_if(counts.begin(), counts.end(), [](uint32_t c) { return c > 0; }));
   ++stats.selections;
+  stats.bucket = v.options.bucket;
   v.have_selection = true;
   v.selected_for = *extracted;
   v.width = target.width;
@@ -169,6 +170,11 @@ void queue_virtual_cloud(Registry& render) {
   auto& stats = render.resource<RenderStats>();
   stats.points_drawn += v.drawn->point_count;
   stats.points_total = v.cache->info().point_count;
+}
+
+void snapshot_virtual_stats(Registry& main) {
+  Registry& render = *main.resource<RenderWorldRef>();
+  main.insert_resource(render.resource<VirtualCloudStats>());
 }
 
 }  // namespace
@@ -212,6 +218,8 @@ void VirtualPointCloudPlugin::build(Engine& engine) {
   v.pool = std::make_unique<ThreadPool>(std::max(2u, std::thread::hardware_concurrency()));
   engine.render().insert_resource(std::move(v));
   engine.render().insert_resource(VirtualCloudStats{});
+  engine.main().insert_resource(VirtualCloudStats{});
+  engine.add_system(MainStage::Extract, snapshot_virtual_stats, "snapshot_virtual_stats");
   engine.add_system(RenderStage::Queue, queue_virtual_cloud, "queue_virtual_cloud");
 }
 

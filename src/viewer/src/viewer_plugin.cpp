@@ -11,6 +11,7 @@
 #include "stipple/engine/time.hpp"
 #include "stipple/platform/input.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
+#include "stipple/pointcloud/virtual_cloud.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 #include "stipple/viewer/camera_controller.hpp"
 #include "stipple/viewer/ui_plugin.hpp"
@@ -122,6 +123,15 @@ void viewer_panel(Registry& main) {
 
   if (auto* stream = main.try_resource<tiles3d::TilesetStream>()) {
     tileset_controls(*stream, main.resource<tiles3d::TilesetStats>());
+  } else if (const auto* v = main.try_resource<pc::VirtualCloudStats>()) {
+    // The virtualized path (seed 002): what the last camera change selected and cost.
+    const auto& cache = main.resource<pc::VirtualCloudCache>();
+    ImGui::Text("pointlets: %llu of k = %llu", static_cast<unsigned long long>(cache.pointlets),
+                static_cast<unsigned long long>(cache.pointlet_points));
+    ImGui::Text("bucket B %.2f M; selected %.2f M in %u pointlets", v->bucket / 1e6,
+                v->selected_points / 1e6, v->visible_pointlets);
+    ImGui::Text("host %.1f MiB, GPU %.1f MiB", v->host_bytes / 1048576.0, v->gpu_bytes / 1048576.0);
+    ImGui::Text("LoD %.2f ms, load %.1f ms, upload %.1f ms", v->lod_ms, v->load_ms, v->upload_ms);
   } else {
     bool limit = settings.budget > 0;
     if (ImGui::Checkbox("point budget", &limit))
@@ -175,8 +185,11 @@ std::string next_screenshot_name() {
 }
 
 void ViewerPlugin::require(Engine& engine) {
-  if (!engine.has_plugin("PointCloudPlugin") && !engine.has_plugin("TilesetPlugin"))
-    fail("ViewerPlugin needs PointCloudPlugin or TilesetPlugin (the scene it shows)");
+  if (!engine.has_plugin("PointCloudPlugin") && !engine.has_plugin("TilesetPlugin") &&
+      !engine.has_plugin("VirtualPointCloudPlugin"))
+    fail(
+        "ViewerPlugin needs PointCloudPlugin, VirtualPointCloudPlugin or TilesetPlugin (the "
+        "scene it shows)");
 }
 
 void ViewerPlugin::build(Engine& engine) {

@@ -48,9 +48,11 @@ struct VirtualCloudCache {
   uint64_t points = 0, pointlets = 0, pointlet_points = 0;
 };
 
-// Render-world resource: what the last selection did.
+// Render-world resource: what the last selection did; copied to the main world in every
+// Extract (the panel shows it there, a frame late in pipelined mode).
 struct VirtualCloudStats {
   uint64_t selections = 0;  // camera changes served
+  uint64_t bucket = 0;      // B
   uint32_t visible_pointlets = 0;
   uint64_t selected_points = 0;  // the LoD's sum this frame (<= B)
   uint64_t host_bytes = 0;       // points held on the host for the upload (peak over selections)

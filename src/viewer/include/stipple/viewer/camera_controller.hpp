@@ -75,8 +75,8 @@ struct CameraControllerPlugin {
       "orbit and fly camera from input; double click focuses the point under the cursor";
   static constexpr std::array<std::string_view, 3> dependencies{"InputPlugin", "WindowPlugin",
                                                                 "CameraPlugin"};
-  static constexpr std::array<std::string_view, 4> optional_dependencies{
-      "TimePlugin", "PointCloudPlugin", "TilesetPlugin", "UiPlugin"};
+  static constexpr std::array<std::string_view, 5> optional_dependencies{
+      "TimePlugin", "PointCloudPlugin", "VirtualPointCloudPlugin", "TilesetPlugin", "UiPlugin"};
   // finish() attaches a controller to every Camera entity without one, orbiting the centre of
   // SceneInfo's bounds when a scene plugin (point clouds or a tileset) is there.
   void build(Engine& engine);

@@ -18,12 +18,12 @@ struct ViewerPlugin {
   static constexpr std::string_view description =
       "viewer keys (P screenshot, V vsync, F1 UI, Esc quit), stats and controls panel, "
       "--frames/--screenshot";
-  // The scene comes from PointCloudPlugin or TilesetPlugin (either provides SceneInfo and
-  // PointDrawSettings); require() checks that one is there.
+  // The scene comes from PointCloudPlugin, VirtualPointCloudPlugin or TilesetPlugin (each
+  // provides SceneInfo and PointDrawSettings); require() checks that one is there.
   static constexpr std::array<std::string_view, 2> dependencies{"InputPlugin", "RenderGraphPlugin"};
-  static constexpr std::array<std::string_view, 5> optional_dependencies{
-      "PointCloudPlugin", "TilesetPlugin", "SurfaceTargetPlugin", "UiPlugin",
-      "CameraControllerPlugin"};
+  static constexpr std::array<std::string_view, 6> optional_dependencies{
+      "PointCloudPlugin", "VirtualPointCloudPlugin", "TilesetPlugin", "SurfaceTargetPlugin",
+      "UiPlugin",         "CameraControllerPlugin"};
   uint64_t exit_after_frames = 0;  // 0: run until the window closes
   std::string screenshot;          // written from the last frame when exiting after N frames
   void build(Engine& engine);
