@@ -27,6 +27,7 @@
 #include "stipple/pointcloud/point_cloud.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
+#include "stipple/pointcloud/virtual_cloud.hpp"
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 
@@ -57,7 +58,8 @@ void run_render(const RenderArgs& args) {
   if (args.pipelined) engine.add_plugin(PipelinedRenderingPlugin{});
   // The virtualized path (inputs over the host budget, or --virtual) draws with the compute
   // rasterizer too.
-  const bool compute = args.scene.renderer == Renderer::Compute || use_virtual_path(args.scene);
+  const bool virtualized = use_virtual_path(args.scene);
+  const bool compute = args.scene.renderer == Renderer::Compute || virtualized;
   GpuPlugin gpu;
   gpu.options.backend = args.backend;
   if (compute) gpu.options.optional_features = pc::compute_raster_features();
@@ -70,7 +72,9 @@ void run_render(const RenderArgs& args) {
   // is idle (everything the view selects is resident), or at --max-frames.
   const bool tileset = is_tileset_scene(args.scene);
   add_scene_plugin(engine, args.scene);
-  engine.add_plugin(tileset
+  // The virtualized path loads what the view needs while frames run; the PNG is written once
+  // nothing is loading any more (or at --max-frames).
+  engine.add_plugin(tileset || virtualized
                         ? HeadlessTargetPlugin{args.width, args.height, "", 0}
                         : HeadlessTargetPlugin{args.width, args.height, args.output, args.frames});
 
@@ -144,6 +148,25 @@ void run_render(const RenderArgs& args) {
           r.resource<AppExit>().requested = true;
         },
         "render_when_streamed");
+  }
+  if (virtualized) {
+    engine.add_system(
+        MainStage::Update,
+        [settled = uint64_t(0), frames = uint64_t(args.frames), max_frames = args.max_frames,
+         output = args.output, frame = uint64_t(0)](Registry& r) mutable {
+          const auto& stats = r.resource<pc::VirtualCloudStats>();
+          const bool capped = ++frame >= max_frames;
+          if ((!stats.settled || stats.selections == 0) && !capped) {
+            pc::wait_for_virtual_loads(r.resource<pc::VirtualCloudHandle>(), 0.1);
+            return;
+          }
+          if (settled == 0 && capped && !stats.settled)
+            STIPPLE_WARN("--max-frames {} reached while points were still loading", max_frames);
+          if (++settled < frames) return;
+          r.resource<ScreenshotRequests>().paths.push_back(output);
+          r.resource<AppExit>().requested = true;
+        },
+        "render_when_loaded");
   }
   float point_size = compute ? 1.0f : settings.render.point_size;
   const std::string color_source =

@@ -75,6 +75,7 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
     v.options.cache_dir = options.cache_dir;
     v.options.build.pointlets = options.pointlets;
     v.options.build.memory_budget = std::min<uint64_t>(host_budget(options) / 2, uint64_t(4) << 30);
+    v.options.host_budget = host_budget(options);
     v.options.bucket = options.bucket;
     v.options.hqs = options.hqs;
     v.options.fill_radius = options.fill_radius < 0 ? 1u : uint32_t(options.fill_radius);

@@ -1,8 +1,12 @@
 #include "stipple/pointcloud/virtual_cloud.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <memory>
+#include <mutex>
+#include <numeric>
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
@@ -22,8 +26,71 @@ double ms_since(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
 
+}  // namespace
+
+// The host side of the virtual memory system (seed 002, III-C): per pointlet, the loaded
+// prefix of its (shuffled) points. Load tasks on a worker pool grow a prefix to what the LoD
+// asks for, up to 25% more while the host budget allows; prefixes no longer asked for shrink
+// when the budget runs short. Each pointlet has its own lock, and a task re-checks the state it
+// was made for, so a stale task does nothing.
+struct VirtualResidency {
+  struct Slot {
+    std::mutex mutex;
+    std::vector<PointletRecord> records;  // the loaded prefix
+    std::atomic<uint32_t> loaded{0};
+    std::atomic<bool> in_flight{false};
+  };
+  std::shared_ptr<const PointletCache> cache;
+  std::unique_ptr<Slot[]> slots;
+  size_t count = 0;
+  uint64_t budget = 0;  // bytes of records
+  std::atomic<uint64_t> bytes{0}, loads{0}, points_read{0};
+  std::atomic<uint32_t> pending{0};
+  std::mutex progress_mutex;
+  std::condition_variable progress;
+  std::atomic<uint64_t> completed{0};  // load tasks finished (a new selection is due)
+  std::string error;                   // the first failed load (under progress_mutex)
+
+  void load(uint32_t index, uint32_t target) {
+    Slot& slot = slots[index];
+    try {
+      std::lock_guard lock(slot.mutex);
+      const uint32_t have = slot.loaded.load();
+      if (target > have) {
+        cache->read(index, have, target - have, slot.records);
+        slot.loaded.store(target);
+        bytes += uint64_t(target - have) * sizeof(PointletRecord);
+        points_read += target - have;
+        ++loads;
+      }
+    } catch (const std::exception& e) {
+      std::lock_guard lock(progress_mutex);
+      if (error.empty()) error = e.what();
+    }
+    slot.in_flight.store(false);
+    --pending;
+    ++completed;
+    progress.notify_all();
+  }
+  void unload(uint32_t index, uint32_t keep) {
+    Slot& slot = slots[index];
+    std::lock_guard lock(slot.mutex);
+    const uint32_t have = slot.loaded.load();
+    if (keep >= have) return;
+    slot.records.resize(keep);
+    slot.records.shrink_to_fit();
+    slot.loaded.store(keep);
+    bytes -= uint64_t(have - keep) * sizeof(PointletRecord);
+  }
+};
+
+namespace {
+
 // Render-world resource.
 struct VirtualCloudRender {
+  std::shared_ptr<VirtualResidency> residency;
+  std::vector<uint32_t> desired, drawn_counts;  // the last LoD, and what it drew of it
+  uint64_t selected_after = 0;  // residency.completed when the drawn selection was built
   std::shared_ptr<const PointletCache> cache;
   VirtualCloudOptions options;
   glm::vec3 background{0.0f};
@@ -52,11 +119,11 @@ void world_box(const PointletEntry& e, glm::dvec3& min, glm::dvec3& size) {
   size = glm::max(a, b) - min;
 }
 
-// The points the LoD asks for, as batches of the compute rasterizer: each pointlet's prefix,
-// read from the cache, cut into batches of at most kBatchPoints sharing the pointlet's box.
-BatchedCloud load_selection(const PointletCache& cache, const std::vector<uint32_t>& counts,
-                            ThreadPool& pool) {
-  const auto& table = cache.pointlets();
+// The points to draw, as batches of the compute rasterizer: each pointlet's loaded prefix (up
+// to its count), cut into batches of at most kBatchPoints sharing the pointlet's box.
+BatchedCloud build_selection(VirtualResidency& r, const std::vector<uint32_t>& counts,
+                             ThreadPool& pool) {
+  const auto& table = r.cache->pointlets();
   std::vector<uint32_t> selected;
   std::vector<uint64_t> first;
   uint64_t total = 0;
@@ -73,26 +140,26 @@ BatchedCloud load_selection(const PointletCache& cache, const std::vector<uint32
   out.color.resize(total);
   std::vector<std::vector<Batch>> batches(selected.size());
   pool.parallel_for(selected.size(), 16, [&](size_t begin, size_t end) {
-    std::vector<PointletRecord> records;
     for (size_t s = begin; s < end; ++s) {
       const uint32_t index = selected[s];
       const PointletEntry& e = table[index];
-      records.clear();
-      cache.read(index, 0, counts[index], records);
       glm::dvec3 min, size;
       world_box(e, min, size);
-      for (size_t r = 0; r < records.size(); ++r) {
-        const glm::dvec3 p = z_up_to_y_up(cache.position(e, records[r]));
+      VirtualResidency::Slot& slot = r.slots[index];
+      std::lock_guard lock(slot.mutex);
+      const uint32_t n = std::min<uint32_t>(counts[index], uint32_t(slot.records.size()));
+      for (uint32_t k = 0; k < n; ++k) {
+        const PointletRecord& rec = slot.records[k];
+        const glm::dvec3 p = z_up_to_y_up(r.cache->position(e, rec));
         const QuantizedPoint q = quantize(p, min, size);
-        const uint64_t at = first[s] + r;
+        const uint64_t at = first[s] + k;
         out.coarse[at] = q.coarse;
         out.medium[at] = q.medium;
         out.fine[at] = q.fine;
-        out.color[at] = records[r].rgba;
+        out.color[at] = rec.rgba;
       }
-      for (uint32_t b = 0; b < records.size(); b += kBatchPoints)
-        batches[s].push_back({min, size, first[s] + b,
-                              std::min<uint32_t>(kBatchPoints, uint32_t(records.size()) - b)});
+      for (uint32_t b = 0; b < n; b += kBatchPoints)
+        batches[s].push_back({min, size, first[s] + b, std::min<uint32_t>(kBatchPoints, n - b)});
     }
   });
   for (auto& list : batches) out.batches.insert(out.batches.end(), list.begin(), list.end());
@@ -105,43 +172,95 @@ BatchedCloud load_selection(const PointletCache& cache, const std::vector<uint32
   return out;
 }
 
-// A new selection when the view changed (in Queue: the target of this frame is known then).
+// Per frame (in Queue: this frame's target is known then): when the view changed, the LoD on
+// the GPU says what each pointlet should draw; loads are requested for what is missing and
+// unloads free what is not needed when the host budget runs short; the frame draws what is
+// loaded of it, and a new selection follows when loads complete.
 void select_points(Registry& render) {
   auto& v = render.resource<VirtualCloudRender>();
   const auto& target = render.resource<RenderTarget>();
   const ExtractedCamera* extracted = first_extracted_camera(render);
   if (!extracted || !target.valid()) return;
-  if (v.have_selection && same_view(v.selected_for, *extracted) && v.width == target.width &&
-      v.height == target.height)
-    return;
-  gpu::Context& ctx = *render.resource<GpuContext>();
+  VirtualResidency& r = *v.residency;
   auto& stats = render.resource<VirtualCloudStats>();
+  {
+    std::lock_guard lock(r.progress_mutex);
+    if (!r.error.empty()) fail("{}", r.error);
+  }
+  const bool view_changed = !v.have_selection || !same_view(v.selected_for, *extracted) ||
+                            v.width != target.width || v.height != target.height;
+  const bool loads_done = r.completed.load() != v.selected_after;
+  if (!view_changed && !loads_done) {
+    stats.settled = r.pending.load() == 0;
+    return;
+  }
+  gpu::Context& ctx = *render.resource<GpuContext>();
   if (!v.pointlets) {
     v.pointlets = std::make_unique<GpuPointlets>(upload_pointlets(ctx, *v.cache));
     v.lod = std::make_unique<PointletLodPipeline>(create_pointlet_lod_pipeline(ctx));
   }
-  const Camera camera = to_camera(*extracted);
   auto t = Clock::now();
-  const std::vector<uint32_t> counts = compute_pointlet_lod(
-      ctx, *v.lod, *v.pointlets, camera, target.width, target.height, v.options.bucket);
-  stats.lod_ms = ms_since(t);
-  t = Clock::now();
-  BatchedCloud batched = load_selection(*v.cache, counts, *v.pool);
-  stats.load_ms = ms_since(t);
-  stats.host_bytes = std::max<uint64_t>(
-      stats.host_bytes, batched.point_count() * 16 + batched.batches.size() * sizeof(Batch));
-  t = Clock::now();
-  v.drawn.reset();  // the previous selection's buffers go before the new ones are made
-  v.drawn = std::make_unique<GpuBatchedCloud>(upload_batched_cloud(ctx, batched));
-  stats.upload_ms = ms_since(t);
-  stats.gpu_bytes = v.drawn->bytes;
-  stats.selected_points = batched.point_count();
+  if (view_changed) {
+    v.desired = compute_pointlet_lod(ctx, *v.lod, *v.pointlets, to_camera(*extracted), target.width,
+                                     target.height, v.options.bucket);
+    stats.lod_ms = ms_since(t);
+  }
+  const uint64_t completed = r.completed.load();
+  // Unload first: what the view no longer needs goes when what it needs would not fit.
+  const auto& table = v.cache->pointlets();
+  uint64_t needed = 0;
+  for (uint32_t i = 0; i < r.count; ++i) {
+    const uint32_t have = r.slots[i].loaded.load();
+    if (v.desired[i] > have) needed += uint64_t(v.desired[i] - have) * sizeof(PointletRecord);
+  }
+  for (uint32_t i = 0; i < r.count && r.bytes.load() + needed > r.budget; ++i)
+    if (!r.slots[i].in_flight.load() && r.slots[i].loaded.load() > v.desired[i])
+      r.unload(i, v.desired[i]);
+  // Loads for what is missing (with up to 25% more while the budget allows), and what to draw.
+  std::vector<uint32_t> draw(r.count, 0);
+  uint64_t planned = r.bytes.load();
+  bool requested = false;
+  for (uint32_t i = 0; i < r.count; ++i) {
+    const uint32_t want = v.desired[i], have = r.slots[i].loaded.load();
+    draw[i] = std::min(want, have);
+    if (want <= have || r.slots[i].in_flight.load()) continue;
+    const uint32_t extra = std::min<uint32_t>(table[i].count, want + want / 4);
+    uint32_t goal =
+        planned + uint64_t(extra - have) * sizeof(PointletRecord) <= r.budget ? extra : want;
+    if (planned + uint64_t(goal - have) * sizeof(PointletRecord) > r.budget) continue;  // full
+    planned += uint64_t(goal - have) * sizeof(PointletRecord);
+    r.slots[i].in_flight.store(true);
+    ++r.pending;
+    requested = true;
+    std::shared_ptr<VirtualResidency> keep = v.residency;
+    v.pool->submit([keep, i, goal] { keep->load(i, goal); });
+  }
+  if (draw != v.drawn_counts || !v.drawn) {
+    t = Clock::now();
+    BatchedCloud batched = build_selection(r, draw, *v.pool);
+    stats.load_ms = ms_since(t);
+    t = Clock::now();
+    v.drawn.reset();  // the previous selection's buffers go before the new ones are made
+    v.drawn = std::make_unique<GpuBatchedCloud>(upload_batched_cloud(ctx, batched));
+    stats.upload_ms = ms_since(t);
+    stats.gpu_bytes = v.drawn->bytes;
+    stats.selected_points = batched.point_count();
+    v.drawn_counts = std::move(draw);
+  }
   stats.visible_pointlets =
-      uint32_t(std::count_if(counts.begin(), counts.end(), [](uint32_t c) { return c > 0; }));
+      uint32_t(std::count_if(v.desired.begin(), v.desired.end(), [](uint32_t c) { return c > 0; }));
+  stats.desired_points = std::accumulate(v.desired.begin(), v.desired.end(), uint64_t(0));
+  stats.host_bytes = r.bytes.load();
+  stats.peak_host_bytes = std::max(stats.peak_host_bytes, stats.host_bytes);
+  stats.pending_loads = r.pending.load();
+  stats.loads = r.loads.load();
+  stats.points_read = r.points_read.load();
+  stats.settled = !requested && stats.pending_loads == 0;
   ++stats.selections;
   stats.bucket = v.options.bucket;
   v.have_selection = true;
   v.selected_for = *extracted;
+  v.selected_after = completed;
   v.width = target.width;
   v.height = target.height;
 }
@@ -179,6 +298,14 @@ void snapshot_virtual_stats(Registry& main) {
 
 }  // namespace
 
+void wait_for_virtual_loads(const VirtualCloudHandle& handle, double timeout_s) {
+  VirtualResidency& r = *handle.residency;
+  std::unique_lock lock(r.progress_mutex);
+  const uint64_t seen = r.completed.load();
+  r.progress.wait_for(lock, std::chrono::duration<double>(timeout_s),
+                      [&] { return r.completed.load() != seen || r.pending.load() == 0; });
+}
+
 void VirtualPointCloudPlugin::build(Engine& engine) {
   if (options.files.empty()) fail("VirtualPointCloudPlugin: no input");
   bool built = false;
@@ -211,7 +338,14 @@ void VirtualPointCloudPlugin::build(Engine& engine) {
   engine.main().insert_resource(settings);
   engine.render().insert_resource(settings);
 
+  auto residency = std::make_shared<VirtualResidency>();
+  residency->cache = cache;
+  residency->count = cache->pointlets().size();
+  residency->slots = std::make_unique<VirtualResidency::Slot[]>(residency->count);
+  residency->budget = options.host_budget;
+  engine.main().insert_resource(VirtualCloudHandle{residency});
   VirtualCloudRender v;
+  v.residency = residency;
   v.cache = cache;
   v.options = options;
   v.background = render.background;

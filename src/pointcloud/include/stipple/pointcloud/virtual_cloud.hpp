@@ -14,6 +14,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -36,8 +37,9 @@ struct VirtualCloudOptions {
   PointletBuildOptions build;
   uint64_t bucket = kDefaultPointBucket;  // B: the most points drawn in a frame
   bool hqs = false;
-  uint32_t fill_radius = 1;     // hole filling (seed 002, III-D1); 0: off
-  float occlusion_beta = 0.0f;  // occlusion check (eq. 4) threshold in radians; 0: off
+  uint64_t host_budget = uint64_t(1) << 30;  // bytes of loaded points kept on the host
+  uint32_t fill_radius = 1;                  // hole filling (seed 002, III-D1); 0: off
+  float occlusion_beta = 0.0f;               // occlusion check (eq. 4) threshold in radians; 0: off
 };
 
 // Main-world resource: the cache the plugin opened, and whether it had to build it.
@@ -51,14 +53,26 @@ struct VirtualCloudCache {
 // Render-world resource: what the last selection did; copied to the main world in every
 // Extract (the panel shows it there, a frame late in pipelined mode).
 struct VirtualCloudStats {
-  uint64_t selections = 0;  // camera changes served
+  uint64_t selections = 0;  // selections made (view changes, loads completed)
   uint64_t bucket = 0;      // B
   uint32_t visible_pointlets = 0;
-  uint64_t selected_points = 0;  // the LoD's sum this frame (<= B)
-  uint64_t host_bytes = 0;       // points held on the host for the upload (peak over selections)
-  uint64_t gpu_bytes = 0;        // the uploaded batches
+  uint64_t desired_points = 0;                   // what the LoD asked for (<= B)
+  uint64_t selected_points = 0;                  // what is drawn of it: the loaded part
+  uint64_t host_bytes = 0, peak_host_bytes = 0;  // loaded points on the host
+  uint64_t gpu_bytes = 0;                        // the uploaded batches
+  uint32_t pending_loads = 0;
+  uint64_t loads = 0, points_read = 0;  // load tasks done, points read from the cache
+  bool settled = false;  // nothing loading and the drawn selection is what the LoD asked for
   double lod_ms = 0, load_ms = 0, upload_ms = 0;  // the last selection
 };
+
+// Main-world resource: waits for the loads in flight (a headless render waits until settled).
+struct VirtualResidency;
+struct VirtualCloudHandle {
+  std::shared_ptr<VirtualResidency> residency;
+};
+// Blocks until a load completes, or `timeout_s` passed, or nothing is loading.
+void wait_for_virtual_loads(const VirtualCloudHandle& handle, double timeout_s);
 
 struct VirtualPointCloudPlugin {
   static constexpr std::string_view name = "VirtualPointCloudPlugin";
