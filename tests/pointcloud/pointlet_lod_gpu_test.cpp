@@ -77,11 +77,9 @@ TEST_P(PointletLod, CountsEqualTheCpuEquations) {
   std::vector<uint32_t> sizes;
   for (const auto& e : cache.pointlets()) sizes.push_back(e.count);
 
-  const Aabb world(z_up_to_y_up(cache.info().source_bounds.min),
-                   z_up_to_y_up(cache.info().source_bounds.max));
   Aabb box;
-  box.extend(world.min);
-  box.extend(world.max);
+  box.extend(z_up_to_y_up(cache.info().source_bounds.min));
+  box.extend(z_up_to_y_up(cache.info().source_bounds.max));
   const uint32_t width = 640, height = 360;
   // An overview, and a close view from inside the scene that sees part of it.
   Camera overview = frame_box(box, double(width) / height);
