@@ -394,6 +394,14 @@ void RenderGraph::execute(Context& ctx, TransientPool& pool, PassTimer* timer) {
     pc.timer_index_ = timer_index_[p];
     if (passes_[p].execute) passes_[p].execute(pc);
     used_timestamps_[p] = pc.used_timestamps_;
+    // A timed pass that recorded nothing (say, no points to draw) still writes its two
+    // timestamps, from an empty compute pass: resolving queries never written blocks on some
+    // drivers (NVIDIA's Vulkan driver waits for them for ever; lavapipe returns zeros). Its
+    // time is still left out of read_pass_times.
+    if (pc.timer_ && pc.timer_index_ != CompiledGraph::kNone && !pc.used_timestamps_) {
+      ComputePassEncoder empty = pc.begin_compute_pass();
+      wgpuComputePassEncoderEnd(empty.get());
+    }
   }
   if (timing && timed > 0) resolve_pass_timer(*timer, encoder.get(), timed);
   CommandBuffer commands(wgpuCommandEncoderFinish(encoder.get(), nullptr));
