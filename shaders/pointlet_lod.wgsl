@@ -63,6 +63,17 @@ fn weight_of(b: Box) -> f32 {
   return projected / (r * r);
 }
 
+// Sums scratch into scratch[0] (a tree over the workgroup); call from uniform control flow.
+fn workgroup_sum(lid: u32) {
+  workgroupBarrier();
+  for (var stride = WORKGROUP / 2u; stride > 0u; stride >>= 1u) {
+    if (lid < stride) {
+      scratch[lid] += scratch[lid + stride];
+    }
+    workgroupBarrier();
+  }
+}
+
 @compute @workgroup_size(256)
 fn weights_main(@builtin(global_invocation_id) id: vec3<u32>,
                 @builtin(local_invocation_index) lid: u32,
@@ -73,13 +84,7 @@ fn weights_main(@builtin(global_invocation_id) id: vec3<u32>,
     weights[id.x] = w;
   }
   scratch[lid] = w;
-  workgroupBarrier();
-  for (var stride = WORKGROUP / 2u; stride > 0u; stride >>= 1u) {
-    if (lid < stride) {
-      scratch[lid] += scratch[lid + stride];
-    }
-    workgroupBarrier();
-  }
+  workgroup_sum(lid);
   if (lid == 0u) {
     partial_sums[group.x] = scratch[0];
   }
@@ -92,13 +97,7 @@ fn total_main(@builtin(local_invocation_index) lid: u32) {
     s += partial_sums[i];
   }
   scratch[lid] = s;
-  workgroupBarrier();
-  for (var stride = WORKGROUP / 2u; stride > 0u; stride >>= 1u) {
-    if (lid < stride) {
-      scratch[lid] += scratch[lid + stride];
-    }
-    workgroupBarrier();
-  }
+  workgroup_sum(lid);
   if (lid == 0u) {
     partial_sums[params.partials] = scratch[0];  // the total, after the partial sums
   }

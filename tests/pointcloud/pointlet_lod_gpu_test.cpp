@@ -8,8 +8,8 @@
 
 #include <gtest/gtest.h>
 
-#include "stipple/io/las.hpp"
-#include "stipple/io/procedural.hpp"
+#include "scene_las.hpp"
+
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/pointlet_lod.hpp"
 #include "stipple/pointcloud/pointlets.hpp"
@@ -26,19 +26,7 @@ class PointletLod : public ::testing::TestWithParam<std::string> {
     dir_ = fs::temp_directory_path() / ("stipple-pointlet-lod-" + std::to_string(getpid()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
-    io::SceneParams scene;
-    scene.point_count = 200000;
-    io::LasWriteOptions o;
-    o.version_minor = 4;
-    o.point_format = 7;
-    o.scale = {0.001, 0.001, 0.001};
-    o.offset = {scene.origin.x, scene.origin.y, 0.0};
-    {
-      io::LasWriter w(dir_ / "scene.las", o);
-      io::PointBatch b;
-      io::generate_scene(scene, 0, scene.point_count, b);
-      w.write(b);
-    }
+    test::write_scene_las(dir_ / "scene.las", 200000);
     pc::PointletBuildOptions build;
     build.pointlets = 2000;  // k = 64: 3125 pointlets
     build.progress = false;

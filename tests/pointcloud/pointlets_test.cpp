@@ -13,6 +13,7 @@
 
 #include <gtest/gtest.h>
 
+#include "scene_las.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/io/las.hpp"
 #include "stipple/io/procedural.hpp"
@@ -31,26 +32,6 @@ fs::path fresh_dir(const std::string& name) {
   fs::remove_all(d);
   fs::create_directories(d);
   return d;
-}
-
-// A generated scan written as LAS (or LAZ), the way `stipple generate` writes it.
-fs::path write_scene(const fs::path& path, uint64_t points, bool compress = false) {
-  io::SceneParams scene;
-  scene.point_count = points;
-  io::LasWriteOptions o;
-  o.version_minor = 4;
-  o.point_format = 7;
-  o.compress = compress;
-  o.scale = {0.001, 0.001, 0.001};
-  o.offset = {scene.origin.x, scene.origin.y, 0.0};
-  io::LasWriter w(path, o);
-  for (uint64_t first = 0; first < points; first += 100000) {
-    io::PointBatch b;
-    io::generate_scene(scene, first, std::min<uint64_t>(100000, points - first), b);
-    w.write(b);
-  }
-  w.close();
-  return path;
 }
 
 // (lattice position, rgba, attributes) of every point, sorted: the multiset of a cloud.
@@ -130,7 +111,7 @@ TEST(Pointlets, HilbertFromMortonEqualsSkilling) {
 
 TEST(Pointlets, EveryPointOnceInBoxesOfKShuffled) {
   fs::path dir = fresh_dir("once");
-  fs::path las = write_scene(dir / "scene.las", 60000);
+  fs::path las = test::write_scene_las(dir / "scene.las", 60000);
   pc::PointletBuildOptions o;
   o.pointlets = 500;  // k = 2^floor(log2(120)) = 64
   o.progress = false;
@@ -174,8 +155,8 @@ TEST(Pointlets, EveryPointOnceInBoxesOfKShuffled) {
 
 TEST(Pointlets, LasAndLazAndManyRunsGiveTheSamePointlets) {
   fs::path dir = fresh_dir("same");
-  fs::path las = write_scene(dir / "scene.las", 150000);
-  fs::path laz = write_scene(dir / "scene.laz", 150000, true);
+  fs::path las = test::write_scene_las(dir / "scene.las", 150000);
+  fs::path laz = test::write_scene_las(dir / "scene.laz", 150000, true);
   pc::PointletBuildOptions o;
   o.pointlets = 1000;
   o.progress = false;
@@ -201,7 +182,7 @@ TEST(Pointlets, LasAndLazAndManyRunsGiveTheSamePointlets) {
 
 TEST(Pointlets, ReusedWhileUnchangedRebuiltWhenChangedOrDamaged) {
   fs::path dir = fresh_dir("reuse");
-  fs::path las = write_scene(dir / "scene.las", 20000);
+  fs::path las = test::write_scene_las(dir / "scene.las", 20000);
   fs::path caches = dir / "caches";
   pc::PointletBuildOptions o;
   o.pointlets = 100;
@@ -242,7 +223,7 @@ TEST(Pointlets, ReusedWhileUnchangedRebuiltWhenChangedOrDamaged) {
 
 TEST(Pointlets, DamageGivesClearErrors) {
   fs::path dir = fresh_dir("damage");
-  fs::path las = write_scene(dir / "scene.las", 5000);
+  fs::path las = test::write_scene_las(dir / "scene.las", 5000);
   pc::PointletBuildOptions o;
   o.pointlets = 10;
   o.progress = false;
@@ -286,7 +267,7 @@ TEST(Pointlets, DamageGivesClearErrors) {
 
 TEST(Pointlets, AFailedBuildLeavesNothing) {
   fs::path dir = fresh_dir("failed");
-  fs::path las = write_scene(dir / "scene.las", 30000);
+  fs::path las = test::write_scene_las(dir / "scene.las", 30000);
   // The file claims more points than it holds: the build stops with an error naming it.
   fs::resize_file(las, fs::file_size(las) - 1000 * 36);
   pc::PointletBuildOptions o;

@@ -9,12 +9,12 @@
 
 #include <gtest/gtest.h>
 
+#include "scene_las.hpp"
+
 #include "stipple/engine/camera.hpp"
 #include "stipple/engine/engine.hpp"
 #include "stipple/engine/plugins.hpp"
 #include "stipple/engine/render_plugins.hpp"
-#include "stipple/io/las.hpp"
-#include "stipple/io/procedural.hpp"
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/scene.hpp"
 #include "stipple/pointcloud/virtual_cloud.hpp"
@@ -30,17 +30,7 @@ class VirtualCloud : public ::testing::TestWithParam<std::string> {
     dir_ = fs::temp_directory_path() / ("stipple-virtual-cloud-" + std::to_string(getpid()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
-    io::SceneParams scene;
-    scene.point_count = 200000;
-    io::LasWriteOptions o;
-    o.version_minor = 4;
-    o.point_format = 7;
-    o.scale = {0.001, 0.001, 0.001};
-    o.offset = {scene.origin.x, scene.origin.y, 0.0};
-    io::LasWriter w(dir_ / "scene.las", o);
-    io::PointBatch b;
-    io::generate_scene(scene, 0, scene.point_count, b);
-    w.write(b);
+    test::write_scene_las(dir_ / "scene.las", 200000);
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
   static fs::path dir_;
