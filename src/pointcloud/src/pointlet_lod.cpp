@@ -65,10 +65,8 @@ std::vector<PointletBox> pointlet_boxes(const std::vector<PointletEntry>& table,
   std::vector<PointletBox> boxes(table.size());
   for (size_t i = 0; i < table.size(); ++i) {
     const PointletEntry& e = table[i];
-    // Source frame (Z up) to world (Y up): the box's corners swap y and z, and y flips.
-    const glm::dvec3 a = z_up_to_y_up({e.min[0], e.min[1], e.min[2]}) - origin;
-    const glm::dvec3 b = z_up_to_y_up({e.max[0], e.max[1], e.max[2]}) - origin;
-    const glm::dvec3 lo = glm::min(a, b), hi = glm::max(a, b);
+    const Aabb world = pointlet_world_box(e);
+    const glm::dvec3 lo = world.min - origin, hi = world.max - origin;
     const float half_diagonal = float(0.5 * glm::length(hi - lo));
     boxes[i] = {{float(lo.x), float(lo.y), float(lo.z), half_diagonal},
                 {float(hi.x), float(hi.y), float(hi.z), 0.0f}};

@@ -655,14 +655,14 @@ bool PointletCache::matches(const std::vector<fs::path>& sources,
     return false;
   if (sources.size() != info_.sources.size()) return false;
   for (size_t i = 0; i < sources.size(); ++i) {
-    std::error_code ec;
-    const fs::path abs = fs::absolute(sources[i], ec);
-    struct stat st {};
-    if (ec || ::stat(abs.c_str(), &st) != 0) return false;
+    PointletSource now;
+    try {
+      now = stamp(sources[i], 0);
+    } catch (const Error&) {
+      return false;  // gone: rebuilding says why
+    }
     const PointletSource& s = info_.sources[i];
-    const int64_t mtime = int64_t(st.st_mtim.tv_sec) * 1'000'000'000 + st.st_mtim.tv_nsec;
-    if (s.path != abs.string() || s.size != uint64_t(st.st_size) || s.mtime_ns != mtime)
-      return false;
+    if (s.path != now.path || s.size != now.size || s.mtime_ns != now.mtime_ns) return false;
   }
   return true;
 }
@@ -714,6 +714,14 @@ PointletCache open_pointlet_cache(const std::vector<fs::path>& sources, const fs
   if (stats) *stats = s;
   if (built) *built = true;
   return PointletCache::open(path);
+}
+
+Aabb pointlet_world_box(const PointletEntry& e) {
+  // z_up_to_y_up swaps y and z and flips the new z: the corners' images are again a box.
+  Aabb box;
+  box.extend(z_up_to_y_up({e.min[0], e.min[1], e.min[2]}));
+  box.extend(z_up_to_y_up({e.max[0], e.max[1], e.max[2]}));
+  return box;
 }
 
 PointletMetrics pointlet_metrics(const std::vector<PointletEntry>& pointlets) {

@@ -91,7 +91,6 @@ struct VirtualCloudRender {
   std::shared_ptr<VirtualResidency> residency;
   std::vector<uint32_t> desired, drawn_counts;  // the last LoD, and what it drew of it
   uint64_t selected_after = 0;  // residency.completed when the drawn selection was built
-  std::shared_ptr<const PointletCache> cache;
   VirtualCloudOptions options;
   glm::vec3 background{0.0f};
   std::unique_ptr<GpuPointlets> pointlets;
@@ -109,14 +108,6 @@ struct VirtualCloudRender {
 bool same_view(const ExtractedCamera& a, const ExtractedCamera& b) {
   return a.position == b.position && a.rotation == b.rotation && a.fov_y == b.fov_y &&
          a.near_plane == b.near_plane;
-}
-
-// A pointlet's box in world space (Y up).
-void world_box(const PointletEntry& e, glm::dvec3& min, glm::dvec3& size) {
-  const glm::dvec3 a = z_up_to_y_up({e.min[0], e.min[1], e.min[2]});
-  const glm::dvec3 b = z_up_to_y_up({e.max[0], e.max[1], e.max[2]});
-  min = glm::min(a, b);
-  size = glm::max(a, b) - min;
 }
 
 // The points to draw, as batches of the compute rasterizer: each pointlet's loaded prefix (up
@@ -143,8 +134,8 @@ BatchedCloud build_selection(VirtualResidency& r, const std::vector<uint32_t>& c
     for (size_t s = begin; s < end; ++s) {
       const uint32_t index = selected[s];
       const PointletEntry& e = table[index];
-      glm::dvec3 min, size;
-      world_box(e, min, size);
+      const Aabb box = pointlet_world_box(e);
+      const glm::dvec3 min = box.min, size = box.max - box.min;
       VirtualResidency::Slot& slot = r.slots[index];
       std::lock_guard lock(slot.mutex);
       const uint32_t n = std::min<uint32_t>(counts[index], uint32_t(slot.records.size()));
@@ -164,10 +155,9 @@ BatchedCloud build_selection(VirtualResidency& r, const std::vector<uint32_t>& c
   });
   for (auto& list : batches) out.batches.insert(out.batches.end(), list.begin(), list.end());
   for (uint32_t i : selected) {
-    glm::dvec3 min, size;
-    world_box(table[i], min, size);
-    out.world_bounds.extend(min);
-    out.world_bounds.extend(min + size);
+    const Aabb box = pointlet_world_box(table[i]);
+    out.world_bounds.extend(box.min);
+    out.world_bounds.extend(box.max);
   }
   return out;
 }
@@ -196,7 +186,7 @@ void select_points(Registry& render) {
   }
   gpu::Context& ctx = *render.resource<GpuContext>();
   if (!v.pointlets) {
-    v.pointlets = std::make_unique<GpuPointlets>(upload_pointlets(ctx, *v.cache));
+    v.pointlets = std::make_unique<GpuPointlets>(upload_pointlets(ctx, *v.residency->cache));
     v.lod = std::make_unique<PointletLodPipeline>(create_pointlet_lod_pipeline(ctx));
   }
   auto t = Clock::now();
@@ -207,7 +197,7 @@ void select_points(Registry& render) {
   }
   const uint64_t completed = r.completed.load();
   // Unload first: what the view no longer needs goes when what it needs would not fit.
-  const auto& table = v.cache->pointlets();
+  const auto& table = v.residency->cache->pointlets();
   uint64_t needed = 0;
   for (uint32_t i = 0; i < r.count; ++i) {
     const uint32_t have = r.slots[i].loaded.load();
@@ -288,7 +278,7 @@ void queue_virtual_cloud(Registry& render) {
                             target.width, target.height);
   auto& stats = render.resource<RenderStats>();
   stats.points_drawn += v.drawn->point_count;
-  stats.points_total = v.cache->info().point_count;
+  stats.points_total = v.residency->cache->info().point_count;
 }
 
 void snapshot_virtual_stats(Registry& main) {
@@ -346,7 +336,6 @@ void VirtualPointCloudPlugin::build(Engine& engine) {
   engine.main().insert_resource(VirtualCloudHandle{residency});
   VirtualCloudRender v;
   v.residency = residency;
-  v.cache = cache;
   v.options = options;
   v.background = render.background;
   v.pool = std::make_unique<ThreadPool>(std::max(2u, std::thread::hardware_concurrency()));

@@ -151,6 +151,9 @@ PointletCache open_pointlet_cache(const std::vector<std::filesystem::path>& sour
                                   const PointletBuildOptions& options, bool* built = nullptr,
                                   PointletBuildStats* stats = nullptr);
 
+// A pointlet's box in the engine's world frame (Y up; the table holds the source frame, Z up).
+Aabb pointlet_world_box(const PointletEntry& pointlet);
+
 // Table I of seed 002: how compact the pointlets are.
 struct PointletMetrics {
   double max_extent = 0, mean_extent = 0, stddev_extent = 0;  // largest side of each box
