@@ -12,12 +12,14 @@
 fn count_batch(b: GpuBatch, bits: u32, skipped: bool) {}
 
 @compute @workgroup_size(128)
-fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-  let bits = batch_prologue(group.x, lid);
+fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
+        @builtin(local_invocation_index) lid: u32) {
+  let batch = batch_index(group, groups);
+  let bits = batch_prologue(batch, lid);
   if (bits == 0u) {
     return;
   }
-  let b = batches[group.x];
+  let b = batches[batch];
   for (var i = lid; i < b.count; i += WORKGROUP) {
     let index = b.first + i;
     let pr = project(params, load_position(b, bits, index));

@@ -11,6 +11,11 @@
 
 var<workgroup> batch_bits: u32;
 
+// Batches are dispatched as rows of workgroups (more than one dimension's limit of batches).
+fn batch_index(group: vec3<u32>, groups: vec3<u32>) -> u32 {
+  return group.y * groups.x + group.x;
+}
+
 // How every geometry pass starts: thread 0 classifies the workgroup's batch (frustum, LOD,
 // precision) and reports it to count_batch(), which the including shader defines (counters, or
 // nothing); then every thread gets the precision in bits, 0 when the batch is culled or skipped

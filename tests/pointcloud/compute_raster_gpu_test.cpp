@@ -163,6 +163,25 @@ TEST_P(ComputeRaster, CountersMatchCpuReference) {
   }
 }
 
+// More batches than one dispatch dimension holds (65,535): they go in rows of workgroups, and
+// every batch is still processed exactly once.
+TEST_P(ComputeRaster, MoreBatchesThanOneDispatchRow) {
+  auto ctx = context();
+  io::SceneParams scene;
+  scene.point_count = 300'000;
+  auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Hilbert, 4);
+  ASSERT_GT(batched.batches.size(), 70'000u);
+  const uint32_t w = 320, h = 180;
+  Camera camera = frame_box(batched.world_bounds, double(w) / h);
+  auto r = render_compute(*ctx, batched, camera, {}, w, h);
+  auto ref = pc::reference_counters(batched.batches, camera, {w, h});
+  EXPECT_EQ(r.counters.batches_processed, batched.batches.size());
+  EXPECT_EQ(r.counters.batches_rendered, ref.batches_rendered);
+  EXPECT_EQ(r.counters.points_rendered, ref.points_rendered);
+  EXPECT_EQ(r.counters.points_rendered, 300'000u);
+  EXPECT_GT(test::coverage_stats(r.image, kBlack, 0).coverage, 0.05);
+}
+
 TEST_P(ComputeRaster, PrecisionLevelsAgreeForSmallBatches) {
   auto ctx = context();
   io::SceneParams scene;

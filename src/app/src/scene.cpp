@@ -75,7 +75,13 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
     v.options.cache_dir = options.cache_dir;
     v.options.build.pointlets = options.pointlets;
     v.options.build.memory_budget = std::min<uint64_t>(host_budget(options) / 2, uint64_t(4) << 30);
-    v.options.host_budget = host_budget(options);
+    // The host budget covers the loaded points and the two mapped staging slots.
+    const uint64_t budget = host_budget(options);
+    v.options.staging_bytes =
+        std::clamp<uint64_t>(budget / 16, uint64_t(1) << 20, uint64_t(64) << 20);
+    v.options.host_budget =
+        budget > 4 * v.options.staging_bytes ? budget - 2 * v.options.staging_bytes : budget / 2;
+    if (!options.gpu_memory.empty()) v.options.gpu_budget = tiler::parse_size(options.gpu_memory);
     v.options.bucket = options.bucket;
     v.options.hqs = options.hqs;
     v.options.fill_radius = options.fill_radius < 0 ? 1u : uint32_t(options.fill_radius);
@@ -148,6 +154,9 @@ void add_scene_options(CLI::App* cmd, SceneOptions& options) {
   cmd->add_option("--host-memory", options.host_memory,
                   "Host memory budget, e.g. 4G (default: a quarter of RAM): larger inputs take the "
                   "virtualized path");
+  cmd->add_option("--gpu-memory", options.gpu_memory,
+                  "Virtualized: device memory for the points, e.g. 2G (default: what the bucket "
+                  "needs, 32 bytes a point); a bucket that does not fit is lowered");
   cmd->add_option("--memory-mb", options.memory_mb,
                   "Tilesets: resident tile memory budget in MiB (least recently used evicted)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 20))

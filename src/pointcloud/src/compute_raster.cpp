@@ -64,6 +64,15 @@ gpu::Buffer upload_words(gpu::Context& ctx, const uint32_t* data, uint64_t count
   return buffer;
 }
 
+// One workgroup per batch, in rows of at most 65,535 (WebGPU's guaranteed dimension limit).
+void dispatch_batches(WGPUComputePassEncoder pass, WGPUComputePipeline pipeline,
+                      WGPUBindGroup group, uint32_t batches) {
+  if (batches == 0) return;
+  constexpr uint32_t kRow = 65'535;
+  const uint32_t x = std::min(batches, kRow), y = (batches + kRow - 1) / kRow;
+  gpu::dispatch(pass, pipeline, {group}, x, y);
+}
+
 gpu::ComputePipeline make_compute(gpu::Context& ctx, const char* file) {
   gpu::ShaderModule shader = gpu::create_shader_from_file(ctx, file);
   gpu::ComputePipeline pipeline =
@@ -80,12 +89,11 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
   out.batches = cloud.batches;
   out.point_count = cloud.point_count();
   // One storage binding per array: the segment's points must fit the binding and the buffer
-  // limits (kept at 2 GiB so u32 byte offsets stay safe), its batches one dispatch dimension.
+  // limits (kept at 2 GiB so u32 byte offsets stay safe). Batches go in rows of workgroups.
   uint64_t max_bytes = std::min<uint64_t>(
       {ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize, 1ull << 31});
   uint64_t max_points = max_bytes / 4;
   if (options.max_segment_points) max_points = std::min(max_points, options.max_segment_points);
-  uint32_t max_batches = std::max<uint32_t>(1, ctx.limits.maxComputeWorkgroupsPerDimension);
   if (out.point_count >= (1ull << 32))
     fail("the compute rasterizer indexes points with 32 bits: {} points are too many",
          out.point_count);
@@ -96,7 +104,7 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
     seg.first_batch = uint32_t(b);
     seg.first_point = cloud.batches[b].first;
     uint64_t points = 0;
-    while (b < cloud.batches.size() && seg.batch_count < max_batches &&
+    while (b < cloud.batches.size() &&
            (points + cloud.batches[b].count <= max_points || seg.batch_count == 0)) {
       if (cloud.batches[b].first != seg.first_point + points)
         fail("batches must cover consecutive points (batch {})", b);
@@ -127,6 +135,30 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
 std::vector<WGPUFeatureName> compute_raster_features() {
   return {WGPUFeatureName(WGPUNativeFeature_ShaderInt64),
           WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax)};
+}
+
+GpuBatchedCloud create_batched_storage(gpu::Context& ctx, uint64_t points, uint64_t batches,
+                                       std::string_view label) {
+  const uint64_t max_bytes = std::min<uint64_t>(
+      {ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize, 1ull << 31});
+  if (points * 4 > max_bytes)
+    fail("{}: {} points exceed one storage binding ({} bytes)", label, points, max_bytes);
+  const auto usage = WGPUBufferUsage_Storage | WGPUBufferUsage_CopySrc | WGPUBufferUsage_CopyDst;
+  const uint64_t words = std::max<uint64_t>(points, 1) * 4;
+  GpuBatchedCloud out;
+  GpuBatchedCloud::Segment seg;
+  seg.coarse = gpu::create_buffer(ctx, words, usage, "store-coarse");
+  seg.medium = gpu::create_buffer(ctx, words, usage, "store-medium");
+  seg.fine = gpu::create_buffer(ctx, words, usage, "store-fine");
+  seg.color = gpu::create_buffer(ctx, words, usage, "store-color");
+  seg.batches =
+      gpu::create_buffer(ctx, std::max<uint64_t>(batches, 1) * sizeof(GpuBatch),
+                         WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "store-batches");
+  seg.params = gpu::create_buffer(
+      ctx, sizeof(Params), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "store-params");
+  out.bytes = words * 4 + std::max<uint64_t>(batches, 1) * sizeof(GpuBatch) + sizeof(Params);
+  out.segments.push_back(std::move(seg));
+  return out;
 }
 
 bool has_visibility64(const gpu::Context& ctx) {
@@ -272,8 +304,8 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
             }
             auto pass = pc.begin_compute_pass();
             for (size_t s = 0; s < cloud.segments.size(); ++s)
-              gpu::dispatch(pass.get(), pipeline.get(), {groups[s].get()},
-                            cloud.segments[s].batch_count);
+              dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
+                               cloud.segments[s].batch_count);
             wgpuComputePassEncoderEnd(pass.get());
           })
       .write(depth_name);
@@ -296,8 +328,8 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                      gpu::bind_buffer(7, pc.buffer(accum_name))}));
               auto pass = pc.begin_compute_pass();
               for (size_t s = 0; s < cloud.segments.size(); ++s)
-                gpu::dispatch(pass.get(), p.accumulate.get(), {groups[s].get()},
-                              cloud.segments[s].batch_count);
+                dispatch_batches(pass.get(), p.accumulate.get(), groups[s].get(),
+                                 cloud.segments[s].batch_count);
               wgpuComputePassEncoderEnd(pass.get());
             })
         .read(depth_name)

@@ -101,6 +101,8 @@ GpuPointlets upload_pointlets(gpu::Context& ctx, const PointletCache& cache) {
   g.counts =
       gpu::create_buffer(ctx, std::max<uint64_t>(1, g.count) * 4,
                          WGPUBufferUsage_Storage | WGPUBufferUsage_CopySrc, "pointlet-counts");
+  const uint64_t n = std::max<uint64_t>(1, g.count);
+  g.bytes = sizeof(Params) + n * sizeof(PointletBox) + n * 8 + n * 4 + (g.partials + 1) * 4 + n * 4;
   ctx.check("uploading pointlets");
   return g;
 }
@@ -177,15 +179,23 @@ void add_pointlet_lod_passes(gpu::RenderGraph& graph, PointletLodPipeline& p, Gp
 
 std::vector<uint32_t> compute_pointlet_lod(gpu::Context& ctx, PointletLodPipeline& p,
                                            GpuPointlets& g, const Camera& camera, uint32_t width,
-                                           uint32_t height, uint64_t bucket) {
+                                           uint32_t height, uint64_t bucket, double* gpu_ms) {
   gpu::RenderGraph graph;
   add_pointlet_lod_passes(graph, p, g, camera, width, height, bucket);
   gpu::TransientPool pool;
-  graph.execute(ctx, pool);
+  if (gpu_ms && !p.timer_created) {
+    p.timer = gpu::create_pass_timer(ctx, 1);
+    p.timer_created = true;
+  }
+  graph.execute(ctx, pool, gpu_ms ? &p.timer : nullptr);
   ctx.check("pointlet LoD");
-  auto bytes = gpu::read_buffer(ctx, g.counts.get(), 0, uint64_t(g.count) * 4);
   std::vector<uint32_t> counts(g.count);
-  std::memcpy(counts.data(), bytes.data(), counts.size() * 4);
+  gpu::read_back(ctx, g.readback, g.counts.get(), 0, uint64_t(g.count) * 4, counts.data());
+  if (gpu_ms) {
+    const auto times = graph.read_pass_times(ctx, p.timer);
+    auto it = times.find("pointlet-lod");
+    *gpu_ms = it == times.end() ? 0.0 : it->second;
+  }
   return counts;
 }
 

@@ -16,6 +16,7 @@
 #include "stipple/engine/render_plugins.hpp"
 #include "stipple/pointcloud/batches.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
+#include "stipple/pointcloud/point_store.hpp"
 #include "stipple/pointcloud/scene.hpp"
 
 namespace stipple::pc {
@@ -98,7 +99,9 @@ struct VirtualCloudRender {
   std::unique_ptr<ComputeRasterPipeline> raster;
   WGPUTextureFormat format = WGPUTextureFormat_Undefined;
   // Boxed: the graph reads it when it executes.
-  std::unique_ptr<GpuBatchedCloud> drawn;
+  std::unique_ptr<GpuPointStore> store;
+  bool transfer_pending = false;  // the last update could not bring every new point
+  double lod_gpu_ms = 0;          // this frame's LoD, when it ran
   bool have_selection = false;
   ExtractedCamera selected_for;
   uint32_t width = 0, height = 0;
@@ -110,62 +113,72 @@ bool same_view(const ExtractedCamera& a, const ExtractedCamera& b) {
          a.near_plane == b.near_plane;
 }
 
-// The points to draw, as batches of the compute rasterizer: each pointlet's loaded prefix (up
-// to its count), cut into batches of at most kBatchPoints sharing the pointlet's box.
-BatchedCloud build_selection(VirtualResidency& r, const std::vector<uint32_t>& counts,
-                             ThreadPool& pool) {
-  const auto& table = r.cache->pointlets();
-  std::vector<uint32_t> selected;
-  std::vector<uint64_t> first;
-  uint64_t total = 0;
-  for (uint32_t i = 0; i < counts.size(); ++i)
-    if (counts[i] > 0) {
-      selected.push_back(i);
-      first.push_back(total);
-      total += counts[i];
-    }
-  BatchedCloud out;
-  out.coarse.resize(total);
-  out.medium.resize(total);
-  out.fine.resize(total);
-  out.color.resize(total);
-  std::vector<std::vector<Batch>> batches(selected.size());
-  pool.parallel_for(selected.size(), 16, [&](size_t begin, size_t end) {
-    for (size_t s = begin; s < end; ++s) {
-      const uint32_t index = selected[s];
-      const PointletEntry& e = table[index];
-      const Aabb box = pointlet_world_box(e);
-      const glm::dvec3 min = box.min, size = box.max - box.min;
-      VirtualResidency::Slot& slot = r.slots[index];
-      std::lock_guard lock(slot.mutex);
-      const uint32_t n = std::min<uint32_t>(counts[index], uint32_t(slot.records.size()));
-      for (uint32_t k = 0; k < n; ++k) {
-        const PointletRecord& rec = slot.records[k];
-        const glm::dvec3 p = z_up_to_y_up(r.cache->position(e, rec));
-        const QuantizedPoint q = quantize(p, min, size);
-        const uint64_t at = first[s] + k;
-        out.coarse[at] = q.coarse;
-        out.medium[at] = q.medium;
-        out.fine[at] = q.fine;
-        out.color[at] = rec.rgba;
+// The new points of an update, from the pointlets' host buffers (each under its lock).
+FreshWriter fresh_writer(VirtualResidency& r, const std::vector<Aabb>& boxes, ThreadPool& pool) {
+  return [&r, &boxes, &pool](std::span<const FreshRange> ranges, uint32_t* words) {
+    const auto& table = r.cache->pointlets();
+    pool.parallel_for(ranges.size(), 16, [&](size_t begin, size_t end) {
+      for (size_t k = begin; k < end; ++k) {
+        const FreshRange& f = ranges[k];
+        VirtualResidency::Slot& slot = r.slots[f.pointlet];
+        std::lock_guard lock(slot.mutex);
+        if (slot.records.size() < uint64_t(f.first) + f.count)
+          fail("virtual memory: pointlet {} holds {} points, {} asked for", f.pointlet,
+               slot.records.size(), uint64_t(f.first) + f.count);
+        pointlet_words(*r.cache, table[f.pointlet], boxes[f.pointlet],
+                       std::span(slot.records).subspan(f.first, f.count),
+                       words + uint64_t(f.at) * 4);
       }
-      for (uint32_t b = 0; b < n; b += kBatchPoints)
-        batches[s].push_back({min, size, first[s] + b, std::min<uint32_t>(kBatchPoints, n - b)});
-    }
-  });
-  for (auto& list : batches) out.batches.insert(out.batches.end(), list.begin(), list.end());
-  for (uint32_t i : selected) {
-    const Aabb box = pointlet_world_box(table[i]);
-    out.world_bounds.extend(box.min);
-    out.world_bounds.extend(box.max);
-  }
-  return out;
+    });
+  };
 }
 
 // Per frame (in Queue: this frame's target is known then): when the view changed, the LoD on
 // the GPU says what each pointlet should draw; loads are requested for what is missing and
 // unloads free what is not needed when the host budget runs short; the frame draws what is
 // loaded of it, and a new selection follows when loads complete.
+// The bucket the GPU can hold: each point costs 32 bytes (16 in each of the two frames'
+// buffers), the staging copy and the compaction info come on top; one array of the bucket must
+// fit a storage binding.
+uint64_t fit_bucket(gpu::Context& ctx, const VirtualCloudOptions& options, uint32_t pointlets,
+                    uint64_t pointlet_bytes) {
+  uint64_t bucket = options.bucket;
+  const uint64_t binding = std::min<uint64_t>(
+      {ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize, uint64_t(1) << 31});
+  if (bucket * 4 > binding) {
+    STIPPLE_WARN("--bucket {} exceeds one storage binding of this device ({} MiB): using {}",
+                 bucket, binding >> 20, binding / 4);
+    bucket = binding / 4;
+  }
+  if (options.gpu_budget > 0) {
+    const uint64_t fixed = pointlet_bytes + uint64_t(pointlets) * 2 * (16 + 32) +
+                           std::min(options.staging_bytes, bucket * 16) + (uint64_t(1) << 20);
+    const uint64_t per_point = 32 + 2 * 32 / kBatchPoints + 1;  // points and their batches
+    const uint64_t fits = options.gpu_budget > fixed ? (options.gpu_budget - fixed) / per_point : 0;
+    if (fits == 0)
+      fail("--gpu-memory {} MiB holds not even the pointlets' buffers", options.gpu_budget >> 20);
+    if (fits < bucket) {
+      STIPPLE_WARN("--bucket {} does not fit --gpu-memory {} MiB: using {}", bucket,
+                   options.gpu_budget >> 20, fits);
+      bucket = fits;
+    }
+  }
+  return std::max<uint64_t>(bucket, 1);
+}
+
+// Seed 002, Fig. 15: GPU ms of the last frame's passes in five stages.
+void gather_stage_times(const RenderStats& frame, double lod_ms, VirtualCloudStats& stats) {
+  auto ms = [&frame](std::initializer_list<const char*> passes) {
+    double sum = 0;
+    for (const char* pass : passes)
+      if (auto it = frame.pass_ms.find(pass); it != frame.pass_ms.end()) sum += it->second;
+    return sum;
+  };
+  stats.stage_ms = {lod_ms, ms({"vms-compact"}), ms({"raster-depth"}),
+                    ms({"raster-resolve", "raster-accumulate"}),
+                    ms({"raster-clear", "raster-occlusion", "raster-fill", "raster-display"})};
+}
+
 void select_points(Registry& render) {
   auto& v = render.resource<VirtualCloudRender>();
   const auto& target = render.resource<RenderTarget>();
@@ -180,7 +193,7 @@ void select_points(Registry& render) {
   const bool view_changed = !v.have_selection || !same_view(v.selected_for, *extracted) ||
                             v.width != target.width || v.height != target.height;
   const bool loads_done = r.completed.load() != v.selected_after;
-  if (!view_changed && !loads_done) {
+  if (!view_changed && !loads_done && !v.transfer_pending) {
     stats.settled = r.pending.load() == 0;
     return;
   }
@@ -188,11 +201,18 @@ void select_points(Registry& render) {
   if (!v.pointlets) {
     v.pointlets = std::make_unique<GpuPointlets>(upload_pointlets(ctx, *v.residency->cache));
     v.lod = std::make_unique<PointletLodPipeline>(create_pointlet_lod_pipeline(ctx));
+    v.options.bucket = fit_bucket(ctx, v.options, uint32_t(r.count), v.pointlets->bytes);
+    v.store = std::make_unique<GpuPointStore>(create_point_store(
+        ctx, v.options.bucket, pointlet_world_boxes(*r.cache), v.options.staging_bytes));
+    if (v.options.gpu_budget > 0 && v.store->gpu_bytes + v.pointlets->bytes > v.options.gpu_budget)
+      fail("--gpu-memory {} MiB is too small for the point store ({} MiB at B = {})",
+           v.options.gpu_budget >> 20, (v.store->gpu_bytes + v.pointlets->bytes) >> 20,
+           v.options.bucket);
   }
   auto t = Clock::now();
   if (view_changed) {
     v.desired = compute_pointlet_lod(ctx, *v.lod, *v.pointlets, to_camera(*extracted), target.width,
-                                     target.height, v.options.bucket);
+                                     target.height, v.options.bucket, &v.lod_gpu_ms);
     stats.lod_ms = ms_since(t);
   }
   const uint64_t completed = r.completed.load();
@@ -225,18 +245,17 @@ void select_points(Registry& render) {
     std::shared_ptr<VirtualResidency> keep = v.residency;
     v.pool->submit([keep, i, goal] { keep->load(i, goal); });
   }
-  if (draw != v.drawn_counts || !v.drawn) {
-    t = Clock::now();
-    BatchedCloud batched = build_selection(r, draw, *v.pool);
-    stats.load_ms = ms_since(t);
-    t = Clock::now();
-    v.drawn.reset();  // the previous selection's buffers go before the new ones are made
-    v.drawn = std::make_unique<GpuBatchedCloud>(upload_batched_cloud(ctx, batched));
-    stats.upload_ms = ms_since(t);
-    stats.gpu_bytes = v.drawn->bytes;
-    stats.selected_points = batched.point_count();
-    v.drawn_counts = std::move(draw);
-  }
+  t = Clock::now();
+  StoreUpdate update =
+      update_point_store(ctx, *v.store, draw, fresh_writer(r, v.store->boxes, *v.pool));
+  stats.upload_ms = ms_since(t);
+  v.transfer_pending = update.limited;
+  stats.kept_points = update.kept;
+  stats.new_points = update.fresh;
+  stats.gpu_bytes = v.store->gpu_bytes + v.pointlets->bytes;
+  stats.staging_bytes = gpu::staging_bytes(v.store->staging);
+  stats.selected_points = v.store->layout.total;
+  v.drawn_counts = std::move(update.drawn);
   stats.visible_pointlets =
       uint32_t(std::count_if(v.desired.begin(), v.desired.end(), [](uint32_t c) { return c > 0; }));
   stats.desired_points = std::accumulate(v.desired.begin(), v.desired.end(), uint64_t(0));
@@ -245,7 +264,7 @@ void select_points(Registry& render) {
   stats.pending_loads = r.pending.load();
   stats.loads = r.loads.load();
   stats.points_read = r.points_read.load();
-  stats.settled = !requested && stats.pending_loads == 0;
+  stats.settled = !requested && stats.pending_loads == 0 && !v.transfer_pending;
   ++stats.selections;
   stats.bucket = v.options.bucket;
   v.have_selection = true;
@@ -258,11 +277,14 @@ void select_points(Registry& render) {
 void queue_virtual_cloud(Registry& render) {
   auto& fg = render.resource<FrameGraph>();
   if (!fg.active) return;
-  select_points(render);
   auto& v = render.resource<VirtualCloudRender>();
+  v.lod_gpu_ms = 0;
+  select_points(render);
+  gather_stage_times(render.resource<RenderStats>(), v.lod_gpu_ms,
+                     render.resource<VirtualCloudStats>());
   const auto& target = render.resource<RenderTarget>();
   const ExtractedCamera* extracted = first_extracted_camera(render);
-  if (!extracted || !v.drawn) return;
+  if (!extracted || !v.store) return;
   gpu::Context& ctx = *render.resource<GpuContext>();
   if (!v.raster || v.format != target.format) {
     v.raster =
@@ -274,10 +296,11 @@ void queue_virtual_cloud(Registry& render) {
   options.fill_radius = v.options.fill_radius;
   options.occlusion_beta = v.options.occlusion_beta;
   options.background = v.background;
-  add_compute_raster_passes(fg.graph, *v.raster, *v.drawn, to_camera(*extracted), options,
-                            target.width, target.height);
+  add_point_store_pass(fg.graph, *v.store);
+  add_compute_raster_passes(fg.graph, *v.raster, drawn_points(*v.store), to_camera(*extracted),
+                            options, target.width, target.height);
   auto& stats = render.resource<RenderStats>();
-  stats.points_drawn += v.drawn->point_count;
+  stats.points_drawn += drawn_points(*v.store).point_count;
   stats.points_total = v.residency->cache->info().point_count;
 }
 

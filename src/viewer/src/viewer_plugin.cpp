@@ -130,8 +130,13 @@ void viewer_panel(Registry& main) {
                 static_cast<unsigned long long>(cache.pointlet_points));
     ImGui::Text("bucket B %.2f M; selected %.2f M in %u pointlets", v->bucket / 1e6,
                 v->selected_points / 1e6, v->visible_pointlets);
-    ImGui::Text("host %.1f MiB, GPU %.1f MiB", v->host_bytes / 1048576.0, v->gpu_bytes / 1048576.0);
-    ImGui::Text("LoD %.2f ms, load %.1f ms, upload %.1f ms", v->lod_ms, v->load_ms, v->upload_ms);
+    ImGui::Text("host %.1f MiB, GPU %.1f MiB, staging %.1f MiB", v->host_bytes / 1048576.0,
+                v->gpu_bytes / 1048576.0, v->staging_bytes / 1048576.0);
+    ImGui::Text("loads queued %u; last update kept %.2f M, sent %.2f M", v->pending_loads,
+                v->kept_points / 1e6, v->new_points / 1e6);
+    ImGui::Text("CPU: LoD %.2f ms, update %.2f ms", v->lod_ms, v->upload_ms);
+    for (size_t i = 0; i < v->stage_ms.size(); ++i)
+      ImGui::Text("GPU %-10s %.3f ms", std::string(pc::kStageNames[i]).c_str(), v->stage_ms[i]);
   } else {
     bool limit = settings.budget > 0;
     if (ImGui::Checkbox("point budget", &limit))

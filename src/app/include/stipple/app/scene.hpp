@@ -40,6 +40,7 @@ struct SceneOptions {
   uint64_t pointlets = 100'000;  // m
   std::string cache_dir;         // empty: beside the input
   std::string host_memory;       // empty: a quarter of RAM
+  std::string gpu_memory;        // virtualized: device memory budget; empty: what B needs
 };
 
 // Whether `options` take the virtualized path (for point-cloud inputs), and why.
@@ -53,7 +54,7 @@ bool is_tileset_scene(const SceneOptions& options);
 void add_scene_plugin(Engine& engine, const SceneOptions& options);
 
 // --renderer, --hqs, --max-sse, --memory-mb and the virtualized path's --virtual, --bucket,
-// --pointlets, --cache, --host-memory: the same for `render` and `view`.
+// --pointlets, --cache, --host-memory, --gpu-memory: the same for `render` and `view`.
 void add_scene_options(CLI::App* cmd, SceneOptions& options);
 
 }  // namespace stipple::app

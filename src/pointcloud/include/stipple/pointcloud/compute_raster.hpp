@@ -9,6 +9,7 @@
 // full-screen render pass into the imported colour target (any colour format).
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -43,6 +44,12 @@ struct UploadOptions {
 };
 GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& cloud,
                                      const UploadOptions& options = {});
+
+// Empty buffers for up to `points` points and `batches` batches in one segment (each array one
+// storage binding), written on the GPU by their owner: the virtual memory system's compaction
+// fills the arrays and sets the batches, the segment's counts and point_count.
+GpuBatchedCloud create_batched_storage(gpu::Context& ctx, uint64_t points, uint64_t batches,
+                                       std::string_view label);
 
 // Whether this context can run the 64-bit visibility buffer (STIPPLE_RASTER_FALLBACK=1 says no).
 bool has_visibility64(const gpu::Context& ctx);

@@ -12,7 +12,9 @@
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/pointlets.hpp"
 #include "stipple/renderer/gpu.hpp"
+#include "stipple/renderer/gpu_timer.hpp"
 #include "stipple/renderer/render_graph.hpp"
+#include "stipple/renderer/staging.hpp"
 
 namespace stipple::pc {
 
@@ -26,6 +28,8 @@ struct GpuPointlets {
   gpu::Buffer params, boxes, sizes, weights, partial_sums, counts;
   uint32_t partials = 0;
   std::vector<uint32_t> point_counts;  // points per pointlet (the CPU's copy)
+  gpu::ReadbackBuffer readback;        // the counts come back through it
+  uint64_t bytes = 0;                  // device memory of the buffers above
 };
 
 // The boxes a cache's table gives, as uploaded (min, half diagonal, max; relative to origin).
@@ -44,6 +48,8 @@ struct PointletLodPipeline {
   gpu::BindGroupLayout layout;  // shared by the three entry points
   gpu::PipelineLayout pipeline_layout;
   gpu::ComputePipeline weights, total, counts;
+  gpu::PassTimer timer;  // when compute_pointlet_lod is asked for GPU time
+  bool timer_created = false;
 };
 PointletLodPipeline create_pointlet_lod_pipeline(gpu::Context& ctx);
 
@@ -52,11 +58,12 @@ PointletLodPipeline create_pointlet_lod_pipeline(gpu::Context& ctx);
 void add_pointlet_lod_passes(gpu::RenderGraph& graph, PointletLodPipeline& pipeline,
                              GpuPointlets& pointlets, const Camera& camera, uint32_t width,
                              uint32_t height, uint64_t bucket = kDefaultPointBucket);
-// Runs them once and reads the counts back (blocks).
+// Runs them once and reads the counts back (blocks); `gpu_ms`, when given, gets their GPU time.
 std::vector<uint32_t> compute_pointlet_lod(gpu::Context& ctx, PointletLodPipeline& pipeline,
                                            GpuPointlets& pointlets, const Camera& camera,
                                            uint32_t width, uint32_t height,
-                                           uint64_t bucket = kDefaultPointBucket);
+                                           uint64_t bucket = kDefaultPointBucket,
+                                           double* gpu_ms = nullptr);
 
 // The same on the CPU: per-pointlet counts (0 for culled pointlets), and the weights w_i.
 std::vector<uint32_t> pointlet_lod_cpu(const std::vector<PointletBox>& boxes,

@@ -1,16 +1,14 @@
 #pragma once
 // VirtualPointCloudPlugin: LAS/LAZ/COPC of any size drawn from their pointlet cache (seed 002)
 // in host and GPU memory bounded by the point bucket B, not by the file. The cache is built (or
-// reused) in build(); whenever the camera changes, the render world runs the pointlets' LoD on
-// the GPU (eqs. 2-3, B), reads the prefix of each visible pointlet that the LoD asks for from
-// the cache with positional reads on a worker pool (a prefix of a shuffled pointlet is a uniform
-// subsample), turns each into batches of the compute rasterizer (the pointlet's box, quantized
-// positions) and uploads them; the compute rasterizer draws them.
-//
-// This is the first stage of the seed's system: selection is synchronous (the frame waits for
-// its points) and nothing is kept between camera changes; the asynchronous virtual memory
-// system (per-pointlet host buffers, over-fetch, GPU compaction), hole filling and the
-// occlusion check come next.
+// reused) in build(). Whenever the camera changes, the render world runs the pointlets' LoD on
+// the GPU (eqs. 2-3, B); load tasks on a worker pool grow each visible pointlet's host buffer
+// to the prefix the LoD asks for (a prefix of a shuffled pointlet is a uniform subsample),
+// reading the cache with positional reads, up to 25% more while the host budget allows, and
+// unload what is not needed when the budget runs short. What the host holds of the selection
+// goes to the GPU point store (point_store.hpp): the previous frame's points are kept, only
+// new ones travel through mapped staging, and a compaction pass rebuilds the double-buffered
+// point buffers. The compute rasterizer draws them, with hole filling and the occlusion check.
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -40,6 +38,10 @@ struct VirtualCloudOptions {
   uint64_t host_budget = uint64_t(1) << 30;  // bytes of loaded points kept on the host
   uint32_t fill_radius = 1;                  // hole filling (seed 002, III-D1); 0: off
   float occlusion_beta = 0.0f;               // occlusion check (eq. 4) threshold in radians; 0: off
+  // Device memory the point store and the pointlets may use; 0: what B needs. A bucket that
+  // does not fit is lowered to what does (with a warning).
+  uint64_t gpu_budget = 0;
+  uint64_t staging_bytes = uint64_t(64) << 20;  // per staging slot (two): new points per frame
 };
 
 // Main-world resource: the cache the plugin opened, and whether it had to build it.
@@ -59,12 +61,19 @@ struct VirtualCloudStats {
   uint64_t desired_points = 0;                   // what the LoD asked for (<= B)
   uint64_t selected_points = 0;                  // what is drawn of it: the loaded part
   uint64_t host_bytes = 0, peak_host_bytes = 0;  // loaded points on the host
-  uint64_t gpu_bytes = 0;                        // the uploaded batches
+  uint64_t gpu_bytes = 0;                        // device memory: point store and pointlet buffers
+  uint64_t staging_bytes = 0;                    // mapped host memory for the transfers
+  uint64_t kept_points = 0, new_points = 0;      // the last update: kept on the GPU, transferred
   uint32_t pending_loads = 0;
   uint64_t loads = 0, points_read = 0;  // load tasks done, points read from the cache
   bool settled = false;  // nothing loading and the drawn selection is what the LoD asked for
-  double lod_ms = 0, load_ms = 0, upload_ms = 0;  // the last selection
+  double lod_ms = 0, upload_ms = 0;  // CPU ms of the last selection: LoD (with its readback),
+                                     // planning and writing new points into staging
+  // GPU ms of the last frame in the five stages of seed 002, Fig. 15 (kStageNames).
+  std::array<double, 5> stage_ms{};
 };
+inline constexpr std::array<std::string_view, 5> kStageNames{"lod", "compaction", "projection",
+                                                             "resolve", "fill"};
 
 // Main-world resource: waits for the loads in flight (a headless render waits until settled).
 struct VirtualResidency;

@@ -1,0 +1,90 @@
+// GPU buffer compaction of the virtual memory system (seed 002, III-C1, Fig. 6): rebuilds the
+// point buffers of the next frame from those of the previous one and the new points. The
+// compaction info is a list of jobs sorted by destination that together cover [0, total): each
+// copies `count` points to `dst` from `src`, in the previous frame's buffers or (fresh == 1) in
+// the new points. One thread per destination point finds its job by binary search, so no
+// thread idles however the points are spread over pointlets (the seed names idle threads in
+// compaction as its main bottleneck). Positions (three words) and colours are separate entry
+// points: each binds at most eight storage buffers.
+
+struct Params {
+  total: u32,  // points in the next frame's buffers
+  jobs: u32,
+  row: u32,    // threads per row of the 2D dispatch
+  _pad: u32,
+}
+
+struct Job {
+  dst: u32,
+  src: u32,
+  count: u32,
+  fresh: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> jobs: array<Job>;
+@group(0) @binding(2) var<storage, read> fresh: array<vec4<u32>>;  // coarse, medium, fine, colour
+@group(0) @binding(3) var<storage, read> src_a: array<u32>;
+@group(0) @binding(4) var<storage, read> src_b: array<u32>;
+@group(0) @binding(5) var<storage, read> src_c: array<u32>;
+@group(0) @binding(6) var<storage, read_write> dst_a: array<u32>;
+@group(0) @binding(7) var<storage, read_write> dst_b: array<u32>;
+@group(0) @binding(8) var<storage, read_write> dst_c: array<u32>;
+
+const WORKGROUP: u32 = 256u;
+
+// The job holding destination `index`: the last job whose dst <= index.
+fn find_job(index: u32) -> Job {
+  var lo = 0u;
+  var hi = params.jobs;
+  while (hi - lo > 1u) {
+    let mid = (lo + hi) / 2u;
+    if (jobs[mid].dst <= index) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return jobs[lo];
+}
+
+fn destination(group: vec3<u32>, lid: u32) -> u32 {
+  return group.y * params.row + group.x * WORKGROUP + lid;
+}
+
+@compute @workgroup_size(256)
+fn compact_positions(@builtin(workgroup_id) group: vec3<u32>,
+                     @builtin(local_invocation_index) lid: u32) {
+  let index = destination(group, lid);
+  if (index >= params.total) {
+    return;
+  }
+  let job = find_job(index);
+  let at = job.src + (index - job.dst);
+  if (job.fresh != 0u) {
+    let p = fresh[at];
+    dst_a[index] = p.x;
+    dst_b[index] = p.y;
+    dst_c[index] = p.z;
+  } else {
+    dst_a[index] = src_a[at];
+    dst_b[index] = src_b[at];
+    dst_c[index] = src_c[at];
+  }
+}
+
+@compute @workgroup_size(256)
+fn compact_colors(@builtin(workgroup_id) group: vec3<u32>,
+                  @builtin(local_invocation_index) lid: u32) {
+  let index = destination(group, lid);
+  if (index >= params.total) {
+    return;
+  }
+  let job = find_job(index);
+  let at = job.src + (index - job.dst);
+  if (job.fresh != 0u) {
+    dst_a[index] = fresh[at].w;
+  } else {
+    dst_a[index] = src_a[at];
+  }
+}

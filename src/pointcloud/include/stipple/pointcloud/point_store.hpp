@@ -1,0 +1,118 @@
+#pragma once
+// The GPU side of the virtual memory system (seed 002, III-C): the points a frame draws, in
+// buffers sized by the point bucket and kept for two consecutive frames. When the selection
+// changes, plan_compaction (CPU) compares what each pointlet drew in the previous frame with
+// what it draws now and writes the compaction info: which range to keep from the previous
+// buffers, where it goes, and which new points follow it. The new points go through a mapped
+// staging buffer (bounded: what does not fit follows in later frames, spread over every
+// pointlet), and a compute pass (shaders/vms_compact.wgsl) rebuilds the other pair of buffers
+// from the kept and the new points; the frame then draws it with the compute rasterizer, one
+// batch (or more) per pointlet, quantized relative to the pointlet's box.
+//
+// A pointlet's points are shuffled in the cache, so what it draws is always a prefix: the
+// compaction keeps min(before, now) points and adds the rest after them.
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "stipple/math/aabb.hpp"
+#include "stipple/pointcloud/batches.hpp"
+#include "stipple/pointcloud/compute_raster.hpp"
+#include "stipple/pointcloud/pointlets.hpp"
+#include "stipple/renderer/gpu.hpp"
+#include "stipple/renderer/render_graph.hpp"
+#include "stipple/renderer/staging.hpp"
+
+namespace stipple::pc {
+
+// Where each pointlet's drawn prefix lives in one frame's buffers: pointlets in index order,
+// each contiguous.
+struct StoreLayout {
+  std::vector<uint32_t> first, count;  // per pointlet (first is valid where count > 0)
+  uint64_t total = 0;
+};
+
+// One range of the compaction info (16 bytes, as the shader reads it).
+struct CompactionJob {
+  uint32_t dst = 0, src = 0, count = 0;
+  uint32_t fresh = 0;  // 1: src indexes the new points, 0: the previous frame's buffers
+};
+// New points of one pointlet: its records [first, first + count), written at new point `at`.
+struct FreshRange {
+  uint32_t pointlet = 0, first = 0, count = 0;
+  uint32_t at = 0;
+};
+struct CompactionPlan {
+  StoreLayout next;
+  std::vector<CompactionJob> jobs;  // sorted by dst, covering [0, next.total)
+  std::vector<FreshRange> fresh;
+  uint64_t kept = 0, fresh_points = 0;
+  bool limited = false;  // fewer new points than asked for: the rest follow later
+};
+// `wanted`: the points each pointlet should draw now (already capped by what the host holds);
+// at most `max_fresh` new points, shared among the pointlets in proportion to what they lack.
+CompactionPlan plan_compaction(const StoreLayout& previous, const std::vector<uint32_t>& wanted,
+                               uint64_t max_fresh);
+
+struct GpuPointStore {
+  uint64_t capacity = 0;  // points per frame's buffers (>= B)
+  uint32_t pointlets = 0;
+  std::vector<Aabb> boxes;  // per pointlet, world space (Y up): the batches' boxes
+  GpuBatchedCloud slabs[2];
+  uint32_t current = 0;  // the buffers the frame draws
+  StoreLayout layout;    // of slabs[current]
+  gpu::Buffer fresh, jobs, params;
+  uint64_t fresh_capacity = 0, jobs_capacity = 0;  // points, jobs
+  gpu::StagingRing staging;
+  gpu::ComputePipeline positions, colors;
+  uint64_t gpu_bytes = 0;  // every buffer above (device memory)
+  // Set by update_point_store, recorded by the vms-compact pass.
+  struct Pending {
+    bool active = false;
+    gpu::StagingWrite write;
+    uint64_t job_count = 0, fresh_points = 0, fresh_offset = 0;
+    uint32_t from = 0;
+  } pending;
+};
+
+// Buffers for `capacity` points per frame over `boxes.size()` pointlets; new points travel
+// through two staging slots of `staging_bytes` each (which must also hold the compaction info).
+GpuPointStore create_point_store(gpu::Context& ctx, uint64_t capacity, std::vector<Aabb> boxes,
+                                 uint64_t staging_bytes);
+// The most new points one update can bring.
+uint64_t max_fresh_points(const GpuPointStore& store);
+
+// The cache's pointlet boxes in world space (Y up).
+std::vector<Aabb> pointlet_world_boxes(const PointletCache& cache);
+// The four words a point has in the store (coarse, medium, fine: its position quantized in the
+// pointlet's world box; then RGBA), for `records` of one pointlet, written at `words`.
+void pointlet_words(const PointletCache& cache, const PointletEntry& pointlet,
+                    const Aabb& world_box, std::span<const PointletRecord> records,
+                    uint32_t* words);
+
+// Writes the new points of `ranges` as four words each (coarse, medium, fine, RGBA) at `words`
+// (range r at words + 4 * r.at); called once per update, free to work in parallel.
+using FreshWriter = std::function<void(std::span<const FreshRange> ranges, uint32_t* words)>;
+
+struct StoreUpdate {
+  bool changed = false;  // a compaction was planned (the next graph must carry the pass)
+  uint64_t kept = 0, fresh = 0;
+  bool limited = false;
+  std::vector<uint32_t> drawn;  // per pointlet, what the frame draws
+};
+// Plans the next frame's buffers for `wanted` (<= capacity in total) and writes the new points
+// into staging; the compaction runs in the vms-compact pass. Call it at most once per frame,
+// after the previous frame's graph was submitted.
+StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
+                               const std::vector<uint32_t>& wanted, const FreshWriter& write);
+// The vms-compact pass (a side effect: the rasterizer reads the store's buffers directly). Add
+// it before the rasterizer's passes; the store must outlive the graph's run.
+void add_point_store_pass(gpu::RenderGraph& graph, GpuPointStore& store);
+// What the rasterizer draws this frame.
+inline GpuBatchedCloud& drawn_points(GpuPointStore& store) {
+  return store.slabs[store.current];
+}
+
+}  // namespace stipple::pc

@@ -1,0 +1,62 @@
+#pragma once
+// Host-visible buffers that stay mapped between uses, for streaming data to the GPU every frame
+// without an intermediate copy (seed 002, III-C: the mapped buffers that carry new points and
+// the compaction info). The CPU writes straight into a slot's mapped range; the slot is
+// unmapped when a copy out of it is recorded, and mapped again (asynchronously) once that
+// copy's submission has been made, ready for a later frame. Two slots let one frame's copy run
+// on the GPU while the next frame is written.
+//
+// Readback is the same in reverse: a MapRead buffer kept for reuse, so reading a result back
+// every frame allocates nothing.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "stipple/renderer/gpu.hpp"
+
+namespace stipple::gpu {
+
+struct StagingSlotState;  // map state, shared with the map callback
+
+struct StagingRing {
+  struct Slot {
+    Buffer buffer;
+    std::shared_ptr<StagingSlotState> state;
+  };
+  std::vector<Slot> slots;
+  uint64_t slot_bytes = 0;
+  uint32_t next = 0;
+};
+
+StagingRing create_staging_ring(Context& ctx, uint64_t slot_bytes, uint32_t slots = 2,
+                                std::string_view label = "staging");
+
+// The next slot, mapped for writing (waits for its map to complete when a previous use is still
+// in flight). `data` is valid until end_staging_write.
+struct StagingWrite {
+  uint8_t* data = nullptr;
+  WGPUBuffer buffer = nullptr;
+  uint64_t size = 0;
+  uint32_t slot = 0;
+};
+StagingWrite begin_staging_write(Context& ctx, StagingRing& ring);
+// Unmaps the slot: copies out of it may be recorded now. Call staging_submitted once the
+// command buffer holding them has been submitted; the slot is then mapped again for reuse.
+void end_staging_write(StagingRing& ring, const StagingWrite& write);
+void staging_submitted(StagingRing& ring);
+
+// Host bytes the ring holds mapped.
+inline uint64_t staging_bytes(const StagingRing& ring) {
+  return ring.slot_bytes * ring.slots.size();
+}
+
+// A reusable MapRead buffer; read_back copies `size` bytes at `offset` of `source` through it
+// (blocking) into `out`.
+struct ReadbackBuffer {
+  Buffer buffer;
+  uint64_t capacity = 0;
+};
+void read_back(Context& ctx, ReadbackBuffer& readback, WGPUBuffer source, uint64_t offset,
+               uint64_t size, void* out);
+
+}  // namespace stipple::gpu

@@ -1,0 +1,139 @@
+#include "stipple/renderer/staging.hpp"
+
+#include <cstring>
+#include <string>
+
+#include "stipple/core/error.hpp"
+
+namespace stipple::gpu {
+
+// Written by the map callback (under the context's event processing), read by the waits.
+struct StagingSlotState {
+  enum class Phase { Mapped, Unmapped, Submitted, Mapping, Failed };
+  Phase phase = Phase::Mapped;
+  std::string message;
+};
+
+namespace {
+
+using Phase = StagingSlotState::Phase;
+
+struct MapWait {
+  bool done = false;
+  WGPUMapAsyncStatus status = WGPUMapAsyncStatus_Error;
+  std::string message;
+};
+
+void request_map(StagingRing::Slot& slot, uint64_t size) {
+  WGPUBufferMapCallbackInfo cb = WGPU_BUFFER_MAP_CALLBACK_INFO_INIT;
+  cb.mode = WGPUCallbackMode_AllowProcessEvents;
+  // The state outlives the callback: the slot keeps it, and so does the callback's reference.
+  auto* keep = new std::shared_ptr<StagingSlotState>(slot.state);
+  cb.callback = [](WGPUMapAsyncStatus status, WGPUStringView message, void* userdata, void*) {
+    std::unique_ptr<std::shared_ptr<StagingSlotState>> state(
+        static_cast<std::shared_ptr<StagingSlotState>*>(userdata));
+    if (status == WGPUMapAsyncStatus_Success) {
+      (*state)->phase = Phase::Mapped;
+    } else {
+      (*state)->phase = Phase::Failed;
+      (*state)->message = to_string(message);
+    }
+  };
+  cb.userdata1 = keep;
+  slot.state->phase = Phase::Mapping;
+  wgpuBufferMapAsync(slot.buffer.get(), WGPUMapMode_Write, 0, size, cb);
+}
+
+}  // namespace
+
+StagingRing create_staging_ring(Context& ctx, uint64_t slot_bytes, uint32_t slots,
+                                std::string_view label) {
+  StagingRing ring;
+  ring.slot_bytes = (slot_bytes + 3) & ~uint64_t(3);
+  if (ring.slot_bytes > ctx.limits.maxBufferSize)
+    fail("staging buffer of {} bytes exceeds the device's maxBufferSize ({})", ring.slot_bytes,
+         ctx.limits.maxBufferSize);
+  for (uint32_t i = 0; i < slots; ++i) {
+    WGPUBufferDescriptor desc = WGPU_BUFFER_DESCRIPTOR_INIT;
+    desc.label = to_view(label);
+    desc.size = ring.slot_bytes;
+    desc.usage = WGPUBufferUsage_MapWrite | WGPUBufferUsage_CopySrc;
+    desc.mappedAtCreation = true;  // born mapped: the first use needs no round trip
+    StagingRing::Slot slot;
+    slot.buffer = Buffer(wgpuDeviceCreateBuffer(ctx.device.get(), &desc));
+    if (!slot.buffer) fail("could not create staging buffer ({} bytes)", ring.slot_bytes);
+    slot.state = std::make_shared<StagingSlotState>();
+    ring.slots.push_back(std::move(slot));
+  }
+  return ring;
+}
+
+StagingWrite begin_staging_write(Context& ctx, StagingRing& ring) {
+  if (ring.slots.empty()) fail("staging ring has no slots");
+  const uint32_t index = ring.next;
+  ring.next = (ring.next + 1) % uint32_t(ring.slots.size());
+  StagingRing::Slot& slot = ring.slots[index];
+  if (slot.state->phase == Phase::Submitted) request_map(slot, ring.slot_bytes);
+  if (slot.state->phase == Phase::Unmapped)
+    fail("staging slot {} was unmapped but never submitted", index);
+  ctx.wait_until([&] { return slot.state->phase != Phase::Mapping || ctx.lost; });
+  ctx.check("mapping a staging buffer");
+  if (slot.state->phase != Phase::Mapped)
+    fail("mapping a staging buffer failed: {}", slot.state->message);
+  void* data = wgpuBufferGetMappedRange(slot.buffer.get(), 0, ring.slot_bytes);
+  if (!data) fail("staging buffer's mapped range is null");
+  return {static_cast<uint8_t*>(data), slot.buffer.get(), ring.slot_bytes, index};
+}
+
+void end_staging_write(StagingRing& ring, const StagingWrite& write) {
+  StagingRing::Slot& slot = ring.slots.at(write.slot);
+  wgpuBufferUnmap(slot.buffer.get());
+  slot.state->phase = Phase::Unmapped;
+}
+
+void staging_submitted(StagingRing& ring) {
+  // Map requests go out now so that they complete while the GPU works; nothing waits here.
+  for (auto& slot : ring.slots)
+    if (slot.state->phase == Phase::Unmapped) {
+      slot.state->phase = Phase::Submitted;
+      request_map(slot, ring.slot_bytes);
+    }
+}
+
+void read_back(Context& ctx, ReadbackBuffer& readback, WGPUBuffer source, uint64_t offset,
+               uint64_t size, void* out) {
+  const uint64_t padded = (size + 3) & ~uint64_t(3);
+  if (padded == 0) return;
+  if (readback.capacity < padded) {
+    readback.buffer =
+        create_buffer(ctx, padded, WGPUBufferUsage_MapRead | WGPUBufferUsage_CopyDst, "readback");
+    readback.capacity = padded;
+  }
+  WGPUCommandEncoderDescriptor enc_desc = WGPU_COMMAND_ENCODER_DESCRIPTOR_INIT;
+  CommandEncoder encoder(wgpuDeviceCreateCommandEncoder(ctx.device.get(), &enc_desc));
+  wgpuCommandEncoderCopyBufferToBuffer(encoder.get(), source, offset, readback.buffer.get(), 0,
+                                       padded);
+  CommandBuffer commands(wgpuCommandEncoderFinish(encoder.get(), nullptr));
+  WGPUCommandBuffer raw = commands.get();
+  wgpuQueueSubmit(ctx.queue.get(), 1, &raw);
+  MapWait map;
+  WGPUBufferMapCallbackInfo cb = WGPU_BUFFER_MAP_CALLBACK_INFO_INIT;
+  cb.mode = WGPUCallbackMode_AllowProcessEvents;
+  cb.callback = [](WGPUMapAsyncStatus status, WGPUStringView message, void* userdata, void*) {
+    auto* r = static_cast<MapWait*>(userdata);
+    r->done = true;
+    r->status = status;
+    r->message = to_string(message);
+  };
+  cb.userdata1 = &map;
+  wgpuBufferMapAsync(readback.buffer.get(), WGPUMapMode_Read, 0, padded, cb);
+  ctx.wait_until([&] { return map.done || ctx.lost; });
+  ctx.check("reading a buffer back");
+  if (map.status != WGPUMapAsyncStatus_Success) fail("buffer readback failed: {}", map.message);
+  const void* mapped = wgpuBufferGetConstMappedRange(readback.buffer.get(), 0, padded);
+  if (!mapped) fail("buffer readback failed: mapped range is null");
+  std::memcpy(out, mapped, size);
+  wgpuBufferUnmap(readback.buffer.get());
+}
+
+}  // namespace stipple::gpu
