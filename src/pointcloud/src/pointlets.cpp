@@ -214,55 +214,79 @@ class RunReader {
 };
 
 // Cuts the sorted stream into pointlets: shuffles each (a prefix is then a uniform subsample),
-// computes its box and writes its records relative to the box.
+// computes its box and writes its records relative to the box. Records are gathered in blocks
+// of whole pointlets, which are encoded on every core and then written in order.
 class PointletWriter {
  public:
-  PointletWriter(std::ofstream& out, const PointletCacheInfo& info, const glm::dvec3& origin)
-      : out_(out), info_(info), origin_(origin) {
-    pending_.reserve(info.pointlet_points);
+  PointletWriter(std::ofstream& out, const PointletCacheInfo& info, const glm::dvec3& origin,
+                 ThreadPool& pool, uint64_t block_bytes)
+      : out_(out), info_(info), origin_(origin), pool_(pool) {
+    // RunRecord in, PointletRecord out: 44 bytes a point while a block is encoded.
+    const uint64_t k = info.pointlet_points;
+    const uint64_t pointlets = std::clamp<uint64_t>(block_bytes / 44 / k, 1, (1u << 22) / k + 1);
+    block_records_ = pointlets * k;
+    pending_.reserve(std::min<uint64_t>(block_records_, info.point_count));
   }
   void add(const RunRecord& r) {
     pending_.push_back(r);
-    if (pending_.size() == info_.pointlet_points) flush();
+    if (pending_.size() == block_records_) write_block();
   }
-  void flush() {
+  void flush() { write_block(); }
+
+ private:
+  void write_block() {
     if (pending_.empty()) return;
-    const uint64_t index = table.size();
+    const uint64_t k = info_.pointlet_points;
+    const size_t base = table.size(), count = (pending_.size() + k - 1) / k;
+    table.resize(base + count);
+    records_.resize(pending_.size());
+    pool_.parallel_for(count, 8, [&](size_t begin, size_t end) {
+      for (size_t p = begin; p < end; ++p) encode(p, base + p);
+    });
+    const uint64_t bytes = records_.size() * sizeof(PointletRecord);
+    out_.write(reinterpret_cast<const char*>(records_.data()), std::streamsize(bytes));
+    written_ += records_.size();
+    pending_.clear();
+  }
+  // Pointlet `index` of the cache, the `p`th of the block.
+  void encode(size_t p, size_t index) {
+    const uint64_t k = info_.pointlet_points;
+    const size_t first = p * k, n = std::min<size_t>(k, pending_.size() - first);
+    RunRecord* in = pending_.data() + first;
     // Deterministic per pointlet: the same input gives the same cache.
     std::mt19937_64 rng(0x9e3779b97f4a7c15ull * (index + 1));
-    std::shuffle(pending_.begin(), pending_.end(), rng);
+    std::shuffle(in, in + n, rng);
     uint32_t lo[3] = {UINT32_MAX, UINT32_MAX, UINT32_MAX}, hi[3] = {0, 0, 0};
-    for (const RunRecord& r : pending_)
+    for (size_t i = 0; i < n; ++i)
       for (int a = 0; a < 3; ++a) {
-        lo[a] = std::min(lo[a], r.q[a]);
-        hi[a] = std::max(hi[a], r.q[a]);
+        lo[a] = std::min(lo[a], in[i].q[a]);
+        hi[a] = std::max(hi[a], in[i].q[a]);
       }
-    records_.resize(pending_.size());
-    for (size_t i = 0; i < pending_.size(); ++i) {
-      const RunRecord& r = pending_[i];
-      records_[i] = {{r.q[0] - lo[0], r.q[1] - lo[1], r.q[2] - lo[2]}, r.rgba, r.attributes};
+    PointletRecord* out = records_.data() + first;
+    for (size_t i = 0; i < n; ++i) {
+      const RunRecord& r = in[i];
+      out[i] = {{r.q[0] - lo[0], r.q[1] - lo[1], r.q[2] - lo[2]}, r.rgba, r.attributes};
     }
-    PointletEntry e;
+    PointletEntry& e = table[index];
     for (int a = 0; a < 3; ++a) {
       e.min[a] = origin_[a] + double(lo[a]) * info_.scale[a];
       // The same arithmetic as PointletCache::position, so every point lies inside the box.
       e.max[a] = e.min[a] + double(hi[a] - lo[a]) * info_.scale[a];
     }
-    e.first = written_;
-    e.count = uint32_t(records_.size());
-    const uint64_t bytes = records_.size() * sizeof(PointletRecord);
-    e.crc = crc32_of(records_.data(), bytes);
-    out_.write(reinterpret_cast<const char*>(records_.data()), std::streamsize(bytes));
-    written_ += records_.size();
-    table.push_back(e);
-    pending_.clear();
+    e.first = written_ + first;
+    e.count = uint32_t(n);
+    e.crc = crc32_of(out, n * sizeof(PointletRecord));
   }
+
+ public:
   std::vector<PointletEntry> table;
 
  private:
   std::ofstream& out_;
   const PointletCacheInfo& info_;
   glm::dvec3 origin_;
+  ThreadPool& pool_;
+  uint64_t block_records_ = 1;
   std::vector<RunRecord> pending_;
   std::vector<PointletRecord> records_;
   uint64_t written_ = 0;
@@ -367,43 +391,90 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
     run.clear();
   };
 
+  // The input in windows of at most one run; a window is read by every core, each thread with
+  // its own reader seeked to a slice of a source (whole LAZ chunks, so each decodes on its own),
+  // storing the records at their place in the run: the run is what a sequential read makes.
+  struct Slice {
+    size_t source = 0;
+    uint64_t first = 0, count = 0, at = 0;  // points of the source; index in the run
+  };
+  struct Samples {
+    std::vector<double> elevation, intensity;
+  };
   {
     Progress progress("sorting into pointlets", info.point_count);
-    io::PointBatch batch;
-    for (size_t f = 0; f < sources.size(); ++f) {
-      io::LasReader reader(sources[f]);
-      const int rgb_bits = reader.header().rgb_bits;
-      while (true) {
-        auto t = Clock::now();
-        batch.clear();
-        const size_t n = reader.read(batch, 1 << 16);
-        stats.read_seconds += since(t);
-        if (n == 0) break;
-        for (size_t i = 0; i < n; ++i, ++seen) {
-          RunRecord r;
-          const glm::dvec3& p = batch.positions[i];
-          for (int a = 0; a < 3; ++a) {
-            const double steps = std::nearbyint((p[a] - origin[a]) / scale[a]);
-            if (!(steps >= 0 && steps < double(1u << 31)))
-              fail("{}: point {} lies outside the header's bounds ({}, {}, {})",
-                   sources[f].string(), reader.points_read() - n + i, p.x, p.y, p.z);
-            r.q[a] = uint32_t(steps);
-          }
-          r.key = grid_key(r.q, cell_inverse, info.order);
-          r.rgba = batch_rgba(batch, i, rgb_bits);
-          r.attributes = batch_attributes(batch, i);
-          if (seen % sample_stride == 0) {
-            elevation.push_back(p.z);
-            intensity.push_back(batch.intensity.empty() ? 0.0 : double(batch.intensity[i]));
-          }
-          run.push_back(r);
-          if (run.size() == run_capacity) spill();
+    const uint64_t threads = pool.size();
+    size_t f = 0;
+    uint64_t local = 0;  // next point of source f
+    while (seen < info.point_count) {
+      const uint64_t window = std::min<uint64_t>(run_capacity, info.point_count - seen);
+      std::vector<Slice> slices;
+      for (uint64_t filled = 0; filled < window;) {
+        while (f < sources.size() && local == headers[f].point_count) {
+          ++f;
+          local = 0;
         }
-        progress.advance(n);
+        if (f == sources.size()) fail("pointlet cache: the inputs hold fewer points than counted");
+        const uint64_t take = std::min(window - filled, headers[f].point_count - local);
+        const uint64_t chunk =
+            headers[f].compressed ? std::max<uint64_t>(1, headers[f].laz_chunk_points) : 1;
+        const uint64_t parts = std::clamp<uint64_t>(take / 65536, 1, threads * 2);
+        uint64_t step = (take + parts - 1) / parts;
+        step = (step + chunk - 1) / chunk * chunk;
+        for (uint64_t s = 0; s < take; s += step)
+          slices.push_back({f, local + s, std::min(step, take - s), filled + s});
+        filled += take;
+        local += take;
       }
-      if (reader.points_read() != headers[f].point_count)
-        fail("{}: the header says {} points, the file holds {}", sources[f].string(),
-             headers[f].point_count, reader.points_read());
+      const auto t = Clock::now();
+      run.resize(window);
+      std::vector<Samples> samples(slices.size());
+      pool.parallel_for(slices.size(), 1, [&](size_t begin, size_t end) {
+        for (size_t k = begin; k < end; ++k) {
+          const Slice& sl = slices[k];
+          io::LasReader reader(sources[sl.source]);
+          reader.seek(sl.first);
+          const int rgb_bits = reader.header().rgb_bits;
+          io::PointBatch batch;
+          uint64_t done = 0;
+          while (done < sl.count) {
+            batch.clear();
+            const size_t n =
+                reader.read(batch, size_t(std::min<uint64_t>(1 << 16, sl.count - done)));
+            if (n == 0)
+              fail("{}: the header says {} points, the file holds {}", sources[sl.source].string(),
+                   headers[sl.source].point_count, sl.first + done);
+            for (size_t i = 0; i < n; ++i) {
+              RunRecord& r = run[sl.at + done + i];
+              const glm::dvec3& p = batch.positions[i];
+              for (int a = 0; a < 3; ++a) {
+                const double steps = std::nearbyint((p[a] - origin[a]) / scale[a]);
+                if (!(steps >= 0 && steps < double(1u << 31)))
+                  fail("{}: point {} lies outside the header's bounds ({}, {}, {})",
+                       sources[sl.source].string(), sl.first + done + i, p.x, p.y, p.z);
+                r.q[a] = uint32_t(steps);
+              }
+              r.key = grid_key(r.q, cell_inverse, info.order);
+              r.rgba = batch_rgba(batch, i, rgb_bits);
+              r.attributes = batch_attributes(batch, i);
+              if ((seen + sl.at + done + i) % sample_stride == 0) {
+                samples[k].elevation.push_back(p.z);
+                samples[k].intensity.push_back(
+                    batch.intensity.empty() ? 0.0 : double(batch.intensity[i]));
+              }
+            }
+            done += n;
+          }
+        }
+      });
+      for (Samples& s : samples) {
+        elevation.insert(elevation.end(), s.elevation.begin(), s.elevation.end());
+        intensity.insert(intensity.end(), s.intensity.begin(), s.intensity.end());
+      }
+      stats.read_seconds += since(t);
+      seen += window;
+      progress.advance(window);
+      if (seen < info.point_count) spill();
     }
   }
   info.attributes.elevation_percentiles = percentile_range(std::move(elevation), {}, 0.02, 0.98);
@@ -414,7 +485,8 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
   std::ofstream out(file.temp_path(), std::ios::binary | std::ios::trunc);
   if (!out) fail("{}: cannot write", cache_path.string());
   out.write(std::string(kPointletHeaderBytes, '\0').data(), std::streamsize(kPointletHeaderBytes));
-  PointletWriter writer(out, info, origin);
+  PointletWriter writer(out, info, origin, pool,
+                        std::max<uint64_t>(options.memory_budget / 4, 1 << 20));
   const auto write_start = Clock::now();
   if (runs.paths.empty()) {
     finish_run();

@@ -1,0 +1,344 @@
+// `stipple bench virtual`: the virtualized renderer (seed 002) over the seed's camera path, an
+// orbit around the cloud's centre while the vertical field of view zooms in and out (section
+// IV-B, Table II and Figs. 12-15), for one or more point buckets B (Fig. 14). Every frame is
+// drawn headless at the given size and timed; the summary is Table II's FPS statistics, the
+// five GPU stages of Fig. 15, the memory in use, and optionally the PSNR of settled views
+// against the full-detail image, with and without hole filling (Figs. 16-17).
+//
+// A frame's time is the wall time of one engine update: the CPU work of the frame (LoD and its
+// readback, planning, staging), its GPU work and the read of its timestamps, one after the
+// other (no overlap of frames, so FPS is a lower bound of what a pipelined viewer reaches). Loads run on the
+// worker pool meanwhile, as in an interactive session: frames do not wait for them.
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "stipple/app/commands.hpp"
+#include "stipple/app/scene.hpp"
+#include "stipple/core/atomic_file.hpp"
+#include "stipple/core/error.hpp"
+#include "stipple/core/progress.hpp"
+#include "stipple/core/stats.hpp"
+#include "stipple/engine/camera.hpp"
+#include "stipple/engine/engine.hpp"
+#include "stipple/engine/plugins.hpp"
+#include "stipple/engine/render_plugins.hpp"
+#include "stipple/math/camera.hpp"
+#include "stipple/pointcloud/compute_raster.hpp"
+#include "stipple/pointcloud/scene.hpp"
+#include "stipple/pointcloud/virtual_cloud.hpp"
+
+namespace stipple::app {
+namespace {
+
+struct VirtualBenchArgs {
+  std::vector<std::string> inputs;
+  std::vector<uint64_t> buckets = {25'000'000};
+  uint32_t width = 1920, height = 1080;
+  uint32_t frames = 600;
+  double turns = 1.0;                     // orbits over the path
+  double fov_min = 20.0, fov_max = 90.0;  // degrees: the zoom
+  double zoom_cycles = 2.0;               // zoom in and out this often along the path
+  double elevation = 35.0;                // degrees above the horizon
+  uint32_t fill_radius = 1;
+  float occlusion_beta = 0.0f;
+  uint32_t psnr_views = 0;
+  std::string cache_dir, host_memory, gpu_memory, backend, json;
+  uint64_t pointlets = pc::kDefaultPointlets;
+};
+
+// The path's camera at t in [0, 1): orbiting the centre at the distance that frames the cloud
+// at the widest field of view, the field of view following a cosine between the limits.
+Camera path_camera(const VirtualBenchArgs& a, const Aabb& world, double t, double aspect) {
+  const double fov =
+      a.fov_min + (a.fov_max - a.fov_min) * 0.5 * (1.0 + std::cos(2.0 * M_PI * a.zoom_cycles * t));
+  Camera wide = frame_box(world, aspect, 0.0, a.elevation, a.fov_max);
+  const double distance = glm::length(wide.position - world.center());
+  const double az = 2.0 * M_PI * a.turns * t, el = glm::radians(a.elevation);
+  const glm::dvec3 c = world.center();
+  const glm::dvec3 eye = c + distance * glm::dvec3(std::cos(el) * std::sin(az), std::sin(el),
+                                                   std::cos(el) * std::cos(az));
+  Camera camera = wide;
+  camera.fov_y = glm::radians(fov);
+  camera.look_at(eye, c);
+  return camera;
+}
+
+uint64_t peak_rss_bytes() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return uint64_t(usage.ru_maxrss) * 1024;
+}
+
+std::unique_ptr<Engine> make_engine(const VirtualBenchArgs& a, uint64_t bucket, uint32_t fill) {
+  auto engine = std::make_unique<Engine>();
+  engine->add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
+  GpuPlugin gpu;
+  gpu.options.backend = a.backend;
+  gpu.options.optional_features = pc::compute_raster_features();
+  engine->add_plugin(std::move(gpu));
+  RenderGraphPlugin graph;
+  graph.keep_history = true;  // per-frame GPU times
+  engine->add_plugin(std::move(graph));
+  SceneOptions scene;
+  scene.inputs = a.inputs;
+  scene.force_virtual = true;
+  scene.cache_dir = a.cache_dir;
+  scene.pointlets = a.pointlets;
+  scene.host_memory = a.host_memory;
+  scene.gpu_memory = a.gpu_memory;
+  scene.bucket = bucket;
+  scene.fill_radius = int(fill);
+  scene.occlusion_beta = a.occlusion_beta;
+  add_scene_plugin(*engine, scene);
+  engine->add_plugin(HeadlessTargetPlugin{a.width, a.height, "", 0});
+  return engine;
+}
+
+struct FlightResult {
+  uint64_t bucket = 0;
+  std::vector<double> wall_ms, gpu_ms;
+  std::vector<uint64_t> drawn;
+  std::array<double, 5> stage_sum{};
+  uint64_t peak_host = 0, peak_gpu = 0, staging = 0, points = 0;
+  double load_s = 0;
+};
+
+// Average FPS of the slowest `fraction` of frames (the "1% low").
+double low_fps(std::vector<double> ms, double fraction) {
+  if (ms.empty()) return 0;
+  std::sort(ms.begin(), ms.end(), std::greater<>());
+  const size_t n = std::max<size_t>(1, size_t(std::floor(ms.size() * fraction)));
+  const double mean = std::accumulate(ms.begin(), ms.begin() + n, 0.0) / n;
+  return mean > 0 ? 1000.0 / mean : 0;
+}
+
+FlightResult fly(const VirtualBenchArgs& a, uint64_t bucket) {
+  FlightResult out;
+  out.bucket = bucket;
+  auto start = std::chrono::steady_clock::now();
+  auto engine = make_engine(a, bucket, a.fill_radius);
+  out.load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  Registry& main = engine->main();
+  const Aabb world = main.resource<pc::SceneInfo>().world_bounds;
+  out.points = main.resource<pc::SceneInfo>().points;
+  const double aspect = double(a.width) / a.height;
+  const Entity camera = main.create();
+  main.emplace<Camera>(camera, path_camera(a, world, 0.0, aspect));
+  Registry& render = engine->render();
+  Progress progress(fmt::format("B = {:.1f} M", bucket / 1e6), a.frames, "frames");
+  for (uint32_t f = 0; f < a.frames; ++f) {
+    main.get<Camera>(camera) = path_camera(a, world, double(f) / a.frames, aspect);
+    const auto t0 = std::chrono::steady_clock::now();
+    engine->update();
+    const auto& rs = render.resource<RenderStats>();
+    const auto& vs = render.resource<pc::VirtualCloudStats>();
+    out.wall_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    out.gpu_ms.push_back(rs.gpu_ms.empty() ? 0.0 : rs.gpu_ms.back());
+    out.drawn.push_back(rs.points_drawn);
+    for (size_t s = 0; s < 5; ++s) out.stage_sum[s] += vs.stage_ms[s];
+    out.peak_host = std::max(out.peak_host, vs.host_bytes);
+    out.peak_gpu = std::max(out.peak_gpu, vs.gpu_bytes);
+    out.staging = vs.staging_bytes;
+    progress.advance(1);
+  }
+  progress.finish();
+  engine->shutdown();
+  return out;
+}
+
+// Settled images of `views`: frames run until nothing loads and the transfer is complete.
+std::vector<gpu::Image> settled_images(const VirtualBenchArgs& a, uint64_t bucket, uint32_t fill,
+                                       const std::vector<Camera>& views) {
+  auto engine = make_engine(a, bucket, fill);
+  Registry& main = engine->main();
+  Registry& render = engine->render();
+  const Entity camera = main.create();
+  main.emplace<Camera>(camera, views.front());
+  std::vector<gpu::Image> images;
+  auto latest = std::make_shared<gpu::Image>();
+  for (const Camera& view : views) {
+    main.get<Camera>(camera) = view;
+    for (int i = 0; i < 5000; ++i) {
+      engine->update();
+      const auto& s = render.resource<pc::VirtualCloudStats>();
+      if (s.settled && s.selections > 0) break;
+      pc::wait_for_virtual_loads(main.resource<pc::VirtualCloudHandle>(), 0.05);
+    }
+    render.insert_resource(
+        FrameCapture{[latest](uint64_t, const gpu::Image& image) { *latest = image; }});
+    engine->update();
+    render.insert_resource(FrameCapture{});
+    images.push_back(*latest);
+  }
+  engine->shutdown();
+  return images;
+}
+
+double psnr(const gpu::Image& a, const gpu::Image& b) {
+  if (a.width != b.width || a.height != b.height || a.rgba.size() != b.rgba.size())
+    fail("PSNR of images of different sizes");
+  double se = 0;
+  uint64_t n = 0;
+  for (size_t i = 0; i < a.rgba.size(); i += 4)
+    for (int c = 0; c < 3; ++c) {
+      const double d = double(a.rgba[i + c]) - double(b.rgba[i + c]);
+      se += d * d;
+      ++n;
+    }
+  const double mse = se / double(std::max<uint64_t>(n, 1));
+  return mse == 0 ? std::numeric_limits<double>::infinity()
+                  : 10.0 * std::log10(255.0 * 255.0 / mse);
+}
+
+void run_virtual_bench(const VirtualBenchArgs& a) {
+  nlohmann::json j;
+  j["inputs"] = a.inputs;
+  j["width"] = a.width;
+  j["height"] = a.height;
+  j["frames"] = a.frames;
+  j["fov_deg"] = {a.fov_min, a.fov_max};
+  j["fill_radius"] = a.fill_radius;
+  j["occlusion_beta"] = a.occlusion_beta;
+  j["runs"] = nlohmann::json::array();
+  std::printf("%10s %8s %8s %8s %8s %8s %8s %9s %9s %9s %9s\n", "B", "FPS avg", "min", "max",
+              "1% low", "0.1% low", "GPU FPS", "drawn M", "host MiB", "GPU MiB", "RSS MiB");
+  uint64_t points = 0;
+  for (uint64_t bucket : a.buckets) {
+    FlightResult r = fly(a, bucket);
+    points = r.points;
+    const double total_ms = std::accumulate(r.wall_ms.begin(), r.wall_ms.end(), 0.0);
+    const double avg = total_ms > 0 ? 1000.0 * r.wall_ms.size() / total_ms : 0;
+    const double gpu_total = std::accumulate(r.gpu_ms.begin(), r.gpu_ms.end(), 0.0);
+    const double gpu_fps = gpu_total > 0 ? 1000.0 * r.gpu_ms.size() / gpu_total : 0;
+    const auto [fast, slow] = std::minmax_element(r.wall_ms.begin(), r.wall_ms.end());
+    const double max_fps = *fast > 0 ? 1000.0 / *fast : 0, min_fps = *slow > 0 ? 1000.0 / *slow : 0;
+    const double drawn =
+        std::accumulate(r.drawn.begin(), r.drawn.end(), 0.0) / std::max<size_t>(1, r.drawn.size());
+    const uint64_t rss = peak_rss_bytes();
+    std::printf("%10.2fM %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %9.2f %9.1f %9.1f %9.1f\n",
+                bucket / 1e6, avg, min_fps, max_fps, low_fps(r.wall_ms, 0.01),
+                low_fps(r.wall_ms, 0.001), gpu_fps, drawn / 1e6, r.peak_host / 1048576.0,
+                r.peak_gpu / 1048576.0, rss / 1048576.0);
+    nlohmann::json run;
+    run["bucket"] = bucket;
+    run["points"] = r.points;
+    run["fps"] = {{"average", avg},
+                  {"min", min_fps},
+                  {"max", max_fps},
+                  {"low_1pct", low_fps(r.wall_ms, 0.01)},
+                  {"low_0_1pct", low_fps(r.wall_ms, 0.001)},
+                  {"gpu_average", gpu_fps}};
+    run["frame_wall_ms"] = r.wall_ms;
+    run["frame_gpu_ms"] = r.gpu_ms;
+    run["points_drawn_mean"] = drawn;
+    nlohmann::json stages;
+    for (size_t s = 0; s < 5; ++s)
+      stages[std::string(pc::kStageNames[s])] =
+          r.stage_sum[s] / std::max<size_t>(1, r.wall_ms.size());
+    run["stage_gpu_ms_mean"] = stages;
+    run["peak_host_points_bytes"] = r.peak_host;
+    run["peak_gpu_bytes"] = r.peak_gpu;
+    run["staging_bytes"] = r.staging;
+    run["peak_rss_bytes"] = rss;
+    run["open_s"] = r.load_s;
+    j["runs"].push_back(run);
+    std::printf("           stages (GPU ms, mean a frame):");
+    for (size_t s = 0; s < 5; ++s)
+      std::printf(" %s %.3f", std::string(pc::kStageNames[s]).c_str(),
+                  r.stage_sum[s] / std::max<size_t>(1, r.wall_ms.size()));
+    std::printf("\n");
+  }
+  if (a.psnr_views > 0) {
+    // Views spread over the path; the reference draws every point (B = n).
+    const double aspect = double(a.width) / a.height;
+    Aabb world;
+    {
+      auto probe = make_engine(a, 1, 0);
+      world = probe->main().resource<pc::SceneInfo>().world_bounds;
+      probe->shutdown();
+    }
+    std::vector<Camera> views;
+    for (uint32_t v = 0; v < a.psnr_views; ++v)
+      views.push_back(path_camera(a, world, (v + 0.5) / a.psnr_views, aspect));
+    nlohmann::json pj = nlohmann::json::array();
+    for (uint32_t fill : {0u, a.fill_radius}) {
+      auto reference = settled_images(a, points, fill, views);
+      for (uint64_t bucket : a.buckets) {
+        auto images = settled_images(a, bucket, fill, views);
+        std::vector<double> values;
+        for (size_t v = 0; v < views.size(); ++v) values.push_back(psnr(images[v], reference[v]));
+        const double mean = std::accumulate(values.begin(), values.end(), 0.0) / values.size();
+        std::printf("PSNR B = %.2f M, fill radius %u: mean %.2f dB (views:", bucket / 1e6, fill,
+                    mean);
+        for (double p : values) std::printf(" %.2f", p);
+        std::printf(")\n");
+        pj.push_back(
+            {{"bucket", bucket}, {"fill_radius", fill}, {"psnr_db", values}, {"mean_db", mean}});
+      }
+      if (a.fill_radius == 0) break;
+    }
+    j["psnr"] = pj;
+  }
+  if (!a.json.empty()) write_file_atomically(a.json, j.dump(2) + "\n");
+}
+
+}  // namespace
+
+void add_bench_virtual_command(CLI::App& bench) {
+  auto a = std::make_shared<VirtualBenchArgs>();
+  auto* cmd = bench.add_subcommand(
+      "virtual",
+      "Virtualized rendering over the seed's camera path (seed 002, Table II, Figs. 14-17)");
+  cmd->add_option("inputs", a->inputs, "LAS/LAZ/COPC files (one cloud)")->required();
+  cmd->add_option("--bucket", a->buckets, "Point buckets B to run (several: the sweep of Fig. 14)")
+      ->capture_default_str();
+  cmd->add_option("--width", a->width, "Image width")->capture_default_str();
+  cmd->add_option("--height", a->height, "Image height")->capture_default_str();
+  cmd->add_option("--frames", a->frames, "Frames along the path")
+      ->check(CLI::Range(1u, 1000000u))
+      ->capture_default_str();
+  cmd->add_option("--turns", a->turns, "Orbits along the path")->capture_default_str();
+  cmd->add_option("--fov-min", a->fov_min, "Narrowest vertical field of view (degrees)")
+      ->check(CLI::Range(1.0, 170.0))
+      ->capture_default_str();
+  cmd->add_option("--fov-max", a->fov_max, "Widest vertical field of view (degrees)")
+      ->check(CLI::Range(1.0, 170.0))
+      ->capture_default_str();
+  cmd->add_option("--zoom-cycles", a->zoom_cycles, "Zoom in and out this often along the path")
+      ->capture_default_str();
+  cmd->add_option("--elevation", a->elevation, "Camera elevation (degrees)")->capture_default_str();
+  cmd->add_option("--fill-radius", a->fill_radius, "Hole filling radius (0: off)")
+      ->check(CLI::Range(0, 8))
+      ->capture_default_str();
+  cmd->add_option("--occlusion-beta", a->occlusion_beta, "Occlusion check threshold (0: off)")
+      ->check(CLI::Range(0.0f, 1.5f))
+      ->capture_default_str();
+  cmd->add_option("--psnr-views", a->psnr_views,
+                  "Also compare this many settled views with the full-detail image (B = every "
+                  "point), with and without hole filling");
+  cmd->add_option("--pointlets", a->pointlets, "m of the pointlet cache")->capture_default_str();
+  cmd->add_option("--cache", a->cache_dir, "Folder of the pointlet cache");
+  cmd->add_option("--host-memory", a->host_memory, "Host memory budget, e.g. 4G");
+  cmd->add_option("--gpu-memory", a->gpu_memory, "Device memory budget for the points, e.g. 4G");
+  cmd->add_option("--backend", a->backend, "WebGPU implementation: dawn or wgpu")
+      ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
+  cmd->add_option("--json", a->json, "Write the results (and every frame's times) as JSON");
+  cmd->callback([a] {
+    if (a->fov_min > a->fov_max) fail("--fov-min {} exceeds --fov-max {}", a->fov_min, a->fov_max);
+    run_virtual_bench(*a);
+  });
+}
+
+}  // namespace stipple::app
