@@ -2,16 +2,17 @@
 // point buffers of the next frame from those of the previous one and the new points. The
 // compaction info is a list of jobs sorted by destination that together cover [0, total): each
 // copies `count` points to `dst` from `src`, in the previous frame's buffers or (fresh == 1) in
-// the new points. One thread per destination point finds its job by binary search, so no
-// thread idles however the points are spread over pointlets (the seed names idle threads in
-// compaction as its main bottleneck). Positions (three words) and colours are separate entry
-// points: each binds at most eight storage buffers.
+// the new points. One thread per destination point, so no thread idles however the points are
+// spread over pointlets (the seed names idle threads in compaction as its main bottleneck); a
+// workgroup's 256 destinations find their jobs by binary search between the first jobs of this
+// workgroup and the next, which the CPU puts in front of the jobs. Positions (three words) and
+// colours are separate entry points: each binds at most eight storage buffers.
 
 struct Params {
-  total: u32,  // points in the next frame's buffers
+  total: u32,    // points in the next frame's buffers
   jobs: u32,
-  row: u32,    // threads per row of the 2D dispatch
-  _pad: u32,
+  row: u32,      // threads per row of the 2D dispatch
+  jobs_at: u32,  // where the jobs start in `info` (u32s); before them, per workgroup, its first job
 }
 
 struct Job {
@@ -22,7 +23,7 @@ struct Job {
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> jobs: array<Job>;
+@group(0) @binding(1) var<storage, read> info: array<u32>;
 @group(0) @binding(2) var<storage, read> fresh: array<vec4<u32>>;  // coarse, medium, fine, colour
 @group(0) @binding(3) var<storage, read> src_a: array<u32>;
 @group(0) @binding(4) var<storage, read> src_b: array<u32>;
@@ -33,19 +34,26 @@ struct Job {
 
 const WORKGROUP: u32 = 256u;
 
-// The job holding destination `index`: the last job whose dst <= index.
+fn job_dst(j: u32) -> u32 {
+  return info[params.jobs_at + 4u * j];
+}
+
+// The job holding destination `index`: the last job whose dst <= index, among those that touch
+// the workgroup's range.
 fn find_job(index: u32) -> Job {
-  var lo = 0u;
-  var hi = params.jobs;
+  let block = index / WORKGROUP;
+  var lo = info[block];
+  var hi = min(info[block + 1u] + 1u, params.jobs);
   while (hi - lo > 1u) {
     let mid = (lo + hi) / 2u;
-    if (jobs[mid].dst <= index) {
+    if (job_dst(mid) <= index) {
       lo = mid;
     } else {
       hi = mid;
     }
   }
-  return jobs[lo];
+  let at = params.jobs_at + 4u * lo;
+  return Job(info[at], info[at + 1u], info[at + 2u], info[at + 3u]);
 }
 
 fn destination(group: vec3<u32>, lid: u32) -> u32 {

@@ -73,3 +73,30 @@ TEST(VirtualRender, MatchesTheInMemoryRenderAndKeepsToTheBucket) {
   EXPECT_NE(automatic.output.find("over the host budget"), std::string::npos) << automatic.output;
   fs::remove_all(dir);
 }
+
+// Lon/lat input through the cache: the same image as the in-memory path, which draws it in the
+// same local east-north-up frame (no hole filling on either, so the points are compared).
+TEST(VirtualRender, GeographicInputMatchesTheInMemoryRender) {
+  STIPPLE_REQUIRE_DATA(path, "las/epsg_4326.las");
+  const fs::path dir =
+      fs::temp_directory_path() / ("stipple-virtual-geo-" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string size = " --width 400 --height 300 --fill-radius 0";
+  auto memory = test::run_stipple("render " + path.string() + " --renderer compute -o " +
+                                  (dir / "memory.png").string() + size);
+  ASSERT_EQ(memory.exit_code, 0) << memory.output;
+  auto virt = test::run_stipple("render " + path.string() + " --virtual --pointlets 100 --cache " +
+                                (dir / "cache").string() + " -o " + (dir / "virtual.png").string() +
+                                size);
+  ASSERT_EQ(virt.exit_code, 0) << virt.output;
+  EXPECT_EQ(drawn_points(virt.output), 5380u) << virt.output;
+  auto a = gpu::read_png(dir / "memory.png"), b = gpu::read_png(dir / "virtual.png");
+  const double coverage = test::coverage_stats(b, kBackground, 2).coverage;
+  EXPECT_GT(coverage, 0.01);
+  EXPECT_NEAR(coverage, test::coverage_stats(a, kBackground, 2).coverage, 0.2 * coverage);
+  // Sparse 1-pixel points: one quantized to another box may land a pixel over, so at most 2%
+  // of the pixels differ by more than 8 levels (about twice the covered share moving).
+  EXPECT_LT(test::differing_fraction(a, b, 8), 0.02);
+  fs::remove_all(dir);
+}

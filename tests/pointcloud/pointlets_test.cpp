@@ -17,6 +17,7 @@
 #include "stipple/core/error.hpp"
 #include "stipple/io/las.hpp"
 #include "stipple/io/procedural.hpp"
+#include "stipple/math/geo.hpp"
 #include "stipple/pointcloud/batches.hpp"
 #include "stipple/pointcloud/pointlets.hpp"
 #include "test_util.hpp"
@@ -277,5 +278,64 @@ TEST(Pointlets, AFailedBuildLeavesNothing) {
   EXPECT_THROW(pc::build_pointlet_cache({las}, dir / "c.pointlets", o), Error);
   for (const auto& e : fs::directory_iterator(dir))
     EXPECT_EQ(e.path().filename(), "scene.las") << "left behind: " << e.path();
+  fs::remove_all(dir);
+}
+
+// Lon/lat input: the cache holds metres of a local east-north-up frame at the centre of the
+// bounds (as the in-memory path draws them), each point within one step of its exact image.
+TEST(Pointlets, GeographicInputGoesToALocalEnuFrame) {
+  STIPPLE_REQUIRE_DATA(path, "las/epsg_4326.las");
+  fs::path dir = fresh_dir("geographic");
+  pc::PointletBuildOptions o;
+  o.pointlets = 100;
+  o.progress = false;
+  pc::build_pointlet_cache({path}, dir / "geo.pointlets", o);
+  pc::PointletCache cache = pc::PointletCache::open(dir / "geo.pointlets");
+  const auto& info = cache.info();
+  const io::LasHeader header = io::read_las_header(path);
+  ASSERT_TRUE(info.geographic);
+  EXPECT_NEAR(info.enu_origin.x, (header.min.x + header.max.x) / 2, 1e-9);
+  EXPECT_NEAR(info.enu_origin.y, (header.min.y + header.max.y) / 2, 1e-9);
+  EXPECT_EQ(info.point_count, header.point_count);
+  // Metres: the file spans about 2.2 km east-west and 1.2 km north-south.
+  EXPECT_GT(info.source_bounds.size().x, 2000.0);
+  EXPECT_LT(info.source_bounds.size().x, 2600.0);
+  EXPECT_GT(info.source_bounds.size().y, 1000.0);
+  EXPECT_LT(info.source_bounds.size().y, 1400.0);
+  EXPECT_LT(info.scale.x, 0.02);  // 1e-7 degrees are about 1 cm
+  std::vector<glm::dvec3> cached;
+  for (uint32_t i = 0; i < cache.pointlets().size(); ++i)
+    for (const auto& r : cache.read_verified(i))
+      cached.push_back(cache.position(cache.pointlets()[i], r));
+  ASSERT_EQ(cached.size(), header.point_count);
+  const geo::LocalEnu enu(info.enu_origin);
+  io::LasReader reader(path);
+  io::PointBatch b;
+  reader.read(b, header.point_count);
+  ASSERT_EQ(b.size(), header.point_count);
+  const double tolerance = glm::length(info.scale);
+  for (size_t i = 0; i < b.size(); ++i) {
+    const glm::dvec3 exact = enu.from_geodetic(b.positions[i]);
+    double best = 1e30;
+    for (const glm::dvec3& c : cached) best = std::min(best, glm::length(c - exact));
+    ASSERT_LE(best, tolerance) << "point " << i;
+  }
+  fs::remove_all(dir);
+}
+
+TEST(Pointlets, RefusesMixedGeographicAndProjectedInputs) {
+  STIPPLE_REQUIRE_DATA(geographic, "las/epsg_4326.las");
+  STIPPLE_REQUIRE_DATA(projected, "las/autzen_trim.las");
+  fs::path dir = fresh_dir("mixed");
+  pc::PointletBuildOptions o;
+  o.progress = false;
+  try {
+    pc::build_pointlet_cache({geographic, projected}, dir / "mixed.pointlets", o);
+    ADD_FAILURE() << "mixed inputs were accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("one cache holds one kind"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir / "mixed.pointlets"));
   fs::remove_all(dir);
 }

@@ -7,8 +7,8 @@
 //
 // A frame's time is the wall time of one engine update: the CPU work of the frame (LoD and its
 // readback, planning, staging), its GPU work and the read of its timestamps, one after the
-// other (no overlap of frames, so FPS is a lower bound of what a pipelined viewer reaches). Loads run on the
-// worker pool meanwhile, as in an interactive session: frames do not wait for them.
+// other (no overlap of frames, so FPS is a lower bound of what a pipelined viewer reaches). Loads
+// run on the worker pool meanwhile, as in an interactive session: frames do not wait for them.
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -110,6 +110,8 @@ struct FlightResult {
   std::vector<double> wall_ms, gpu_ms;
   std::vector<uint64_t> drawn;
   std::array<double, 5> stage_sum{};
+  double select_ms = 0, lod_ms = 0, update_ms = 0, residency_ms = 0, wait_ms = 0,
+         write_ms = 0;  // CPU, summed over frames
   uint64_t peak_host = 0, peak_gpu = 0, staging = 0, points = 0;
   double load_s = 0;
 };
@@ -137,6 +139,7 @@ FlightResult fly(const VirtualBenchArgs& a, uint64_t bucket) {
   main.emplace<Camera>(camera, path_camera(a, world, 0.0, aspect));
   Registry& render = engine->render();
   Progress progress(fmt::format("B = {:.1f} M", bucket / 1e6), a.frames, "frames");
+  uint64_t selections = 0;
   for (uint32_t f = 0; f < a.frames; ++f) {
     main.get<Camera>(camera) = path_camera(a, world, double(f) / a.frames, aspect);
     const auto t0 = std::chrono::steady_clock::now();
@@ -148,9 +151,19 @@ FlightResult fly(const VirtualBenchArgs& a, uint64_t bucket) {
     out.gpu_ms.push_back(rs.gpu_ms.empty() ? 0.0 : rs.gpu_ms.back());
     out.drawn.push_back(rs.points_drawn);
     for (size_t s = 0; s < 5; ++s) out.stage_sum[s] += vs.stage_ms[s];
+    out.select_ms += vs.select_ms;
+    if (vs.selections != selections) {  // this frame made a selection
+      out.lod_ms += vs.lod_ms;
+      out.update_ms += vs.upload_ms;
+      out.residency_ms += vs.residency_ms;
+      out.wait_ms += vs.staging_wait_ms;
+      out.write_ms += vs.fresh_write_ms;
+      selections = vs.selections;
+    }
     out.peak_host = std::max(out.peak_host, vs.host_bytes);
     out.peak_gpu = std::max(out.peak_gpu, vs.gpu_bytes);
     out.staging = vs.staging_bytes;
+    if (vs.bucket) out.bucket = vs.bucket;  // lowered when it does not fit --gpu-memory
     progress.advance(1);
   }
   progress.finish();
@@ -228,11 +241,12 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
         std::accumulate(r.drawn.begin(), r.drawn.end(), 0.0) / std::max<size_t>(1, r.drawn.size());
     const uint64_t rss = peak_rss_bytes();
     std::printf("%10.2fM %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %9.2f %9.1f %9.1f %9.1f\n",
-                bucket / 1e6, avg, min_fps, max_fps, low_fps(r.wall_ms, 0.01),
+                r.bucket / 1e6, avg, min_fps, max_fps, low_fps(r.wall_ms, 0.01),
                 low_fps(r.wall_ms, 0.001), gpu_fps, drawn / 1e6, r.peak_host / 1048576.0,
                 r.peak_gpu / 1048576.0, rss / 1048576.0);
     nlohmann::json run;
-    run["bucket"] = bucket;
+    run["bucket"] = r.bucket;
+    run["bucket_asked"] = bucket;
     run["points"] = r.points;
     run["fps"] = {{"average", avg},
                   {"min", min_fps},
@@ -248,6 +262,11 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
       stages[std::string(pc::kStageNames[s])] =
           r.stage_sum[s] / std::max<size_t>(1, r.wall_ms.size());
     run["stage_gpu_ms_mean"] = stages;
+    const double frames = double(std::max<size_t>(1, r.wall_ms.size()));
+    run["cpu_ms_mean"] = {
+        {"selection", r.select_ms / frames},    {"lod", r.lod_ms / frames},
+        {"residency", r.residency_ms / frames}, {"store_update", r.update_ms / frames},
+        {"staging_wait", r.wait_ms / frames},   {"new_points_write", r.write_ms / frames}};
     run["peak_host_points_bytes"] = r.peak_host;
     run["peak_gpu_bytes"] = r.peak_gpu;
     run["staging_bytes"] = r.staging;
@@ -258,7 +277,13 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
     for (size_t s = 0; s < 5; ++s)
       std::printf(" %s %.3f", std::string(pc::kStageNames[s]).c_str(),
                   r.stage_sum[s] / std::max<size_t>(1, r.wall_ms.size()));
-    std::printf("\n");
+    const double frames_n = double(std::max<size_t>(1, r.wall_ms.size()));
+    std::printf(
+        "\n           CPU ms a frame: selection %.3f (LoD %.3f, residency %.3f, store update "
+        "%.3f: staging wait %.3f, new points %.3f), whole frame %.3f\n",
+        r.select_ms / frames_n, r.lod_ms / frames_n, r.residency_ms / frames_n,
+        r.update_ms / frames_n, r.wait_ms / frames_n, r.write_ms / frames_n,
+        std::accumulate(r.wall_ms.begin(), r.wall_ms.end(), 0.0) / frames_n);
   }
   if (a.psnr_views > 0) {
     // Views spread over the path; the reference draws every point (B = n).

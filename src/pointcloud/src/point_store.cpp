@@ -1,6 +1,7 @@
 #include "stipple/pointcloud/point_store.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cstring>
 
 #include "stipple/core/error.hpp"
@@ -11,7 +12,7 @@ namespace stipple::pc {
 namespace {
 
 struct CompactParams {
-  uint32_t total, jobs, row, pad;
+  uint32_t total, jobs, row, jobs_at;
 };
 
 constexpr uint32_t kCompactWorkgroup = 256;  // vms_compact.wgsl
@@ -30,23 +31,45 @@ void push_job(std::vector<CompactionJob>& jobs, CompactionJob job) {
   jobs.push_back(job);
 }
 
-uint64_t jobs_bytes_for(uint32_t pointlets) {
-  return uint64_t(std::max<uint32_t>(pointlets, 1)) * 2 * sizeof(CompactionJob);
+// The compaction info as the shader reads it: per workgroup of destinations the index of its
+// first job (and one more entry), padded to 16 bytes, then the jobs.
+uint64_t block_entries(uint64_t points) {
+  return (points + kCompactWorkgroup - 1) / kCompactWorkgroup + 1;
 }
-uint64_t fresh_offset_for(uint32_t pointlets) {
-  return (jobs_bytes_for(pointlets) + 255) & ~uint64_t(255);
+uint64_t jobs_at(uint64_t points) {
+  return (block_entries(points) + 3) & ~uint64_t(3);
+}
+uint64_t info_bytes_for(uint64_t capacity, uint32_t pointlets) {
+  return jobs_at(capacity) * 4 +
+         uint64_t(std::max<uint32_t>(pointlets, 1)) * 2 * sizeof(CompactionJob);
+}
+uint64_t fresh_offset_for(uint64_t capacity, uint32_t pointlets) {
+  return (info_bytes_for(capacity, pointlets) + 255) & ~uint64_t(255);
 }
 
 }  // namespace
 
 CompactionPlan plan_compaction(const StoreLayout& previous, const std::vector<uint32_t>& wanted,
                                uint64_t max_fresh) {
+  CompactionPlan plan;
+  plan_compaction(previous, wanted, max_fresh, plan);
+  return plan;
+}
+
+void plan_compaction(const StoreLayout& previous, const std::vector<uint32_t>& wanted,
+                     uint64_t max_fresh, CompactionPlan& plan) {
   const size_t n = wanted.size();
   const bool had = previous.count.size() == n;
   if (!previous.count.empty() && !had)
     fail("plan_compaction: {} pointlets before, {} now", previous.count.size(), n);
-  CompactionPlan plan;
-  std::vector<uint32_t> keep(n), lack(n);
+  // Every frame plans anew: the vectors keep their capacity (a frame allocates nothing here).
+  plan.jobs.clear();
+  plan.fresh.clear();
+  plan.kept = plan.fresh_points = 0;
+  plan.limited = false;
+  thread_local std::vector<uint32_t> keep, lack, share;
+  keep.resize(n);
+  lack.resize(n);
   uint64_t total_lack = 0;
   for (size_t i = 0; i < n; ++i) {
     const uint32_t before = had ? previous.count[i] : 0;
@@ -59,7 +82,7 @@ CompactionPlan plan_compaction(const StoreLayout& previous, const std::vector<ui
   if (total_lack > max_fresh) {
     plan.limited = true;
     uint64_t given = 0;
-    std::vector<uint32_t> share(n);
+    share.resize(n);
     for (size_t i = 0; i < n; ++i) {
       share[i] = uint32_t(uint64_t(lack[i]) * max_fresh / total_lack);
       given += share[i];
@@ -69,7 +92,7 @@ CompactionPlan plan_compaction(const StoreLayout& previous, const std::vector<ui
         ++share[i];
         ++given;
       }
-    lack = std::move(share);
+    lack.swap(share);
   }
   plan.next.first.assign(n, 0);
   plan.next.count.assign(n, 0);
@@ -91,7 +114,6 @@ CompactionPlan plan_compaction(const StoreLayout& previous, const std::vector<ui
   }
   plan.next.total = at;
   plan.fresh_points = fresh_at;
-  return plan;
 }
 
 GpuPointStore create_point_store(gpu::Context& ctx, uint64_t capacity, std::vector<Aabb> boxes,
@@ -103,7 +125,7 @@ GpuPointStore create_point_store(gpu::Context& ctx, uint64_t capacity, std::vect
   // Every drawn pointlet has a batch, and one more per kBatchPoints of its points.
   const uint64_t batches = capacity / kBatchPoints + store.pointlets + 1;
   for (auto& slab : store.slabs) slab = create_batched_storage(ctx, capacity, batches, "store");
-  const uint64_t fresh_offset = fresh_offset_for(store.pointlets);
+  const uint64_t fresh_offset = fresh_offset_for(capacity, store.pointlets);
   if (staging_bytes < fresh_offset + 16 * 1024)
     staging_bytes = fresh_offset + 16 * 1024;  // the compaction info and at least 1,024 points
   store.fresh_capacity = std::min<uint64_t>((staging_bytes - fresh_offset) / 16, capacity);
@@ -113,7 +135,7 @@ GpuPointStore create_point_store(gpu::Context& ctx, uint64_t capacity, std::vect
       gpu::create_staging_ring(ctx, fresh_offset + store.fresh_capacity * 16, 2, "vms-staging");
   store.fresh = gpu::create_buffer(ctx, store.fresh_capacity * 16,
                                    WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "vms-fresh");
-  store.jobs = gpu::create_buffer(ctx, store.jobs_capacity * sizeof(CompactionJob),
+  store.jobs = gpu::create_buffer(ctx, info_bytes_for(capacity, store.pointlets),
                                   WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "vms-jobs");
   store.params = gpu::create_buffer(
       ctx, sizeof(CompactParams), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "vms-params");
@@ -124,7 +146,7 @@ GpuPointStore create_point_store(gpu::Context& ctx, uint64_t capacity, std::vect
       gpu::create_compute_pipeline(ctx, shader.get(), "compact_colors", nullptr, "vms-colors");
   ctx.check("creating the point store");
   store.gpu_bytes = store.slabs[0].bytes + store.slabs[1].bytes + store.fresh_capacity * 16 +
-                    store.jobs_capacity * sizeof(CompactionJob) + sizeof(CompactParams);
+                    info_bytes_for(capacity, store.pointlets) + sizeof(CompactParams);
   return store;
 }
 
@@ -162,23 +184,44 @@ StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
   // The previous frame's graph has been submitted: its staging slot may be mapped again.
   gpu::staging_submitted(store.staging);
   StoreUpdate out;
-  CompactionPlan plan = plan_compaction(store.layout, wanted, store.fresh_capacity);
+  CompactionPlan& plan = store.plan;
+  plan_compaction(store.layout, wanted, store.fresh_capacity, plan);
   if (plan.next.total > store.capacity)
     fail("point store: {} points asked for, room for {}", plan.next.total, store.capacity);
   const bool same = plan.fresh_points == 0 && plan.next.count == store.layout.count &&
                     !store.layout.count.empty();
   if (same) {
-    out.drawn = store.layout.count;
     out.kept = plan.kept;
     return out;
   }
+  auto t = std::chrono::steady_clock::now();
+  auto ms_since = [](auto start) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+        .count();
+  };
   gpu::StagingWrite w = gpu::begin_staging_write(ctx, store.staging);
-  const uint64_t fresh_offset = fresh_offset_for(store.pointlets);
+  out.wait_ms = ms_since(t);
+  t = std::chrono::steady_clock::now();
+  const uint64_t fresh_offset = fresh_offset_for(store.capacity, store.pointlets);
   if (plan.jobs.size() > store.jobs_capacity || plan.fresh_points > store.fresh_capacity)
     fail("point store: the compaction info does not fit its buffers");
-  std::memcpy(w.data, plan.jobs.data(), plan.jobs.size() * sizeof(CompactionJob));
+  {
+    // Each workgroup's first job: the job holding its first destination.
+    auto* first = reinterpret_cast<uint32_t*>(w.data);
+    const uint64_t blocks = block_entries(plan.next.total);
+    uint32_t j = 0;
+    for (uint64_t b = 0; b < blocks; ++b) {
+      const uint64_t d =
+          std::min<uint64_t>(b * kCompactWorkgroup, plan.next.total ? plan.next.total - 1 : 0);
+      while (j + 1 < plan.jobs.size() && plan.jobs[j + 1].dst <= d) ++j;
+      first[b] = j;
+    }
+    std::memcpy(w.data + jobs_at(plan.next.total) * 4, plan.jobs.data(),
+                plan.jobs.size() * sizeof(CompactionJob));
+  }
   if (plan.fresh_points > 0) write(plan.fresh, reinterpret_cast<uint32_t*>(w.data + fresh_offset));
 
+  out.write_ms = ms_since(t);
   const uint32_t next = 1 - store.current;
   GpuBatchedCloud& slab = store.slabs[next];
   slab.batches.clear();
@@ -197,14 +240,19 @@ StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
   seg.point_count = uint32_t(plan.next.total);
   slab.point_count = plan.next.total;
 
-  store.pending = {true, w, plan.jobs.size(), plan.fresh_points, fresh_offset, store.current};
+  store.pending = {true,
+                   w,
+                   plan.jobs.size(),
+                   plan.fresh_points,
+                   fresh_offset,
+                   store.current,
+                   jobs_at(plan.next.total)};
   store.current = next;
   out.changed = true;
   out.kept = plan.kept;
   out.fresh = plan.fresh_points;
   out.limited = plan.limited;
-  out.drawn = plan.next.count;
-  store.layout = std::move(plan.next);
+  std::swap(store.layout, plan.next);  // the old layout's vectors serve the next plan
   return out;
 }
 
@@ -221,8 +269,9 @@ void add_point_store_pass(gpu::RenderGraph& graph, GpuPointStore& store) {
             WGPUCommandEncoder encoder = pc.encoder();
             const uint64_t total = store.layout.total;
             if (total == 0) return;
-            wgpuCommandEncoderCopyBufferToBuffer(encoder, p.write.buffer, 0, store.jobs.get(), 0,
-                                                 p.job_count * sizeof(CompactionJob));
+            wgpuCommandEncoderCopyBufferToBuffer(
+                encoder, p.write.buffer, 0, store.jobs.get(), 0,
+                p.jobs_at * 4 + p.job_count * sizeof(CompactionJob));
             if (p.fresh_points > 0)
               wgpuCommandEncoderCopyBufferToBuffer(encoder, p.write.buffer, p.fresh_offset,
                                                    store.fresh.get(), 0, p.fresh_points * 16);
@@ -230,7 +279,7 @@ void add_point_store_pass(gpu::RenderGraph& graph, GpuPointStore& store) {
             const uint32_t x = uint32_t(std::min<uint64_t>(groups, kRow));
             const uint32_t y = uint32_t((groups + x - 1) / x);
             const CompactParams params{uint32_t(total), uint32_t(p.job_count),
-                                       x * kCompactWorkgroup, 0};
+                                       x * kCompactWorkgroup, uint32_t(p.jobs_at)};
             gpu::write_buffer(ctx, store.params.get(), 0, params);
             const auto& from = store.slabs[p.from].segments.front();
             const auto& to = store.slabs[store.current].segments.front();

@@ -13,6 +13,7 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <queue>
 #include <random>
 
@@ -22,6 +23,7 @@
 #include "stipple/core/progress.hpp"
 #include "stipple/core/thread_pool.hpp"
 #include "stipple/io/las.hpp"
+#include "stipple/math/geo.hpp"
 
 namespace stipple::pc {
 namespace fs = std::filesystem;
@@ -324,11 +326,10 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
     io::LasReader reader(path);
     headers.push_back(reader.header());
     const io::LasHeader& h = headers.back();
-    if (h.crs.geographic)
-      fail(
-          "{}: lon/lat coordinates: the pointlet cache needs projected coordinates (tile it, or "
-          "reproject it)",
-          path.string());
+    if (headers.size() > 1 && h.crs.geographic != headers.front().crs.geographic)
+      fail("{}: {} coordinates, but {} has {}: one cache holds one kind", path.string(),
+           h.crs.geographic ? "lon/lat" : "projected", sources.front().string(),
+           headers.front().crs.geographic ? "lon/lat" : "projected");
     info.point_count += h.point_count;
     if (h.point_count > 0) {
       box.extend(h.min);
@@ -344,6 +345,29 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
     at.has_returns = true;
   }
   if (info.point_count == 0) fail("{}: the input holds no points", sources.front().string());
+  // Lon/lat inputs are stored in metres of a local east-north-up frame at the centre of their
+  // bounds (as the in-memory path draws them): the bounds are those of the frame's image of
+  // the lon/lat box, sampled densely and widened by a hundredth for the curvature between
+  // samples; the step is the input's finest, in metres along the meridian.
+  std::optional<geo::LocalEnu> enu;
+  if (headers.front().crs.geographic) {
+    info.geographic = true;
+    info.enu_origin = glm::dvec3(box.center().x, box.center().y, 0.0);
+    enu.emplace(info.enu_origin);
+    Aabb metric;
+    constexpr int kSamples = 8;
+    for (int i = 0; i <= kSamples; ++i)
+      for (int j = 0; j <= kSamples; ++j)
+        for (int k = 0; k <= 1; ++k) {
+          const glm::dvec3 t(double(i) / kSamples, double(j) / kSamples, double(k));
+          metric.extend(enu->from_geodetic(box.min + t * box.size()));
+        }
+    const glm::dvec3 widen = metric.size() * 0.01 + glm::dvec3(1.0);
+    box = {metric.min - widen, metric.max + widen};
+    const double metres_per_degree = geo::kWgs84A * M_PI / 180.0;
+    const double xy = std::min(scale.x, scale.y) * metres_per_degree;
+    scale = glm::dvec3(xy, xy, scale.z);
+  }
   // Headers' bounds are a hint: keep a margin for writers that round them, and make sure every
   // lattice offset from the minimum fits 31 bits (coarser steps only for huge extents).
   const glm::dvec3 margin = glm::max(box.size() * 1e-3, scale * 16.0);
@@ -361,8 +385,9 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
 
   ThreadPool pool(options.threads ? options.threads
                                   : std::max(1u, std::thread::hardware_concurrency()));
+  // A run takes two thirds of the budget: the stable sort's merges borrow up to half a run.
   const uint64_t run_capacity =
-      std::max<uint64_t>(1 << 16, options.memory_budget / sizeof(RunRecord));
+      std::max<uint64_t>(1 << 16, options.memory_budget / 3 * 2 / sizeof(RunRecord));
   const fs::path temp_dir = options.temp_dir.empty()
                                 ? (cache_path.has_parent_path() ? cache_path.parent_path() : ".")
                                 : options.temp_dir;
@@ -444,6 +469,8 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
             if (n == 0)
               fail("{}: the header says {} points, the file holds {}", sources[sl.source].string(),
                    headers[sl.source].point_count, sl.first + done);
+            if (enu)
+              for (auto& p : batch.positions) p = enu->from_geodetic(p);
             for (size_t i = 0; i < n; ++i) {
               RunRecord& r = run[sl.at + done + i];
               const glm::dvec3& p = batch.positions[i];

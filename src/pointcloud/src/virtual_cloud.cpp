@@ -87,11 +87,19 @@ struct VirtualResidency {
 
 namespace {
 
+// The LoD of a view: its camera and target size (what a LoD result was computed for).
+struct LodView {
+  ExtractedCamera camera;
+  uint32_t width = 0, height = 0;
+};
+
 // Render-world resource.
 struct VirtualCloudRender {
   std::shared_ptr<VirtualResidency> residency;
-  std::vector<uint32_t> desired, drawn_counts;  // the last LoD, and what it drew of it
-  uint64_t selected_after = 0;  // residency.completed when the drawn selection was built
+  std::vector<uint32_t> desired;   // the last LoD
+  std::vector<uint32_t> draw;      // what the host holds of it (reused every frame)
+  std::vector<uint32_t> incoming;  // a LoD result as it arrives
+  uint64_t selected_after = 0;     // residency.completed when the drawn selection was built
   VirtualCloudOptions options;
   glm::vec3 background{0.0f};
   std::unique_ptr<GpuPointlets> pointlets;
@@ -100,12 +108,15 @@ struct VirtualCloudRender {
   WGPUTextureFormat format = WGPUTextureFormat_Undefined;
   // Boxed: the graph reads it when it executes.
   std::unique_ptr<GpuPointStore> store;
-  bool transfer_pending = false;  // the last update could not bring every new point
-  double lod_gpu_ms = 0;          // this frame's LoD, when it ran
-  bool have_selection = false;
-  ExtractedCamera selected_for;
-  uint32_t width = 0, height = 0;
-  std::unique_ptr<ThreadPool> pool;
+  bool transfer_pending = false;                // the last update could not bring every new point
+  double lod_gpu_ms = 0;                        // this frame's LoD, when it ran
+  std::unique_ptr<gpu::ReadbackRing> lod_ring;  // LoD counts back from the GPU, unwaited
+  bool have_lod = false, lod_due = false;
+  uint64_t lod_tag = 0;
+  std::array<LodView, 8> lod_views;  // by tag: what each LoD in flight was computed for
+  LodView desired_for, lod_requested_for;
+  std::unique_ptr<ThreadPool> pool;     // load tasks (disk reads)
+  std::unique_ptr<ThreadPool> workers;  // the frame's own parallel work: new points for the GPU
 };
 
 bool same_view(const ExtractedCamera& a, const ExtractedCamera& b) {
@@ -117,7 +128,9 @@ bool same_view(const ExtractedCamera& a, const ExtractedCamera& b) {
 FreshWriter fresh_writer(VirtualResidency& r, const std::vector<Aabb>& boxes, ThreadPool& pool) {
   return [&r, &boxes, &pool](std::span<const FreshRange> ranges, uint32_t* words) {
     const auto& table = r.cache->pointlets();
-    pool.parallel_for(ranges.size(), 16, [&](size_t begin, size_t end) {
+    // A few chunks per worker: a task per range would cost more than the range.
+    const size_t grain = std::max<size_t>(16, ranges.size() / (size_t(pool.size()) * 4 + 1));
+    pool.parallel_for(ranges.size(), grain, [&](size_t begin, size_t end) {
       for (size_t k = begin; k < end; ++k) {
         const FreshRange& f = ranges[k];
         VirtualResidency::Slot& slot = r.slots[f.pointlet];
@@ -174,9 +187,13 @@ void gather_stage_times(const RenderStats& frame, double lod_ms, VirtualCloudSta
       if (auto it = frame.pass_ms.find(pass); it != frame.pass_ms.end()) sum += it->second;
     return sum;
   };
-  stats.stage_ms = {lod_ms, ms({"vms-compact"}), ms({"raster-depth"}),
+  stats.stage_ms = {lod_ms + ms({"pointlet-lod"}), ms({"vms-compact"}), ms({"raster-depth"}),
                     ms({"raster-resolve", "raster-accumulate"}),
                     ms({"raster-clear", "raster-occlusion", "raster-fill", "raster-display"})};
+}
+
+bool same_lod_view(const LodView& a, const ExtractedCamera& camera, uint32_t w, uint32_t h) {
+  return same_view(a.camera, camera) && a.width == w && a.height == h;
 }
 
 void select_points(Registry& render) {
@@ -190,17 +207,12 @@ void select_points(Registry& render) {
     std::lock_guard lock(r.progress_mutex);
     if (!r.error.empty()) fail("{}", r.error);
   }
-  const bool view_changed = !v.have_selection || !same_view(v.selected_for, *extracted) ||
-                            v.width != target.width || v.height != target.height;
-  const bool loads_done = r.completed.load() != v.selected_after;
-  if (!view_changed && !loads_done && !v.transfer_pending) {
-    stats.settled = r.pending.load() == 0;
-    return;
-  }
   gpu::Context& ctx = *render.resource<GpuContext>();
   if (!v.pointlets) {
     v.pointlets = std::make_unique<GpuPointlets>(upload_pointlets(ctx, *v.residency->cache));
     v.lod = std::make_unique<PointletLodPipeline>(create_pointlet_lod_pipeline(ctx));
+    v.lod_ring = std::make_unique<gpu::ReadbackRing>(
+        gpu::create_readback_ring(ctx, uint64_t(std::max<size_t>(r.count, 1)) * 4, 3));
     v.options.bucket = fit_bucket(ctx, v.options, uint32_t(r.count), v.pointlets->bytes);
     v.store = std::make_unique<GpuPointStore>(create_point_store(
         ctx, v.options.bucket, pointlet_world_boxes(*r.cache), v.options.staging_bytes));
@@ -209,11 +221,34 @@ void select_points(Registry& render) {
            v.options.gpu_budget >> 20, (v.store->gpu_bytes + v.pointlets->bytes) >> 20,
            v.options.bucket);
   }
+  // The LoD runs in the frame's graph and comes back without a wait: a frame uses the newest
+  // result that arrived (usually the previous frame's view). The first has nothing to use yet
+  // and runs one at once.
   auto t = Clock::now();
-  if (view_changed) {
+  gpu::readback_submitted(*v.lod_ring);  // the previous frame's graph has been submitted
+  bool lod_new = false;
+  v.incoming.resize(r.count);
+  if (auto tag = gpu::take_readback(ctx, *v.lod_ring, v.incoming.data(), false)) {
+    v.desired.swap(v.incoming);
+    v.desired_for = v.lod_views[*tag % v.lod_views.size()];
+    lod_new = true;
+  } else if (!v.have_lod) {
     v.desired = compute_pointlet_lod(ctx, *v.lod, *v.pointlets, to_camera(*extracted), target.width,
                                      target.height, v.options.bucket, &v.lod_gpu_ms);
-    stats.lod_ms = ms_since(t);
+    v.desired_for = {*extracted, target.width, target.height};
+    v.lod_requested_for = v.desired_for;
+    lod_new = true;
+  }
+  v.have_lod = true;
+  stats.lod_ms = ms_since(t);
+  // A LoD for this view goes into this frame's graph (queue_virtual_cloud adds it).
+  v.lod_due = !same_lod_view(v.lod_requested_for, *extracted, target.width, target.height);
+  const bool loads_done = r.completed.load() != v.selected_after;
+  const bool current = same_lod_view(v.desired_for, *extracted, target.width, target.height);
+  if (!lod_new && !loads_done && !v.transfer_pending) {
+    stats.settled =
+        r.pending.load() == 0 && current && !v.lod_due && !gpu::readback_busy(*v.lod_ring);
+    return;
   }
   const uint64_t completed = r.completed.load();
   // Unload first: what the view no longer needs goes when what it needs would not fit.
@@ -227,9 +262,16 @@ void select_points(Registry& render) {
     if (!r.slots[i].in_flight.load() && r.slots[i].loaded.load() > v.desired[i])
       r.unload(i, v.desired[i]);
   // Loads for what is missing (with up to 25% more while the budget allows), and what to draw.
-  std::vector<uint32_t> draw(r.count, 0);
+  // Loads go to the pool as a few tasks per worker (a task per pointlet costs more to queue than
+  // many reads take), the pointlets that lack most first in every task.
+  const auto residency_start = Clock::now();
+  struct Load {
+    uint32_t index, goal, lack;
+  };
+  std::vector<Load> loads;
+  std::vector<uint32_t>& draw = v.draw;
+  draw.assign(r.count, 0);
   uint64_t planned = r.bytes.load();
-  bool requested = false;
   for (uint32_t i = 0; i < r.count; ++i) {
     const uint32_t want = v.desired[i], have = r.slots[i].loaded.load();
     draw[i] = std::min(want, have);
@@ -241,21 +283,35 @@ void select_points(Registry& render) {
     planned += uint64_t(goal - have) * sizeof(PointletRecord);
     r.slots[i].in_flight.store(true);
     ++r.pending;
-    requested = true;
-    std::shared_ptr<VirtualResidency> keep = v.residency;
-    v.pool->submit([keep, i, goal] { keep->load(i, goal); });
+    loads.push_back({i, goal, want - have});
   }
+  const bool requested = !loads.empty();
+  if (requested) {
+    std::stable_sort(loads.begin(), loads.end(),
+                     [](const Load& a, const Load& b) { return a.lack > b.lack; });
+    const size_t tasks = std::min<size_t>(loads.size(), size_t(v.pool->size()) * 2);
+    for (size_t task = 0; task < tasks; ++task) {
+      std::vector<std::pair<uint32_t, uint32_t>> chunk;
+      for (size_t k = task; k < loads.size(); k += tasks)
+        chunk.emplace_back(loads[k].index, loads[k].goal);
+      v.pool->submit([keep = v.residency, chunk = std::move(chunk)] {
+        for (const auto& [index, goal] : chunk) keep->load(index, goal);
+      });
+    }
+  }
+  stats.residency_ms = ms_since(residency_start);
   t = Clock::now();
   StoreUpdate update =
-      update_point_store(ctx, *v.store, draw, fresh_writer(r, v.store->boxes, *v.pool));
+      update_point_store(ctx, *v.store, draw, fresh_writer(r, v.store->boxes, *v.workers));
   stats.upload_ms = ms_since(t);
   v.transfer_pending = update.limited;
+  stats.staging_wait_ms = update.wait_ms;
+  stats.fresh_write_ms = update.write_ms;
   stats.kept_points = update.kept;
   stats.new_points = update.fresh;
   stats.gpu_bytes = v.store->gpu_bytes + v.pointlets->bytes;
   stats.staging_bytes = gpu::staging_bytes(v.store->staging);
   stats.selected_points = v.store->layout.total;
-  v.drawn_counts = std::move(update.drawn);
   stats.visible_pointlets =
       uint32_t(std::count_if(v.desired.begin(), v.desired.end(), [](uint32_t c) { return c > 0; }));
   stats.desired_points = std::accumulate(v.desired.begin(), v.desired.end(), uint64_t(0));
@@ -264,14 +320,11 @@ void select_points(Registry& render) {
   stats.pending_loads = r.pending.load();
   stats.loads = r.loads.load();
   stats.points_read = r.points_read.load();
-  stats.settled = !requested && stats.pending_loads == 0 && !v.transfer_pending;
+  stats.settled = !requested && stats.pending_loads == 0 && !v.transfer_pending && current &&
+                  !v.lod_due && !gpu::readback_busy(*v.lod_ring);
   ++stats.selections;
   stats.bucket = v.options.bucket;
-  v.have_selection = true;
-  v.selected_for = *extracted;
   v.selected_after = completed;
-  v.width = target.width;
-  v.height = target.height;
 }
 
 void queue_virtual_cloud(Registry& render) {
@@ -279,7 +332,9 @@ void queue_virtual_cloud(Registry& render) {
   if (!fg.active) return;
   auto& v = render.resource<VirtualCloudRender>();
   v.lod_gpu_ms = 0;
+  const auto select_start = Clock::now();
   select_points(render);
+  render.resource<VirtualCloudStats>().select_ms = ms_since(select_start);
   gather_stage_times(render.resource<RenderStats>(), v.lod_gpu_ms,
                      render.resource<VirtualCloudStats>());
   const auto& target = render.resource<RenderTarget>();
@@ -296,6 +351,22 @@ void queue_virtual_cloud(Registry& render) {
   options.fill_radius = v.options.fill_radius;
   options.occlusion_beta = v.options.occlusion_beta;
   options.background = v.background;
+  if (v.lod_due && gpu::readback_free(*v.lod_ring)) {
+    const Camera camera = to_camera(*extracted);
+    add_pointlet_lod_passes(fg.graph, *v.lod, *v.pointlets, camera, target.width, target.height,
+                            v.options.bucket);
+    const uint64_t tag = ++v.lod_tag;
+    v.lod_requested_for = {*extracted, target.width, target.height};
+    v.lod_views[tag % v.lod_views.size()] = v.lod_requested_for;
+    fg.graph
+        .add_pass("pointlet-lod-readback", gpu::PassKind::Transfer,
+                  [&v, tag](gpu::PassContext& pc) {
+                    gpu::record_readback(*v.lod_ring, pc.encoder(), v.pointlets->counts.get(),
+                                         uint64_t(v.pointlets->count) * 4, tag);
+                  })
+        .read("pointlet-counts")
+        .side_effect();
+  }
   add_point_store_pass(fg.graph, *v.store);
   add_compute_raster_passes(fg.graph, *v.raster, drawn_points(*v.store), to_camera(*extracted),
                             options, target.width, target.height);
@@ -362,6 +433,7 @@ void VirtualPointCloudPlugin::build(Engine& engine) {
   v.options = options;
   v.background = render.background;
   v.pool = std::make_unique<ThreadPool>(std::max(2u, std::thread::hardware_concurrency()));
+  v.workers = std::make_unique<ThreadPool>(std::max(2u, std::thread::hardware_concurrency()));
   engine.render().insert_resource(std::move(v));
   engine.render().insert_resource(VirtualCloudStats{});
   engine.main().insert_resource(VirtualCloudStats{});

@@ -1,5 +1,6 @@
 #include "stipple/renderer/staging.hpp"
 
+#include <algorithm>
 #include <cstring>
 #include <string>
 
@@ -24,11 +25,12 @@ struct MapWait {
   std::string message;
 };
 
-void request_map(StagingRing::Slot& slot, uint64_t size) {
+void request_map(WGPUBuffer buffer, const std::shared_ptr<StagingSlotState>& state,
+                 WGPUMapMode mode, uint64_t size) {
   WGPUBufferMapCallbackInfo cb = WGPU_BUFFER_MAP_CALLBACK_INFO_INIT;
   cb.mode = WGPUCallbackMode_AllowProcessEvents;
   // The state outlives the callback: the slot keeps it, and so does the callback's reference.
-  auto* keep = new std::shared_ptr<StagingSlotState>(slot.state);
+  auto* keep = new std::shared_ptr<StagingSlotState>(state);
   cb.callback = [](WGPUMapAsyncStatus status, WGPUStringView message, void* userdata, void*) {
     std::unique_ptr<std::shared_ptr<StagingSlotState>> state(
         static_cast<std::shared_ptr<StagingSlotState>*>(userdata));
@@ -40,8 +42,12 @@ void request_map(StagingRing::Slot& slot, uint64_t size) {
     }
   };
   cb.userdata1 = keep;
-  slot.state->phase = Phase::Mapping;
-  wgpuBufferMapAsync(slot.buffer.get(), WGPUMapMode_Write, 0, size, cb);
+  state->phase = Phase::Mapping;
+  wgpuBufferMapAsync(buffer, mode, 0, size, cb);
+}
+
+void request_map(StagingRing::Slot& slot, uint64_t size) {
+  request_map(slot.buffer.get(), slot.state, WGPUMapMode_Write, size);
 }
 
 }  // namespace
@@ -134,6 +140,91 @@ void read_back(Context& ctx, ReadbackBuffer& readback, WGPUBuffer source, uint64
   if (!mapped) fail("buffer readback failed: mapped range is null");
   std::memcpy(out, mapped, size);
   wgpuBufferUnmap(readback.buffer.get());
+}
+
+ReadbackRing create_readback_ring(Context& ctx, uint64_t slot_bytes, uint32_t slots) {
+  ReadbackRing ring;
+  ring.slot_bytes = std::max<uint64_t>(4, (slot_bytes + 3) & ~uint64_t(3));
+  for (uint32_t i = 0; i < slots; ++i) {
+    ReadbackRing::Slot slot;
+    slot.buffer = create_buffer(ctx, ring.slot_bytes,
+                                WGPUBufferUsage_MapRead | WGPUBufferUsage_CopyDst, "readback-ring");
+    slot.state = std::make_shared<StagingSlotState>();
+    slot.state->phase = Phase::Unmapped;  // here: free (not mapped, nothing recorded)
+    ring.slots.push_back(std::move(slot));
+  }
+  return ring;
+}
+
+// Readback slots: Unmapped = free, Submitted = copy recorded, Mapping = map requested,
+// Mapped = result arrived.
+bool record_readback(ReadbackRing& ring, WGPUCommandEncoder encoder, WGPUBuffer source,
+                     uint64_t size, uint64_t tag) {
+  const uint64_t padded = (size + 3) & ~uint64_t(3);
+  if (padded > ring.slot_bytes)
+    fail("readback of {} bytes into slots of {}", size, ring.slot_bytes);
+  for (auto& slot : ring.slots) {
+    if (slot.state->phase != Phase::Unmapped) continue;
+    if (padded > 0)
+      wgpuCommandEncoderCopyBufferToBuffer(encoder, source, 0, slot.buffer.get(), 0, padded);
+    slot.state->phase = Phase::Submitted;
+    slot.tag = tag;
+    slot.size = size;
+    return true;
+  }
+  return false;
+}
+
+void readback_submitted(ReadbackRing& ring) {
+  for (auto& slot : ring.slots)
+    if (slot.state->phase == Phase::Submitted)
+      request_map(slot.buffer.get(), slot.state, WGPUMapMode_Read, ring.slot_bytes);
+}
+
+bool readback_busy(const ReadbackRing& ring) {
+  for (const auto& slot : ring.slots)
+    if (slot.state->phase != Phase::Unmapped) return true;
+  return false;
+}
+
+bool readback_free(const ReadbackRing& ring) {
+  for (const auto& slot : ring.slots)
+    if (slot.state->phase == Phase::Unmapped) return true;
+  return false;
+}
+
+std::optional<uint64_t> take_readback(Context& ctx, ReadbackRing& ring, void* out, bool wait) {
+  auto arrived = [&ring] {
+    for (const auto& slot : ring.slots)
+      if (slot.state->phase == Phase::Mapped || slot.state->phase == Phase::Failed) return true;
+    return false;
+  };
+  auto mapping = [&ring] {
+    for (const auto& slot : ring.slots)
+      if (slot.state->phase == Phase::Mapping) return true;
+    return false;
+  };
+  ctx.poll(false);
+  if (wait) ctx.wait_until([&] { return arrived() || !mapping() || ctx.lost; });
+  ctx.check("reading back");
+  ReadbackRing::Slot* newest = nullptr;
+  for (auto& slot : ring.slots) {
+    if (slot.state->phase == Phase::Failed) fail("readback failed: {}", slot.state->message);
+    if (slot.state->phase == Phase::Mapped && (!newest || slot.tag > newest->tag)) newest = &slot;
+  }
+  if (!newest) return std::nullopt;
+  const uint64_t tag = newest->tag;
+  if (newest->size > 0) {
+    const void* mapped = wgpuBufferGetConstMappedRange(newest->buffer.get(), 0, ring.slot_bytes);
+    if (!mapped) fail("readback: mapped range is null");
+    std::memcpy(out, mapped, newest->size);
+  }
+  for (auto& slot : ring.slots)
+    if (slot.state->phase == Phase::Mapped) {
+      wgpuBufferUnmap(slot.buffer.get());
+      slot.state->phase = Phase::Unmapped;
+    }
+  return tag;
 }
 
 }  // namespace stipple::gpu

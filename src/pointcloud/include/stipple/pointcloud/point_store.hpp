@@ -55,6 +55,9 @@ struct CompactionPlan {
 // at most `max_fresh` new points, shared among the pointlets in proportion to what they lack.
 CompactionPlan plan_compaction(const StoreLayout& previous, const std::vector<uint32_t>& wanted,
                                uint64_t max_fresh);
+// The same into `plan`, reusing its vectors.
+void plan_compaction(const StoreLayout& previous, const std::vector<uint32_t>& wanted,
+                     uint64_t max_fresh, CompactionPlan& plan);
 
 struct GpuPointStore {
   uint64_t capacity = 0;  // points per frame's buffers (>= B)
@@ -63,6 +66,7 @@ struct GpuPointStore {
   GpuBatchedCloud slabs[2];
   uint32_t current = 0;  // the buffers the frame draws
   StoreLayout layout;    // of slabs[current]
+  CompactionPlan plan;   // the last update's (its vectors are reused)
   gpu::Buffer fresh, jobs, params;
   uint64_t fresh_capacity = 0, jobs_capacity = 0;  // points, jobs
   gpu::StagingRing staging;
@@ -74,6 +78,7 @@ struct GpuPointStore {
     gpu::StagingWrite write;
     uint64_t job_count = 0, fresh_points = 0, fresh_offset = 0;
     uint32_t from = 0;
+    uint64_t jobs_at = 0;  // u32s of per-workgroup first jobs before the jobs
   } pending;
 };
 
@@ -100,9 +105,11 @@ struct StoreUpdate {
   bool changed = false;  // a compaction was planned (the next graph must carry the pass)
   uint64_t kept = 0, fresh = 0;
   bool limited = false;
-  std::vector<uint32_t> drawn;  // per pointlet, what the frame draws
+  std::vector<uint32_t> drawn;       // per pointlet, what the frame draws
+  double wait_ms = 0, write_ms = 0;  // CPU: waiting for a staging slot, writing new points
 };
-// Plans the next frame's buffers for `wanted` (<= capacity in total) and writes the new points
+// Plans the next frame's buffers for `wanted` (<= capacity in total; what each pointlet then
+// draws is store.layout.count) and writes the new points
 // into staging; the compaction runs in the vms-compact pass. Call it at most once per frame,
 // after the previous frame's graph was submitted.
 StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,

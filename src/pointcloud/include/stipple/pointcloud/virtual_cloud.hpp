@@ -69,6 +69,9 @@ struct VirtualCloudStats {
   bool settled = false;  // nothing loading and the drawn selection is what the LoD asked for
   double lod_ms = 0, upload_ms = 0;  // CPU ms of the last selection: LoD (with its readback),
                                      // planning and writing new points into staging
+  double residency_ms = 0;           // deciding what to load and unload, queueing the loads
+  double staging_wait_ms = 0, fresh_write_ms = 0;  // parts of upload_ms
+  double select_ms = 0;  // CPU ms of this frame's selection work (all of it)
   // GPU ms of the last frame in the five stages of seed 002, Fig. 15 (kStageNames).
   std::array<double, 5> stage_ms{};
 };

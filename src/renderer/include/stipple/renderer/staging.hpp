@@ -10,6 +10,7 @@
 // every frame allocates nothing.
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "stipple/renderer/gpu.hpp"
@@ -58,5 +59,32 @@ struct ReadbackBuffer {
 };
 void read_back(Context& ctx, ReadbackBuffer& readback, WGPUBuffer source, uint64_t offset,
                uint64_t size, void* out);
+
+// Results read back without waiting: a copy into a free slot is recorded with a frame's
+// commands; once that frame is submitted the slot is mapped asynchronously, and a later frame
+// takes the newest result that has arrived. `tag` says what a result belongs to (a frame
+// number, a camera's index).
+struct ReadbackRing {
+  struct Slot {
+    Buffer buffer;
+    std::shared_ptr<StagingSlotState> state;
+    uint64_t tag = 0, size = 0;
+  };
+  std::vector<Slot> slots;
+  uint64_t slot_bytes = 0;
+};
+ReadbackRing create_readback_ring(Context& ctx, uint64_t slot_bytes, uint32_t slots = 3);
+// Records a copy of `size` bytes of `source` into a free slot; false when every slot is busy.
+bool record_readback(ReadbackRing& ring, WGPUCommandEncoder encoder, WGPUBuffer source,
+                     uint64_t size, uint64_t tag);
+// After the commands holding recorded copies were submitted: their maps are requested.
+void readback_submitted(ReadbackRing& ring);
+// Processes events without blocking (or, with `wait`, until some result arrives while any is
+// in flight); copies the newest arrived result into `out`, frees every arrived slot, and
+// returns its tag; nullopt when none arrived.
+std::optional<uint64_t> take_readback(Context& ctx, ReadbackRing& ring, void* out, bool wait);
+// Whether any copy is recorded or in flight; whether a slot is free for a copy.
+bool readback_busy(const ReadbackRing& ring);
+bool readback_free(const ReadbackRing& ring);
 
 }  // namespace stipple::gpu
