@@ -242,7 +242,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
     params.background[1] = options.background.g;
     params.background[2] = options.background.b;
     params.background[3] = 1.0f;
-    std::vector<GpuBatch> table;
+    thread_local std::vector<GpuBatch> table;  // every frame: keep the capacity
     for (auto& seg : cloud.segments) {
       params.segment_base = uint32_t(seg.first_point);
       params.batch_count = seg.batch_count;

@@ -161,11 +161,19 @@ void sort_run(std::vector<RunRecord>& run, ThreadPool& pool) {
       std::stable_sort(run.begin() + ptrdiff_t(bounds[p]), run.begin() + ptrdiff_t(bounds[p + 1]),
                        less);
   });
-  for (size_t width = 1; width < parts; width *= 2)
-    for (size_t p = 0; p + width < parts; p += 2 * width)
-      std::inplace_merge(run.begin() + ptrdiff_t(bounds[p]),
-                         run.begin() + ptrdiff_t(bounds[p + width]),
-                         run.begin() + ptrdiff_t(bounds[std::min(parts, p + 2 * width)]), less);
+  // Pairs of sorted parts merge in parallel, level by level (only the last merge is alone).
+  for (size_t width = 1; width < parts; width *= 2) {
+    const size_t pairs = (parts + 2 * width - 1) / (2 * width);
+    pool.parallel_for(pairs, 1, [&](size_t begin, size_t end) {
+      for (size_t q = begin; q < end; ++q) {
+        const size_t p = q * 2 * width;
+        if (p + width >= parts) continue;
+        std::inplace_merge(run.begin() + ptrdiff_t(bounds[p]),
+                           run.begin() + ptrdiff_t(bounds[p + width]),
+                           run.begin() + ptrdiff_t(bounds[std::min(parts, p + 2 * width)]), less);
+      }
+    });
+  }
 }
 
 // Run files on disk, removed with the builder.
