@@ -4,6 +4,7 @@
 // draws what the LoD asked for, or all the budget allows.
 #include <unistd.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <random>
 
@@ -37,12 +38,13 @@ class VirtualCloud : public ::testing::TestWithParam<std::string> {
 
   // Runs frames until the selection settles (at most 400), checking the budgets every frame.
   static const pc::VirtualCloudStats& settle(Engine& engine, uint64_t host_budget,
-                                             uint64_t bucket) {
+                                             uint64_t bucket, uint64_t gpu_budget) {
     Registry& render = engine.render();
     for (int i = 0; i < 400; ++i) {
       engine.update();
       const auto& s = render.resource<pc::VirtualCloudStats>();
       EXPECT_LE(s.host_bytes, host_budget);
+      EXPECT_LE(s.gpu_bytes, gpu_budget);
       EXPECT_LE(s.selected_points, bucket);
       EXPECT_LE(s.selected_points, s.desired_points);
       if (s.settled && s.selections > 0) return s;
@@ -56,7 +58,9 @@ fs::path VirtualCloud::dir_;
 
 }  // namespace
 
+// The cache (200,000 points, 4 MB) is 13 times the smaller host budget.
 TEST_P(VirtualCloud, FlightStaysInBudgetAndReusesLoadedPoints) {
+  constexpr uint64_t kGpuBudget = uint64_t(8) << 20;
   for (const uint64_t host_budget : {uint64_t(64) << 20, uint64_t(300000)}) {
     SCOPED_TRACE(host_budget);
     Engine engine;
@@ -72,6 +76,7 @@ TEST_P(VirtualCloud, FlightStaysInBudgetAndReusesLoadedPoints) {
     v.options.build.progress = false;
     v.options.bucket = 40000;
     v.options.host_budget = host_budget;
+    v.options.gpu_budget = kGpuBudget;
     engine.add_plugin(std::move(v));
     engine.add_plugin(HeadlessTargetPlugin{320, 200, "", 0});
     Registry& main = engine.main();
@@ -86,7 +91,7 @@ TEST_P(VirtualCloud, FlightStaysInBudgetAndReusesLoadedPoints) {
       Camera c = step == 0 ? frame_box(box, 1.6)
                            : frame_box(box, 1.6, 360 * u(rng), 20 + 60 * u(rng), 20 + 40 * u(rng));
       main.get<Camera>(camera_entity) = c;
-      const pc::VirtualCloudStats s = settle(engine, host_budget, 40000);
+      const pc::VirtualCloudStats s = settle(engine, host_budget, 40000, kGpuBudget);
       desired_sum += s.desired_points;
       EXPECT_GT(s.desired_points, 0u);
       if (host_budget >= (uint64_t(64) << 20)) {
@@ -99,6 +104,12 @@ TEST_P(VirtualCloud, FlightStaysInBudgetAndReusesLoadedPoints) {
       }
     }
     const auto& s = engine.render().resource<pc::VirtualCloudStats>();
+    std::printf("host budget %llu B: peak %llu B of loaded points; GPU %llu B of %llu\n",
+                static_cast<unsigned long long>(host_budget),
+                static_cast<unsigned long long>(s.peak_host_bytes),
+                static_cast<unsigned long long>(s.gpu_bytes),
+                static_cast<unsigned long long>(kGpuBudget));
+    EXPECT_GT(s.gpu_bytes, 40000u * 32);  // both frames' buffers of the bucket are counted
     if (host_budget >= (uint64_t(64) << 20)) {
       // Prefixes already loaded are not read again: a flight reads less than it draws (each
       // step's points read from scratch would be desired_sum, over-fetch included 1.25x).

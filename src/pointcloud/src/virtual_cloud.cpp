@@ -58,6 +58,8 @@ struct VirtualResidency {
       std::lock_guard lock(slot.mutex);
       const uint32_t have = slot.loaded.load();
       if (target > have) {
+        // Exactly what is counted: a vector grown by doubling would hold up to twice that.
+        slot.records.reserve(target);
         cache->read(index, have, target - have, slot.records);
         slot.loaded.store(target);
         bytes += uint64_t(target - have) * sizeof(PointletRecord);
