@@ -14,8 +14,8 @@ struct Params {
   depth_stride: u32,       // u32 words per pixel in the depth buffer (2: 64-bit visibility)
   depth_word: u32,         // which word holds the depth
   segment_points: u32,    // points in this segment
-  _pad1: u32,
-  _pad2: u32,
+  edl_strength: f32,       // eye-dome lighting in the display pass; 0: off
+  edl_radius: f32,         // its neighbour distance in pixels
   background: vec4<f32>,
 }
 

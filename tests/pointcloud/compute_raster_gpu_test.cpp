@@ -182,6 +182,49 @@ TEST_P(ComputeRaster, MoreBatchesThanOneDispatchRow) {
   EXPECT_GT(test::coverage_stats(r.image, kBlack, 0).coverage, 0.05);
 }
 
+// Eye-dome lighting in the display pass: no pixel covered anew, none brighter, pixels behind
+// nearer neighbours darker, and more of them the stronger it is (1-pixel points of a sparse
+// scan have many such neighbours, so the share is large; without EDL it is zero).
+TEST_P(ComputeRaster, EyeDomeLightingDarkensBehindNearerNeighbours) {
+  auto ctx = context();
+  io::SceneParams scene;
+  scene.point_count = 1'000'000;
+  auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Hilbert);
+  const uint32_t w = 160, h = 90;
+  Camera camera = frame_box(batched.world_bounds, double(w) / h, 30.0, 80.0, 40.0);
+  auto plain = render_compute(*ctx, batched, camera, {}, w, h);
+  auto darkened_share = [&](float strength) {
+    pc::ComputeRasterOptions edl;
+    edl.edl_strength = strength;
+    edl.edl_radius = 1.4f;
+    auto b = render_compute(*ctx, batched, camera, edl, w, h);
+    uint64_t covered = 0, darker = 0;
+    for (size_t i = 0; i < plain.image.rgba.size(); i += 4) {
+      const auto* pa = &plain.image.rgba[i];
+      const auto* pb = &b.image.rgba[i];
+      if (!(pa[0] | pa[1] | pa[2])) {  // background stays background
+        EXPECT_FALSE(pb[0] | pb[1] | pb[2]) << "pixel " << i / 4;
+        continue;
+      }
+      ++covered;
+      int most = 0;
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_LE(int(pb[c]), int(pa[c]) + 1) << "pixel " << i / 4;  // never brighter
+        most = std::max(most, int(pa[c]) - int(pb[c]));
+      }
+      if (most > 8) ++darker;
+    }
+    EXPECT_GT(covered, 1000u);
+    return double(darker) / double(std::max<uint64_t>(covered, 1));
+  };
+  const double weak = darkened_share(5.0f), strong = darkened_share(60.0f);
+  std::printf("EDL darkened %.1f%% (strength 5) and %.1f%% (60) of the covered pixels\n",
+              100 * weak, 100 * strong);
+  EXPECT_GT(weak, 0.01);
+  EXPECT_GT(strong, weak + 0.05);
+  EXPECT_LT(strong, 0.9);
+}
+
 TEST_P(ComputeRaster, PrecisionLevelsAgreeForSmallBatches) {
   auto ctx = context();
   io::SceneParams scene;

@@ -25,7 +25,7 @@ struct Params {
   float depth_tolerance;
   uint32_t depth_stride, depth_word;
   uint32_t segment_points;
-  uint32_t pad[2];
+  float edl_strength, edl_radius;
   float background[4];
 };
 static_assert(sizeof(Params) == 128);
@@ -238,6 +238,8 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
     params.depth_tolerance = options.hqs ? options.hqs_tolerance : 1e-6f;
     params.depth_stride = use64 ? 2 : 1;
     params.depth_word = use64 ? 1 : 0;
+    params.edl_strength = options.edl_strength;
+    params.edl_radius = options.edl_radius;
     params.background[0] = options.background.r;
     params.background[1] = options.background.g;
     params.background[2] = options.background.b;
@@ -400,18 +402,20 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
 
   graph
       .add_pass("raster-display", gpu::PassKind::Render,
-                [&p, &cloud, accum_name = shown, color_target](gpu::PassContext& pc) {
+                [&p, &cloud, accum_name = shown, color_target, depth_name](gpu::PassContext& pc) {
                   gpu::Context& ctx = pc.gpu();
                   auto layout = gpu::bind_group_layout_of(p.display);
                   if (cloud.segments.empty()) return;
                   auto group =
                       gpu::create_bind_group(ctx, layout.get(),
                                              {gpu::bind_buffer(0, cloud.segments[0].params.get()),
-                                              gpu::bind_buffer(1, pc.buffer(accum_name))});
+                                              gpu::bind_buffer(1, pc.buffer(accum_name)),
+                                              gpu::bind_buffer(2, pc.buffer(depth_name))});
                   gpu::draw_fullscreen(pc, pc.view(color_target), p.display.get(), {group.get()},
                                        WGPUColor{0, 0, 0, 1});
                 })
       .read(shown)
+      .read(depth_name)
       .write(color_target);
 }
 

@@ -153,6 +153,8 @@ void queue_point_clouds(Registry& render) {
       options.fill_radius = settings.fill_radius;
       options.occlusion_beta = settings.occlusion_beta;
       options.background = settings.render.background;
+      options.edl_strength = settings.render.edl ? settings.render.edl_strength : 0.0f;
+      options.edl_radius = settings.render.edl_radius;
       pc::add_compute_raster_passes(fg.graph, *cache.raster, *r.batched, camera, options,
                                     target.width, target.height);
       stats.points_drawn += r.batched->point_count;

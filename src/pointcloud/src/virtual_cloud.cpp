@@ -104,6 +104,7 @@ struct VirtualCloudRender {
   uint64_t selected_after = 0;     // residency.completed when the drawn selection was built
   VirtualCloudOptions options;
   glm::vec3 background{0.0f};
+  float edl_strength = 0.0f, edl_radius = 1.0f;  // eye-dome lighting after hole filling
   std::unique_ptr<GpuPointlets> pointlets;
   std::unique_ptr<PointletLodPipeline> lod;
   std::unique_ptr<ComputeRasterPipeline> raster;
@@ -353,6 +354,8 @@ void queue_virtual_cloud(Registry& render) {
   options.fill_radius = v.options.fill_radius;
   options.occlusion_beta = v.options.occlusion_beta;
   options.background = v.background;
+  options.edl_strength = v.edl_strength;
+  options.edl_radius = v.edl_radius;
   if (v.lod_due && gpu::readback_free(*v.lod_ring)) {
     const Camera camera = to_camera(*extracted);
     add_pointlet_lod_passes(fg.graph, *v.lod, *v.pointlets, camera, target.width, target.height,
@@ -434,6 +437,8 @@ void VirtualPointCloudPlugin::build(Engine& engine) {
   v.residency = residency;
   v.options = options;
   v.background = render.background;
+  v.edl_strength = render.edl ? render.edl_strength : 0.0f;
+  v.edl_radius = render.edl_radius;
   v.pool = std::make_unique<ThreadPool>(std::max(2u, std::thread::hardware_concurrency()));
   v.workers = std::make_unique<ThreadPool>(std::max(2u, std::thread::hardware_concurrency()));
   engine.render().insert_resource(std::move(v));

@@ -81,6 +81,10 @@ struct ComputeRasterOptions {
   uint32_t fill_radius = 0;
   float occlusion_beta = 0.0f;
   uint32_t occlusion_radius = 1;
+  // Eye-dome lighting in the display pass, after the above (seed 000, eqs. 10-12): strength
+  // (0: off) and the neighbours' distance in pixels.
+  float edl_strength = 0.0f;
+  float edl_radius = 1.0f;
 };
 
 // `force_fallback` runs the 32-bit two-pass pipeline even where 64-bit atomics exist.

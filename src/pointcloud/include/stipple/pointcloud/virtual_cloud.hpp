@@ -94,7 +94,7 @@ struct VirtualPointCloudPlugin {
   static constexpr std::array<std::string_view, 3> dependencies{"GpuPlugin", "RenderGraphPlugin",
                                                                 "CameraPlugin"};
   VirtualCloudOptions options;
-  PointRenderSettings render;  // background (the compute rasterizer draws RGB)
+  PointRenderSettings render;  // background and eye-dome lighting (the rasterizer draws RGB)
   void build(Engine& engine);
 };
 
