@@ -13,7 +13,7 @@
 
 #include <gtest/gtest.h>
 
-#include "scene_las.hpp"
+#include "scene_pointlets.hpp"
 
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/point_store.hpp"
@@ -29,16 +29,7 @@ namespace {
 
 class PointStore : public ::testing::TestWithParam<std::string> {
  protected:
-  static void SetUpTestSuite() {
-    dir_ = fs::temp_directory_path() / ("stipple-point-store-" + std::to_string(getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    test::write_scene_las(dir_ / "scene.las", 200000);
-    pc::PointletBuildOptions build;
-    build.pointlets = 2000;  // k = 64: 3125 pointlets
-    build.progress = false;
-    pc::build_pointlet_cache({dir_ / "scene.las"}, dir_ / "scene.pointlets", build);
-  }
+  static void SetUpTestSuite() { dir_ = test::make_scene_pointlets("point-store"); }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
   static fs::path dir_;
 };

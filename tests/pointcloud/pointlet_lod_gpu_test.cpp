@@ -8,7 +8,7 @@
 
 #include <gtest/gtest.h>
 
-#include "scene_las.hpp"
+#include "scene_pointlets.hpp"
 
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/pointlet_lod.hpp"
@@ -22,16 +22,7 @@ namespace {
 
 class PointletLod : public ::testing::TestWithParam<std::string> {
  protected:
-  static void SetUpTestSuite() {
-    dir_ = fs::temp_directory_path() / ("stipple-pointlet-lod-" + std::to_string(getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    test::write_scene_las(dir_ / "scene.las", 200000);
-    pc::PointletBuildOptions build;
-    build.pointlets = 2000;  // k = 64: 3125 pointlets
-    build.progress = false;
-    pc::build_pointlet_cache({dir_ / "scene.las"}, dir_ / "scene.pointlets", build);
-  }
+  static void SetUpTestSuite() { dir_ = test::make_scene_pointlets("pointlet-lod"); }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
   static fs::path dir_;
 };

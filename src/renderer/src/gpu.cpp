@@ -6,6 +6,7 @@
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
+#include "stipple/renderer/staging.hpp"
 #include "webgpu_loader.hpp"
 
 namespace stipple::gpu {
@@ -587,39 +588,9 @@ ShaderModule create_shader(Context& ctx, std::string_view wgsl, std::string_view
 }
 
 std::vector<uint8_t> read_buffer(Context& ctx, WGPUBuffer buffer, uint64_t offset, uint64_t size) {
-  uint64_t padded = (size + 3) & ~uint64_t(3);
-  Buffer staging =
-      create_buffer(ctx, padded, WGPUBufferUsage_MapRead | WGPUBufferUsage_CopyDst, "readback");
-  WGPUCommandEncoderDescriptor enc_desc = WGPU_COMMAND_ENCODER_DESCRIPTOR_INIT;
-  CommandEncoder encoder(wgpuDeviceCreateCommandEncoder(ctx.device.get(), &enc_desc));
-  wgpuCommandEncoderCopyBufferToBuffer(encoder.get(), buffer, offset, staging.get(), 0, padded);
-  CommandBuffer commands(wgpuCommandEncoderFinish(encoder.get(), nullptr));
-  WGPUCommandBuffer raw = commands.get();
-  wgpuQueueSubmit(ctx.queue.get(), 1, &raw);
-
-  struct MapResult {
-    bool done = false;
-    WGPUMapAsyncStatus status = WGPUMapAsyncStatus_Error;
-    std::string message;
-  } map;
-  WGPUBufferMapCallbackInfo cb = WGPU_BUFFER_MAP_CALLBACK_INFO_INIT;
-  cb.mode = WGPUCallbackMode_AllowProcessEvents;
-  cb.callback = [](WGPUMapAsyncStatus status, WGPUStringView message, void* userdata, void*) {
-    auto* r = static_cast<MapResult*>(userdata);
-    r->done = true;
-    r->status = status;
-    r->message = to_string(message);
-  };
-  cb.userdata1 = &map;
-  wgpuBufferMapAsync(staging.get(), WGPUMapMode_Read, 0, padded, cb);
-  ctx.wait_until([&] { return map.done || ctx.lost; });
-  ctx.check("reading a buffer back");
-  if (map.status != WGPUMapAsyncStatus_Success) fail("buffer readback failed: {}", map.message);
-  const auto* mapped =
-      static_cast<const uint8_t*>(wgpuBufferGetConstMappedRange(staging.get(), 0, padded));
-  if (!mapped) fail("buffer readback failed: mapped range is null");
-  std::vector<uint8_t> result(mapped, mapped + size);
-  wgpuBufferUnmap(staging.get());
+  ReadbackBuffer once;  // read_back's path, with a buffer of its own
+  std::vector<uint8_t> result(size);
+  read_back(ctx, once, buffer, offset, size, result.data());
   return result;
 }
 
