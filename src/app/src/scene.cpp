@@ -76,17 +76,14 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
     v.options.build.pointlets = options.pointlets;
     v.options.build.memory_budget = std::min<uint64_t>(host_budget(options) / 2, uint64_t(4) << 30);
     // The host budget is the process's: the loaded points get what the two mapped staging
-    // slots, the pointlet tables and per-frame arrays (about 200 bytes a pointlet, at most 2m
-    // pointlets) and the process itself (libraries, driver: 768 MiB, as measured with NVIDIA's
-    // Vulkan driver) leave, the last two together at most a quarter of the budget.
+    // slots leave, and once the first frame has run, at most what the rest of the process
+    // (libraries, driver, tables, and the GPU buffers on a software GPU) leaves of it.
     const uint64_t budget = host_budget(options);
     v.options.staging_bytes =
         std::clamp<uint64_t>(budget / 16, uint64_t(1) << 20, uint64_t(64) << 20);
-    const uint64_t fixed =
-        std::min<uint64_t>(budget / 4, (uint64_t(768) << 20) + 2 * options.pointlets * 200);
-    v.options.host_budget = budget > 4 * v.options.staging_bytes + fixed
-                                ? budget - 2 * v.options.staging_bytes - fixed
-                                : budget / 2;
+    v.options.host_budget =
+        budget > 4 * v.options.staging_bytes ? budget - 2 * v.options.staging_bytes : budget / 2;
+    v.options.process_budget = budget;
     if (!options.gpu_memory.empty()) v.options.gpu_budget = tiler::parse_size(options.gpu_memory);
     v.options.bucket = options.bucket;
     v.options.hqs = options.hqs;

@@ -261,6 +261,16 @@ void add_point_store_pass(gpu::RenderGraph& graph, GpuPointStore& store) {
       .add_pass(
           "vms-compact", gpu::PassKind::Compute,
           [&store](gpu::PassContext& pc) {
+            if (!store.cleared) {
+              // Both frames' buffers are written once, so that all the memory they take is
+              // in use from the first frame (on a software GPU it is host memory, measured).
+              store.cleared = true;
+              for (auto& slab : store.slabs)
+                for (const gpu::Buffer* b :
+                     {&slab.segments.front().coarse, &slab.segments.front().medium,
+                      &slab.segments.front().fine, &slab.segments.front().color})
+                  wgpuCommandEncoderClearBuffer(pc.encoder(), b->get(), 0, WGPU_WHOLE_SIZE);
+            }
             GpuPointStore::Pending& p = store.pending;
             if (!p.active) return;
             p.active = false;

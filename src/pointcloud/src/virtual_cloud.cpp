@@ -10,6 +10,7 @@
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
+#include "stipple/core/memory.hpp"
 #include "stipple/core/thread_pool.hpp"
 #include "stipple/engine/camera.hpp"
 #include "stipple/engine/engine.hpp"
@@ -111,8 +112,9 @@ struct VirtualCloudRender {
   WGPUTextureFormat format = WGPUTextureFormat_Undefined;
   // Boxed: the graph reads it when it executes.
   std::unique_ptr<GpuPointStore> store;
-  bool transfer_pending = false;                // the last update could not bring every new point
-  double lod_gpu_ms = 0;                        // this frame's LoD, when it ran
+  bool transfer_pending = false;  // the last update could not bring every new point
+  double lod_gpu_ms = 0;          // this frame's LoD, when it ran
+  bool process_measured = false;  // the process budget has been turned into a points budget
   std::unique_ptr<gpu::ReadbackRing> lod_ring;  // LoD counts back from the GPU, unwaited
   bool have_lod = false, lod_due = false;
   uint64_t lod_tag = 0;
@@ -253,6 +255,21 @@ void select_points(Registry& render) {
         r.pending.load() == 0 && current && !v.lod_due && !gpu::readback_busy(*v.lod_ring);
     return;
   }
+  // The process budget: measured once the first frame made the GPU buffers (the first
+  // selection runs before they exist), then kept.
+  if (v.options.process_budget > 0 && !v.process_measured && stats.selections >= 1) {
+    v.process_measured = true;
+    if (const uint64_t rss = resident_bytes(); rss > 0) {
+      const uint64_t left = points_budget(v.options.process_budget, rss, r.bytes.load(), r.budget);
+      if (left < r.budget)
+        STIPPLE_INFO(
+            "host budget: the process holds {} MiB besides its points; {} MiB left for them",
+            (rss - std::min(rss, r.bytes.load())) >> 20, left >> 20);
+      r.budget = left;
+    }
+  }
+  stats.host_budget = r.budget;
+  stats.process_bytes = resident_bytes();
   const uint64_t completed = r.completed.load();
   // Unload first: what the view no longer needs goes when what it needs would not fit.
   const auto& table = v.residency->cache->pointlets();
@@ -386,6 +403,14 @@ void snapshot_virtual_stats(Registry& main) {
 }
 
 }  // namespace
+
+uint64_t points_budget(uint64_t process_budget, uint64_t resident, uint64_t loaded,
+                       uint64_t host_budget) {
+  const uint64_t other = resident > loaded ? resident - loaded : 0;
+  const uint64_t margin = std::max<uint64_t>(uint64_t(32) << 20, process_budget / 20);
+  const uint64_t left = process_budget > other + margin ? process_budget - other - margin : 0;
+  return std::min(left, host_budget);
+}
 
 void wait_for_virtual_loads(const VirtualCloudHandle& handle, double timeout_s) {
   VirtualResidency& r = *handle.residency;

@@ -69,6 +69,9 @@ StagingRing create_staging_ring(Context& ctx, uint64_t slot_bytes, uint32_t slot
     slot.buffer = Buffer(wgpuDeviceCreateBuffer(ctx.device.get(), &desc));
     if (!slot.buffer) fail("could not create staging buffer ({} bytes)", ring.slot_bytes);
     slot.state = std::make_shared<StagingSlotState>();
+    // Touched now, so that the host memory it takes is resident (and measured) from the start.
+    if (void* data = wgpuBufferGetMappedRange(slot.buffer.get(), 0, ring.slot_bytes))
+      std::memset(data, 0, ring.slot_bytes);
     ring.slots.push_back(std::move(slot));
   }
   return ring;

@@ -72,6 +72,7 @@ struct GpuPointStore {
   gpu::StagingRing staging;
   gpu::ComputePipeline positions, colors;
   uint64_t gpu_bytes = 0;  // every buffer above (device memory)
+  bool cleared = false;    // the buffers were written once (the first vms-compact pass)
   // Set by update_point_store, recorded by the vms-compact pass.
   struct Pending {
     bool active = false;

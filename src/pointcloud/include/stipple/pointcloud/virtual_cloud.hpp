@@ -36,8 +36,13 @@ struct VirtualCloudOptions {
   uint64_t bucket = kDefaultPointBucket;  // B: the most points drawn in a frame
   bool hqs = false;
   uint64_t host_budget = uint64_t(1) << 30;  // bytes of loaded points kept on the host
-  uint32_t fill_radius = 1;                  // hole filling (seed 002, III-D1); 0: off
-  float occlusion_beta = 0.0f;               // occlusion check (eq. 4) threshold in radians; 0: off
+  // When set, the whole process's resident memory stays under it: once the first frame has
+  // made the GPU buffers (on a software GPU they are host memory too), what the process holds
+  // besides the loaded points is measured, and the points get what is left of this (less a
+  // margin for later growth), if that is below host_budget.
+  uint64_t process_budget = 0;
+  uint32_t fill_radius = 1;     // hole filling (seed 002, III-D1); 0: off
+  float occlusion_beta = 0.0f;  // occlusion check (eq. 4) threshold in radians; 0: off
   // Device memory the point store and the pointlets may use; 0: what B needs. A bucket that
   // does not fit is lowered to what does (with a warning).
   uint64_t gpu_budget = 0;
@@ -61,9 +66,11 @@ struct VirtualCloudStats {
   uint64_t desired_points = 0;                   // what the LoD asked for (<= B)
   uint64_t selected_points = 0;                  // what is drawn of it: the loaded part
   uint64_t host_bytes = 0, peak_host_bytes = 0;  // loaded points on the host
-  uint64_t gpu_bytes = 0;                        // device memory: point store and pointlet buffers
-  uint64_t staging_bytes = 0;                    // mapped host memory for the transfers
-  uint64_t kept_points = 0, new_points = 0;      // the last update: kept on the GPU, transferred
+  uint64_t host_budget = 0;    // what the loaded points may take (after process_budget)
+  uint64_t process_bytes = 0;  // the process's resident memory at the last selection
+  uint64_t gpu_bytes = 0;      // device memory: point store and pointlet buffers
+  uint64_t staging_bytes = 0;  // mapped host memory for the transfers
+  uint64_t kept_points = 0, new_points = 0;  // the last update: kept on the GPU, transferred
   uint32_t pending_loads = 0;
   uint64_t loads = 0, points_read = 0;  // load tasks done, points read from the cache
   bool settled = false;  // nothing loading and the drawn selection is what the LoD asked for
@@ -77,6 +84,12 @@ struct VirtualCloudStats {
 };
 inline constexpr std::array<std::string_view, 5> kStageNames{"lod", "compaction", "projection",
                                                              "resolve", "fill"};
+
+// What the loaded points may take under a process budget: what the process holds besides them
+// (resident - loaded) and a margin (5%, at least 32 MiB) for later growth are left out; never
+// more than host_budget.
+uint64_t points_budget(uint64_t process_budget, uint64_t resident, uint64_t loaded,
+                       uint64_t host_budget);
 
 // Main-world resource: waits for the loads in flight (a headless render waits until settled).
 struct VirtualResidency;
