@@ -38,8 +38,8 @@ class VirtualCloud : public ::testing::TestWithParam<std::string> {
   static fs::path dir_;
 
   // Runs frames until the selection settles (at most 400), checking the budgets every frame.
-  static const pc::VirtualCloudStats& settle(Engine& engine, uint64_t host_budget,
-                                             uint64_t bucket, uint64_t gpu_budget) {
+  static const pc::VirtualCloudStats& settle(Engine& engine, uint64_t host_budget, uint64_t bucket,
+                                             uint64_t gpu_budget) {
     Registry& render = engine.render();
     for (int i = 0; i < 400; ++i) {
       engine.update();
@@ -57,6 +57,28 @@ class VirtualCloud : public ::testing::TestWithParam<std::string> {
 };
 fs::path VirtualCloud::dir_;
 
+// A headless engine drawing the generated scan from its cache (m = 2000, B = 40,000) at
+// 320x200 with the given budgets.
+void add_virtual_cloud(Engine& engine, const std::string& backend, const fs::path& dir,
+                       uint64_t host_budget, uint64_t gpu_budget, uint64_t process_budget) {
+  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
+  GpuPlugin gpu;
+  gpu.options.backend = backend;
+  engine.add_plugin(std::move(gpu));
+  engine.add_plugin(RenderGraphPlugin{});
+  pc::VirtualPointCloudPlugin v;
+  v.options.files = {dir / "scene.las"};
+  v.options.cache_dir = dir / "cache";
+  v.options.build.pointlets = 2000;
+  v.options.build.progress = false;
+  v.options.bucket = 40000;
+  v.options.host_budget = host_budget;
+  v.options.gpu_budget = gpu_budget;
+  v.options.process_budget = process_budget;
+  engine.add_plugin(std::move(v));
+  engine.add_plugin(HeadlessTargetPlugin{320, 200, "", 0});
+}
+
 }  // namespace
 
 // The cache (200,000 points, 4 MB) is 13 times the smaller host budget.
@@ -65,21 +87,7 @@ TEST_P(VirtualCloud, FlightStaysInBudgetAndReusesLoadedPoints) {
   for (const uint64_t host_budget : {uint64_t(64) << 20, uint64_t(300000)}) {
     SCOPED_TRACE(host_budget);
     Engine engine;
-    engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
-    GpuPlugin gpu;
-    gpu.options.backend = GetParam();
-    engine.add_plugin(std::move(gpu));
-    engine.add_plugin(RenderGraphPlugin{});
-    pc::VirtualPointCloudPlugin v;
-    v.options.files = {dir_ / "scene.las"};
-    v.options.cache_dir = dir_ / "cache";
-    v.options.build.pointlets = 2000;
-    v.options.build.progress = false;
-    v.options.bucket = 40000;
-    v.options.host_budget = host_budget;
-    v.options.gpu_budget = kGpuBudget;
-    engine.add_plugin(std::move(v));
-    engine.add_plugin(HeadlessTargetPlugin{320, 200, "", 0});
+    add_virtual_cloud(engine, GetParam(), dir_, host_budget, kGpuBudget, 0);
     Registry& main = engine.main();
     const Aabb box = main.resource<pc::SceneInfo>().world_bounds;
     const Entity camera_entity = main.create();
@@ -126,23 +134,10 @@ TEST_P(VirtualCloud, FlightStaysInBudgetAndReusesLoadedPoints) {
 // keep to it.
 TEST_P(VirtualCloud, AProcessBudgetLowersThePointsBudget) {
   Engine engine;
-  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
-  GpuPlugin gpu;
-  gpu.options.backend = GetParam();
-  engine.add_plugin(std::move(gpu));
-  engine.add_plugin(RenderGraphPlugin{});
-  pc::VirtualPointCloudPlugin v;
-  v.options.files = {dir_ / "scene.las"};
-  v.options.cache_dir = dir_ / "cache";
-  v.options.build.pointlets = 2000;
-  v.options.build.progress = false;
-  v.options.bucket = 40000;
-  v.options.host_budget = uint64_t(64) << 20;
   // The process (driver, libraries) takes far more than 16 MiB, so this is over what it holds
   // now by less than the margin: nothing is left for more points.
-  v.options.process_budget = resident_bytes() + (uint64_t(16) << 20);
-  engine.add_plugin(std::move(v));
-  engine.add_plugin(HeadlessTargetPlugin{320, 200, "", 0});
+  add_virtual_cloud(engine, GetParam(), dir_, uint64_t(64) << 20, 0,
+                    resident_bytes() + (uint64_t(16) << 20));
   Registry& main = engine.main();
   const Aabb box = main.resource<pc::SceneInfo>().world_bounds;
   const Entity camera = main.create();
