@@ -150,7 +150,8 @@ TEST_P(VirtualCloud, AProcessBudgetLowersThePointsBudget) {
   const auto& s = engine.render().resource<pc::VirtualCloudStats>();
   EXPECT_GT(s.process_bytes, 0u);
   EXPECT_LT(s.host_budget, uint64_t(64) << 20);
-  EXPECT_LE(s.host_bytes, std::max(s.host_budget, s.peak_host_bytes));
+  // What was loaded before the budget was lowered is thinned to it.
+  EXPECT_LE(s.host_bytes, s.host_budget);
   engine.shutdown();
 }
 

@@ -281,6 +281,14 @@ void select_points(Registry& render) {
   for (uint32_t i = 0; i < r.count && r.bytes.load() + needed > r.budget; ++i)
     if (!r.slots[i].in_flight.load() && r.slots[i].loaded.load() > v.desired[i])
       r.unload(i, v.desired[i]);
+  // Still over (the budget was lowered under what the view holds): every pointlet keeps the
+  // same share of its prefix, so the view thins out evenly.
+  if (const uint64_t bytes = r.bytes.load(); bytes > r.budget) {
+    const double share = double(r.budget) / double(bytes);
+    for (uint32_t i = 0; i < r.count; ++i)
+      if (!r.slots[i].in_flight.load())
+        r.unload(i, uint32_t(double(r.slots[i].loaded.load()) * share));
+  }
   // Loads for what is missing (with up to 25% more while the budget allows), and what to draw.
   // Loads go to the pool as a few tasks per worker (a task per pointlet costs more to queue than
   // many reads take), the pointlets that lack most first in every task.
