@@ -216,8 +216,9 @@ StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
       while (j + 1 < plan.jobs.size() && plan.jobs[j + 1].dst <= d) ++j;
       first[b] = j;
     }
-    std::memcpy(w.data + jobs_at(plan.next.total) * 4, plan.jobs.data(),
-                plan.jobs.size() * sizeof(CompactionJob));
+    if (!plan.jobs.empty())  // (an empty vector's data() may be null: no memcpy from it)
+      std::memcpy(w.data + jobs_at(plan.next.total) * 4, plan.jobs.data(),
+                  plan.jobs.size() * sizeof(CompactionJob));
   }
   if (plan.fresh_points > 0) write(plan.fresh, reinterpret_cast<uint32_t*>(w.data + fresh_offset));
 
