@@ -56,6 +56,18 @@ fn find_job(index: u32) -> Job {
   return Job(info[at], info[at + 1u], info[at + 2u], info[at + 3u]);
 }
 
+// Where destination `index` copies from: index `at` of the new points (fresh) or of the previous
+// frame's buffers.
+struct Source {
+  at: u32,
+  fresh: bool,
+}
+
+fn source_of(index: u32) -> Source {
+  let job = find_job(index);
+  return Source(job.src + (index - job.dst), job.fresh != 0u);
+}
+
 fn destination(group: vec3<u32>, lid: u32) -> u32 {
   return group.y * params.row + group.x * WORKGROUP + lid;
 }
@@ -67,17 +79,16 @@ fn compact_positions(@builtin(workgroup_id) group: vec3<u32>,
   if (index >= params.total) {
     return;
   }
-  let job = find_job(index);
-  let at = job.src + (index - job.dst);
-  if (job.fresh != 0u) {
-    let p = fresh[at];
+  let s = source_of(index);
+  if (s.fresh) {
+    let p = fresh[s.at];
     dst_a[index] = p.x;
     dst_b[index] = p.y;
     dst_c[index] = p.z;
   } else {
-    dst_a[index] = src_a[at];
-    dst_b[index] = src_b[at];
-    dst_c[index] = src_c[at];
+    dst_a[index] = src_a[s.at];
+    dst_b[index] = src_b[s.at];
+    dst_c[index] = src_c[s.at];
   }
 }
 
@@ -88,11 +99,10 @@ fn compact_colors(@builtin(workgroup_id) group: vec3<u32>,
   if (index >= params.total) {
     return;
   }
-  let job = find_job(index);
-  let at = job.src + (index - job.dst);
-  if (job.fresh != 0u) {
-    dst_a[index] = fresh[at].w;
+  let s = source_of(index);
+  if (s.fresh) {
+    dst_a[index] = fresh[s.at].w;
   } else {
-    dst_a[index] = src_a[at];
+    dst_a[index] = src_a[s.at];
   }
 }

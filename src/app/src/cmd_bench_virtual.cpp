@@ -9,8 +9,6 @@
 // readback, planning, staging), its GPU work and the read of its timestamps, one after the
 // other (no overlap of frames, so FPS is a lower bound of what a pipelined viewer reaches). Loads
 // run on the worker pool meanwhile, as in an interactive session: frames do not wait for them.
-#include <sys/resource.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -27,6 +25,7 @@
 #include "stipple/app/scene.hpp"
 #include "stipple/core/atomic_file.hpp"
 #include "stipple/core/error.hpp"
+#include "stipple/core/memory.hpp"
 #include "stipple/core/progress.hpp"
 #include "stipple/core/stats.hpp"
 #include "stipple/engine/camera.hpp"
@@ -72,12 +71,6 @@ Camera path_camera(const VirtualBenchArgs& a, const Aabb& world, double t, doubl
   camera.fov_y = glm::radians(fov);
   camera.look_at(eye, c);
   return camera;
-}
-
-uint64_t peak_rss_bytes() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return uint64_t(usage.ru_maxrss) * 1024;
 }
 
 std::unique_ptr<Engine> make_engine(const VirtualBenchArgs& a, uint64_t bucket, uint32_t fill) {
@@ -239,7 +232,7 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
     const double max_fps = *fast > 0 ? 1000.0 / *fast : 0, min_fps = *slow > 0 ? 1000.0 / *slow : 0;
     const double drawn =
         std::accumulate(r.drawn.begin(), r.drawn.end(), 0.0) / std::max<size_t>(1, r.drawn.size());
-    const uint64_t rss = peak_rss_bytes();
+    const uint64_t rss = peak_resident_bytes();
     std::printf("%10.2fM %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %9.2f %9.1f %9.1f %9.1f\n",
                 r.bucket / 1e6, avg, min_fps, max_fps, low_fps(r.wall_ms, 0.01),
                 low_fps(r.wall_ms, 0.001), gpu_fps, drawn / 1e6, r.peak_host / 1048576.0,
