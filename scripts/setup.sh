@@ -92,11 +92,15 @@ if [[ ! -d "$deps/node/node_modules/gltf-validator" ]] && command -v npm >/dev/n
   (cd "$deps/node" && npm install --silent --no-audit --no-fund --prefix . gltf-validator@2.0.0-dev.3.10 >/dev/null) ||
     log "gltf-validator not installed; its test will skip"
 fi
-# py3dtiles for bench/tiler.sh only.
+# py3dtiles for bench/tiler.sh; laspy and lazrs for tests/tools/write_copc.py (COPC test files).
 if [[ ! -x "$deps/py3dtiles/bin/py3dtiles" ]]; then
-  log "installing py3dtiles (PyPI) into .deps/py3dtiles"
-  python3 -m venv "$deps/py3dtiles" && "$deps/py3dtiles/bin/pip" install -q py3dtiles laspy >/dev/null ||
+  log "installing py3dtiles, laspy, lazrs (PyPI) into .deps/py3dtiles"
+  python3 -m venv "$deps/py3dtiles" && "$deps/py3dtiles/bin/pip" install -q py3dtiles laspy lazrs >/dev/null ||
     log "py3dtiles not installed; bench/tiler.sh will skip it"
+fi
+if [[ -x "$deps/py3dtiles/bin/python" ]] && ! "$deps/py3dtiles/bin/python" -c 'import lazrs' 2>/dev/null; then
+  "$deps/py3dtiles/bin/pip" install -q lazrs >/dev/null ||
+    log "lazrs not installed; tests of written COPC files will skip"
 fi
 [[ $deps_only -eq 1 ]] && exit 0
 

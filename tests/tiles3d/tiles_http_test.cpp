@@ -12,13 +12,16 @@
 
 #include <chrono>
 #include <filesystem>
+#include <mutex>
 #include <thread>
 
 #include <gtest/gtest.h>
 
 #include "stipple/core/error.hpp"
+#include "stipple/io/copc.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/tiles3d/render_load.hpp"
+#include "test_util.hpp"
 #include "tiles_fixtures.hpp"
 
 extern char** environ;
@@ -71,11 +74,12 @@ class Nginx {
         << "http {\n access_log off;\n client_body_temp_path " << d << "/tmp;\n proxy_temp_path "
         << d << "/tmp;\n fastcgi_temp_path " << d << "/tmp;\n uwsgi_temp_path " << d
         << "/tmp;\n scgi_temp_path " << d << "/tmp;\n"
-        << " types { application/json json; application/octet-stream pnts glb subtree; }\n"
+        << " types { application/json json; application/octet-stream pnts glb subtree laz; }\n"
         << " gzip on; gzip_types application/json; gzip_min_length 1;\n"
         << " server {\n  listen 127.0.0.1:" << port_ << ";\n  root " << d << "/www;\n"
         << "  location /flaky/ { try_files $uri =503; }\n"
         << "  location /slow/ { limit_rate 16k; }\n"
+        << "  location /noranges/ { max_ranges 0; }\n"
         << "  location /html/ { default_type text/html; return 200 "
            "'<html><body>login</body></html>'; }\n"
         << " }\n}\n";
@@ -188,4 +192,54 @@ TEST(TilesHttp, ResolvesRelativeUris) {
   EXPECT_EQ(io::resolve_uri("http://h/a/tileset.json", "/root.json"), "http://h/root.json");
   EXPECT_EQ(io::resolve_uri("/data/t/tileset.json", "./sub/../x.glb"), "/data/t/x.glb");
   EXPECT_EQ(io::resolve_uri("/data/t/tileset.json", "https://o/x.glb"), "https://o/x.glb");
+}
+
+// COPC over HTTP: the header, every hierarchy page and every node are byte-range requests (206),
+// and the streamed points are the file's; a server that ignores ranges is a clear error.
+TEST(TilesHttp, CopcIsStreamedByRangeRequests) {
+  std::string nginx = find_nginx();
+  if (nginx.empty()) GTEST_SKIP() << "nginx not installed (Debian nginx-light): HTTP tests skipped";
+  STIPPLE_REQUIRE_DATA(copc, "laz/lone-star.copc.laz");
+  fs::path dir = fs::temp_directory_path() / ("stipple-http-copc-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir / "www/data");
+  fs::create_directories(dir / "www/noranges");
+  fs::copy_file(copc, dir / "www/data/lone-star.copc.laz");
+  fs::copy_file(copc, dir / "www/noranges/lone-star.copc.laz");
+  Nginx server(dir, nginx);
+  ASSERT_TRUE(server.running()) << "nginx did not start; see " << (dir / "error.log");
+
+  const std::string url = server.url("data/lone-star.copc.laz");
+  ASSERT_TRUE(io::is_copc_input(url));
+  std::mutex mutex;
+  std::vector<std::string> requests;
+  tiles3d::RenderLoadOptions opt;
+  opt.streamer.fetcher = [&](const std::string& uri) {
+    {
+      std::lock_guard lock(mutex);
+      requests.push_back(uri);
+    }
+    io::FetchStats stats;
+    auto bytes = io::fetch(uri, {}, &stats);
+    EXPECT_EQ(stats.http_status, 206) << uri;
+    EXPECT_EQ(stats.total_size, fs::file_size(copc)) << uri;
+    return bytes;
+  };
+  opt.streamer.traversal.max_sse = 1e-9;  // every node
+  auto r = tiles3d::load_tileset_for_render(url, opt);
+  EXPECT_EQ(r.cloud.point_count, 518862u);
+  EXPECT_EQ(r.tiles_rendered, 15u);
+  EXPECT_TRUE(r.errors.empty());
+  // The header, the header with its VLRs, the root page, then the 15 nodes once each.
+  ASSERT_EQ(requests.size(), 18u);
+  for (const auto& u : requests) EXPECT_NE(u.find("#bytes="), std::string::npos) << u;
+
+  // max_ranges 0: nginx answers 200 with the whole file.
+  try {
+    io::load_tileset(server.url("noranges/lone-star.copc.laz"));
+    ADD_FAILURE() << "a server ignoring ranges was not reported";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("ignores range requests"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
 }

@@ -1,6 +1,7 @@
 // `stipple info`: what a point-cloud file holds, or what the GPU offers.
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <string>
 #include <vector>
@@ -9,6 +10,7 @@
 
 #include "stipple/app/commands.hpp"
 #include "stipple/core/error.hpp"
+#include "stipple/io/copc.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
 #include "stipple/io/tileset.hpp"
@@ -184,6 +186,66 @@ nlohmann::json tileset_json(const std::string& uri, size_t max_tiles) {
   return j;
 }
 
+// A COPC file: its header, and its octree read page by page (every page, up to max_tiles nodes).
+nlohmann::json copc_json(const std::string& uri, size_t max_tiles, io::LasHeader* header) {
+  io::TilesetOptions options;
+  io::Tileset ts = io::load_copc_tileset(uri, options);
+  const bool complete = io::expand_all(
+      ts, [&](const std::string& u) { return io::fetch(u, options.fetch); }, options, max_tiles);
+  *header = ts.copc->header;
+  nlohmann::json j = header_json(*header);
+  const io::CopcInfo& info = ts.copc->info;
+  nlohmann::json h;
+  h["complete"] = complete;
+  h["center"] = {info.center.x, info.center.y, info.center.z};
+  h["halfsize"] = info.halfsize;
+  h["spacing"] = info.spacing;
+  h["pages"] = ts.subtrees;
+  std::vector<uint64_t> nodes, points;
+  uint64_t total = 0;
+  for (const auto& t : ts.tiles) {
+    if (t.depth >= nodes.size()) {
+      nodes.resize(t.depth + 1);
+      points.resize(t.depth + 1);
+    }
+    ++nodes[t.depth];
+    for (const auto& c : t.contents) {
+      const uint64_t n = std::strtoull(io::fragment_field(c, "points").c_str(), nullptr, 10);
+      points[t.depth] += n;
+      total += n;
+    }
+  }
+  nlohmann::json levels = nlohmann::json::array();
+  for (size_t d = 0; d < nodes.size(); ++d)
+    levels.push_back({{"depth", d},
+                      {"nodes", nodes[d]},
+                      {"points", points[d]},
+                      {"spacing", info.spacing / double(uint64_t(1) << d)}});
+  h["levels"] = levels;
+  h["nodes"] = ts.tiles.size();
+  h["points"] = total;
+  h["errors"] = ts.errors;
+  if (complete && total != header->point_count)
+    h["errors"].push_back(fmt::format("the hierarchy holds {} points, the header says {}", total,
+                                      header->point_count));
+  j["hierarchy"] = h;
+  return j;
+}
+
+void print_copc_hierarchy(const nlohmann::json& h) {
+  std::printf("  hierarchy:  %zu nodes in %u pages, %zu levels, %llu points%s; root spacing %g\n",
+              h["nodes"].get<size_t>(), h["pages"].get<uint32_t>(), h["levels"].size(),
+              static_cast<unsigned long long>(h["points"].get<uint64_t>()),
+              h["complete"].get<bool>() ? "" : " (read up to --max-tiles nodes)",
+              h["spacing"].get<double>());
+  for (const auto& l : h["levels"])
+    std::printf("    level %2zu: %8llu nodes %12llu points, spacing %g\n", l["depth"].get<size_t>(),
+                static_cast<unsigned long long>(l["nodes"].get<uint64_t>()),
+                static_cast<unsigned long long>(l["points"].get<uint64_t>()),
+                l["spacing"].get<double>());
+  for (const auto& e : h["errors"]) std::printf("  error: %s\n", e.get<std::string>().c_str());
+}
+
 void run_info(const InfoArgs& args) {
   if (args.gpu) {
     print_gpu(args.backend, args.json);
@@ -192,6 +254,17 @@ void run_info(const InfoArgs& args) {
   if (args.inputs.empty()) fail("info: give a file, or --gpu");
   nlohmann::json all = nlohmann::json::array();
   for (const auto& input : args.inputs) {
+    if (io::is_copc_input(input)) {
+      io::LasHeader header;
+      auto j = copc_json(input, args.max_tiles, &header);
+      if (args.json) {
+        all.push_back(j);
+      } else {
+        print_header(header, args.vlrs);
+        print_copc_hierarchy(j["hierarchy"]);
+      }
+      continue;
+    }
     if (tiles3d::is_tileset_input(input)) {
       auto j = tileset_json(input, args.max_tiles);
       if (args.json) {

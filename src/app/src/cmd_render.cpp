@@ -109,7 +109,7 @@ void run_render(const RenderArgs& args) {
         MainStage::Update,
         [settled = uint64_t(0), frames = uint64_t(args.frames), max_frames = args.max_frames,
          output = args.output, height = args.height, memory_mb = args.scene.memory_mb,
-         max_sse = args.scene.max_sse, auto_size](Registry& r) mutable {
+         max_sse = max_sse_for(args.scene), auto_size](Registry& r) mutable {
           auto& s = r.resource<tiles3d::TilesetStream>();
           const auto& stats = r.resource<tiles3d::TilesetStats>();
           bool capped = stats.frames >= max_frames;
@@ -169,14 +169,15 @@ void run_render(const RenderArgs& args) {
         "render_when_loaded");
   }
   float point_size = compute ? 1.0f : settings.render.point_size;
-  const std::string color_source =
-      compute
-          ? "rgb"
-          : pc::color_mode_name(pc::resolve_color_mode(scene.attributes, settings.render.color));
   auto load_end = std::chrono::steady_clock::now();
 
   engine.run();
   engine.shutdown();
+  // After the run: a tileset's attributes are known once its tiles are drawn.
+  const std::string color_source =
+      compute ? "rgb"
+              : pc::color_mode_name(pc::resolve_color_mode(
+                    engine.main().resource<pc::SceneInfo>().attributes, settings.render.color));
   if (tileset) point_size = engine.main().resource<pc::PointDrawSettings>().render.point_size;
   const auto& stats = engine.render().resource<RenderStats>();
   const auto& description = engine.main().resource<GpuContext>()->description;

@@ -11,6 +11,7 @@
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
 #include "stipple/engine/engine.hpp"
+#include "stipple/io/copc.hpp"
 #include "stipple/io/las.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/virtual_cloud.hpp"
@@ -22,6 +23,11 @@ namespace stipple::app {
 
 bool is_tileset_scene(const SceneOptions& options) {
   return options.inputs.size() == 1 && tiles3d::is_tileset_input(options.inputs[0]);
+}
+
+double max_sse_for(const SceneOptions& options) {
+  if (options.max_sse > 0) return options.max_sse;
+  return is_tileset_scene(options) && io::is_copc_input(options.inputs[0]) ? 2.0 : 16.0;
 }
 
 namespace {
@@ -60,7 +66,7 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
     if (compute) fail("--renderer compute does not draw tilesets yet");
     tiles3d::TilesetPlugin tiles;
     tiles.uri = options.inputs[0];
-    tiles.streamer.traversal.max_sse = options.max_sse;
+    tiles.streamer.traversal.max_sse = max_sse_for(options);
     tiles.streamer.traversal.memory_budget = options.memory_mb << 20;
     tiles.render = options.render;
     engine.add_plugin(std::move(tiles));
@@ -128,9 +134,9 @@ void add_scene_options(CLI::App* cmd, SceneOptions& options) {
                 "Compute renderer: high-quality shading (average points within 1% of the "
                 "nearest depth)");
   cmd->add_option("--max-sse", options.max_sse,
-                  "Tilesets: refine tiles while their screen-space error exceeds this (pixels)")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
+                  "Tilesets and COPC: refine tiles while their screen-space error exceeds this "
+                  "(pixels; default 16 for 3D Tiles, 2 for COPC, whose error is the point spacing)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--fill-radius", options.fill_radius,
                   "Compute renderer: fill empty pixels from drawn ones within this radius (seed "
                   "002 III-D; default 1 on the virtualized path, else 0)")

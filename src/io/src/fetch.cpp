@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -47,6 +48,35 @@ struct Sink {
   bool overflow = false;
 };
 
+// The Content-Range header of a ranged answer: "bytes FIRST-LAST/TOTAL" (TOTAL may be "*").
+struct ContentRange {
+  bool seen = false;
+  uint64_t first = 0, last = 0, total = 0;
+};
+
+size_t read_header(char* data, size_t size, size_t count, void* user) {
+  auto* range = static_cast<ContentRange*>(user);
+  const size_t n = size * count;
+  std::string_view line(data, n);
+  constexpr std::string_view name = "content-range:";
+  if (line.size() > name.size()) {
+    bool match = true;
+    for (size_t i = 0; i < name.size() && match; ++i)
+      match = std::tolower(static_cast<unsigned char>(line[i])) == name[i];
+    if (match) {
+      unsigned long long a = 0, b = 0, t = 0;
+      std::string value(line.substr(name.size()));
+      if (std::sscanf(value.c_str(), " bytes %llu-%llu/%llu", &a, &b, &t) >= 2) {
+        range->seen = true;
+        range->first = a;
+        range->last = b;
+        range->total = t;
+      }
+    }
+  }
+  return n;
+}
+
 size_t write_body(char* data, size_t size, size_t count, void* user) {
   auto* sink = static_cast<Sink*>(user);
   size_t n = size * count;
@@ -89,7 +119,64 @@ std::vector<uint8_t> read_file(const std::string& path, const FetchOptions& opti
   return data;
 }
 
+std::vector<uint8_t> read_file_range(const std::string& uri, const ByteRange& r,
+                                     const FetchOptions& options, FetchStats* stats) {
+  const std::string path = uri_path(uri);
+  std::error_code ec;
+  const uint64_t size = std::filesystem::file_size(path, ec);
+  if (ec) fail("{}: cannot open ({})", path, ec.message());
+  if (r.size > options.max_bytes)
+    fail("{}: a read of {} bytes is more than the limit of {} bytes", path, r.size,
+         options.max_bytes);
+  if (r.offset > size || r.size > size - r.offset)
+    fail("{}: bytes {}-{} are past the end of the file ({} bytes)", path, r.offset,
+         r.offset + r.size - 1, size);
+  if (stats) {
+    stats->attempts = 1;
+    stats->total_size = size;
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail("{}: cannot open", path);
+  std::vector<uint8_t> data(r.size);
+  in.seekg(std::streamoff(r.offset));
+  in.read(reinterpret_cast<char*>(data.data()), std::streamsize(r.size));
+  if (in.gcount() != std::streamsize(r.size)) fail("{}: read error", path);
+  return data;
+}
+
 }  // namespace
+
+std::string range_uri(const std::string& uri, uint64_t offset, uint64_t size) {
+  const size_t hash = uri.find('#');
+  return fmt::format("{}#bytes={}-{}", uri.substr(0, hash), offset,
+                     size > 0 ? offset + size - 1 : offset);
+}
+
+std::string fragment_field(const std::string& uri, std::string_view key) {
+  const size_t hash = uri.find('#');
+  if (hash == std::string::npos) return {};
+  std::string_view rest = std::string_view(uri).substr(hash + 1);
+  while (!rest.empty()) {
+    const size_t amp = rest.find('&');
+    std::string_view field = rest.substr(0, amp);
+    if (field.size() > key.size() && field.substr(0, key.size()) == key && field[key.size()] == '=')
+      return std::string(field.substr(key.size() + 1));
+    if (amp == std::string_view::npos) break;
+    rest = rest.substr(amp + 1);
+  }
+  return {};
+}
+
+bool parse_range_uri(const std::string& uri, ByteRange* range) {
+  const std::string value = fragment_field(uri, "bytes");
+  if (value.empty()) return false;
+  unsigned long long first = 0, last = 0;
+  char tail = 0;
+  if (std::sscanf(value.c_str(), "%llu-%llu%c", &first, &last, &tail) != 2 || last < first)
+    return false;
+  if (range) *range = {first, last - first + 1};
+  return true;
+}
 
 bool is_url(std::string_view uri) {
   return starts_with_ci(uri, "http://") || starts_with_ci(uri, "https://");
@@ -165,20 +252,37 @@ bool looks_like_html(const uint8_t* data, size_t size) {
 }
 
 std::vector<uint8_t> fetch(const std::string& uri, const FetchOptions& options, FetchStats* stats) {
+  ByteRange range;
+  const bool ranged = parse_range_uri(uri, &range);
   if (!is_url(uri)) {
+    if (ranged) return read_file_range(uri, range, options, stats);
     if (stats) stats->attempts = 1;
     return read_file(uri, options);
   }
+  if (ranged && range.size > options.max_bytes)
+    fail("{}: a read of {} bytes is more than the limit of {} bytes", uri, range.size,
+         options.max_bytes);
+  const std::string url = ranged ? uri.substr(0, uri.find('#')) : uri;
   thread_local EasyHandle handle;
   CURL* curl = handle.curl;
   if (!curl) fail("{}: cannot create an HTTP client", uri);
   long backoff = options.backoff_initial_ms;
   for (int attempt = 0;; ++attempt) {
     std::vector<uint8_t> body;
-    Sink sink{&body, options.max_bytes};
+    // A ranged read stops after the range's size: a server ignoring the range is found out
+    // without downloading the whole file.
+    Sink sink{&body, ranged ? range.size : options.max_bytes};
+    ContentRange content_range;
     char error_text[CURL_ERROR_SIZE] = {0};
     curl_easy_reset(curl);  // keeps the connection cache
-    curl_easy_setopt(curl, CURLOPT_URL, uri.c_str());
+    curl_easy_setopt(curl, CURLOPT_URL, url.c_str());
+    const std::string range_text =
+        ranged ? fmt::format("{}-{}", range.offset, range.offset + range.size - 1) : "";
+    if (ranged) {
+      curl_easy_setopt(curl, CURLOPT_RANGE, range_text.c_str());
+      curl_easy_setopt(curl, CURLOPT_HEADERFUNCTION, read_header);
+      curl_easy_setopt(curl, CURLOPT_HEADERDATA, &content_range);
+    }
     curl_easy_setopt(curl, CURLOPT_FOLLOWLOCATION, 1L);
     curl_easy_setopt(curl, CURLOPT_MAXREDIRS, 8L);
     curl_easy_setopt(curl, CURLOPT_NOSIGNAL, 1L);  // worker threads: no SIGALRM for timeouts
@@ -186,8 +290,11 @@ std::vector<uint8_t> fetch(const std::string& uri, const FetchOptions& options, 
     curl_easy_setopt(curl, CURLOPT_LOW_SPEED_LIMIT, options.low_speed_bytes);
     curl_easy_setopt(curl, CURLOPT_LOW_SPEED_TIME, options.low_speed_time_s);
     curl_easy_setopt(curl, CURLOPT_TIMEOUT_MS, options.total_timeout_ms);
-    curl_easy_setopt(curl, CURLOPT_ACCEPT_ENCODING, "");  // every encoding libcurl decodes
-    curl_easy_setopt(curl, CURLOPT_MAXFILESIZE_LARGE, curl_off_t(options.max_bytes));
+    // Every encoding libcurl decodes, except on ranges: a range is of the stored bytes.
+    if (!ranged) {
+      curl_easy_setopt(curl, CURLOPT_ACCEPT_ENCODING, "");
+      curl_easy_setopt(curl, CURLOPT_MAXFILESIZE_LARGE, curl_off_t(options.max_bytes));
+    }
     curl_easy_setopt(curl, CURLOPT_WRITEFUNCTION, write_body);
     curl_easy_setopt(curl, CURLOPT_WRITEDATA, &sink);
     curl_easy_setopt(curl, CURLOPT_ERRORBUFFER, error_text);
@@ -201,6 +308,13 @@ std::vector<uint8_t> fetch(const std::string& uri, const FetchOptions& options, 
     }
     std::string problem;
     bool retry = false;
+    if (ranged && (status == 200 || (status >= 200 && status < 300 && status != 206)))
+      fail(
+          "{}: the server ignores range requests (HTTP {} to a request for bytes {}); COPC and "
+          "other ranged reads need a server with byte-range support",
+          url, status, range_text);
+    if (ranged && status == 416)
+      fail("{}: bytes {} are past the end of the file (HTTP 416)", url, range_text);
     if (sink.overflow || code == CURLE_FILESIZE_EXCEEDED) {
       fail("{}: response larger than the limit of {} bytes", uri, options.max_bytes);
     } else if (code != CURLE_OK) {
@@ -211,6 +325,14 @@ std::vector<uint8_t> fetch(const std::string& uri, const FetchOptions& options, 
       retry = true;
     } else if (status >= 400) {
       fail("{}: HTTP {}{}", uri, status, status == 404 ? " (not found)" : "");
+    } else if (ranged) {
+      if (!content_range.seen || content_range.first != range.offset || body.size() != range.size)
+        fail("{}: the server answered bytes {} with {} bytes{}, not the range asked for", url,
+             range_text, body.size(),
+             content_range.seen ? fmt::format(" at {}-{}", content_range.first, content_range.last)
+                                : std::string(" without a Content-Range"));
+      if (stats) stats->total_size = content_range.total;
+      return body;
     } else {
       const char* type = nullptr;
       curl_easy_getinfo(curl, CURLINFO_CONTENT_TYPE, &type);

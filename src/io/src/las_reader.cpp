@@ -320,7 +320,11 @@ struct Parser {
       if (h.point_count > 0) {
         const std::vector<uint8_t> t = read(h.offset_to_points, 8, "LAZ chunk table offset");
         const int64_t table = load<int64_t>(t.data());
-        if (table != -1) {
+        // -1: written at the end; the offset of the pointer itself: no table, which LASzip
+        // accepts for fixed-size chunks (an interrupted writer, or one COPC node on its own).
+        const bool no_table =
+            table == static_cast<int64_t>(h.offset_to_points) && h.laz_chunk_points > 0;
+        if (table != -1 && !no_table) {
           if (table < static_cast<int64_t>(h.offset_to_points) + 8 ||
               static_cast<uint64_t>(table) + 8 > file_size) {
             fail("{}: corrupt LAZ chunk table offset {} (file has {} bytes)", name, table,

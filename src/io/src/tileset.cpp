@@ -12,6 +12,7 @@
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
+#include "stipple/io/copc.hpp"
 #include "stipple/io/subtree.hpp"
 #include "stipple/math/geo.hpp"
 
@@ -543,6 +544,12 @@ static Tileset parse_tileset_unchecked(std::span<const uint8_t> json_bytes, cons
 
 Tileset load_tileset(const std::string& uri, const TilesetOptions& options) {
   Fetcher fetcher = [&options](const std::string& u) { return fetch(u, options.fetch); };
+  return load_tileset(uri, fetcher, options);
+}
+
+Tileset load_tileset(const std::string& uri, const Fetcher& fetcher,
+                     const TilesetOptions& options) {
+  if (is_copc_input(uri)) return load_copc_tileset(uri, fetcher, options);
   auto bytes = fetcher(uri);
   return parse_tileset(bytes, uri, fetcher, options);
 }
@@ -558,6 +565,8 @@ Tileset parse_tileset(std::span<const uint8_t> json_bytes, const std::string& ur
 
 Expansion read_children(uint32_t tile, const PendingChildren& pending, size_t tiles_now,
                         const Fetcher& fetcher, const TilesetOptions& options) {
+  if (pending.kind == PendingChildren::Kind::CopcPage)
+    return read_copc_page(tile, pending, tiles_now, fetcher, options);
   Expansion e;
   e.tile = tile;
   Builder builder(e, fetcher, options, tiles_now, pending.chain);

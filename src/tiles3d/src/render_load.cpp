@@ -7,17 +7,19 @@
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
+#include "stipple/io/copc.hpp"
 #include "stipple/math/geo.hpp"
 
 namespace stipple::tiles3d {
 
 bool is_tileset_input(const std::string& input) {
-  return io::is_url(input) || io::is_tileset_uri(input);
+  return io::is_url(input) || io::is_tileset_uri(input) || io::is_copc_input(input);
 }
 
 glm::dmat4 world_from_tileset(const io::Tileset& ts) {
   const glm::dmat4 y_up(1, 0, 0, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1);
-  if (ts.tiles.empty()) return y_up;
+  // COPC is in its file's projected coordinates, whatever their magnitude.
+  if (ts.tiles.empty() || ts.copc) return y_up;
   glm::dvec3 c = ts.tiles[0].box.center;
   if (glm::length(c) < 1e6) return y_up;  // a local frame already
   glm::dvec3 llh = geo::ecef_to_geodetic(c);
@@ -30,6 +32,15 @@ glm::dmat4 world_from_tileset(const io::Tileset& ts) {
 Aabb world_bounds(const io::Tileset& ts, const glm::dmat4& m) {
   Aabb box;
   if (ts.tiles.empty()) return box;
+  if (ts.copc) {
+    // The header's bounds: the octree's root cube is larger than the data (framing uses this).
+    const io::LasHeader& h = ts.copc->header;
+    for (int i = 0; i < 8; ++i) {
+      glm::dvec3 p(i & 1 ? h.max.x : h.min.x, i & 2 ? h.max.y : h.min.y, i & 4 ? h.max.z : h.min.z);
+      box.extend(glm::dvec3(m * glm::dvec4(p, 1.0)));
+    }
+    return box;
+  }
   const io::Obb& o = ts.tiles[0].box;
   for (int i = 0; i < 8; ++i) {
     glm::dvec3 p = o.center;
@@ -106,8 +117,7 @@ RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoa
   io::TilesetOptions ts_options = options.streamer.tileset;
   ts_options.fetch = options.streamer.fetch;
   auto tileset = std::make_shared<io::Tileset>(
-      options.streamer.fetcher ? io::parse_tileset(options.streamer.fetcher(uri), uri,
-                                                   options.streamer.fetcher, ts_options)
+      options.streamer.fetcher ? io::load_tileset(uri, options.streamer.fetcher, ts_options)
                                : io::load_tileset(uri, ts_options));
   RenderLoadResult out;
   for (const auto& e : tileset->errors) out.errors.push_back({0, e});

@@ -7,6 +7,7 @@
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
+#include "stipple/io/copc.hpp"
 #include "stipple/io/glb_points.hpp"
 
 namespace stipple::tiles3d {
@@ -211,14 +212,15 @@ void TileStreamer::start_jobs() {
     std::vector<std::string> uris = tileset_->tiles[t].contents;
     pool_->submit([job, uris, transform = tileset_->tiles[t].transform, shared = shared_,
                    fetcher = fetcher_, fetch = options_.fetch, limits = options_.limits,
-                   prepare = options_.prepare] {
+                   prepare = options_.prepare, copc = tileset_->copc] {
       try {
         for (const auto& uri : uris) {
           if (job->cancelled) break;
           auto bytes = fetcher(uri);
           // Decoded even when cancelled meanwhile: far cheaper than fetching it again, and the
           // result is kept where it fits.
-          job->result.push_back(decode_content(bytes, uri, limits, fetch));
+          job->result.push_back(copc ? io::decode_copc_node(*copc, bytes, uri, limits)
+                                     : decode_content(bytes, uri, limits, fetch));
         }
         job->complete = job->result.size() == uris.size();
         // Prepared even when cancelled meanwhile, like the decode: the result may be kept.

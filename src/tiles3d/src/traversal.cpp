@@ -84,8 +84,9 @@ class Traversal {
     double sse = screen_space_error(t.geometric_error, d, view_);
     const TileState& st = states_[index];
     const uint64_t cost = st.bytes > 0 ? st.bytes : estimate;
-    if (t.pending && t.pending->kind == io::PendingChildren::Kind::Subtree) {
-      // The root of a subtree not read yet: its content and children come with it.
+    if (t.pending && t.pending->brings_content()) {
+      // The root of a subtree (or COPC page) not read yet: its content and children come with
+      // it.
       expand(index, sse, d);
       return false;
     }

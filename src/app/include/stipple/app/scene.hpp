@@ -29,7 +29,9 @@ struct SceneOptions {
   size_t chunk_points = 1 << 20;  // point clouds: chunk size (finer chunks, finer budget)
   uint64_t scene_points = 1'000'000;
   uint32_t seed = 1;
-  double max_sse = 16.0;     // tilesets: refine while a tile's screen-space error exceeds this
+  // Tilesets and COPC: refine while a tile's screen-space error exceeds this; 0: the source's
+  // default (max_sse_for).
+  double max_sse = 0;
   uint64_t memory_mb = 512;  // tilesets: resident tile memory budget
   // Point clouds larger than the in-memory path's budget (or with --virtual) are drawn from a
   // pointlet cache (pc::VirtualPointCloudPlugin, seed 002).
@@ -46,8 +48,11 @@ struct SceneOptions {
 // Whether `options` take the virtualized path (for point-cloud inputs), and why.
 bool use_virtual_path(const SceneOptions& options, std::string* reason = nullptr);
 
-// Whether `inputs` name one tileset (streamed) rather than point-cloud files.
+// Whether `inputs` name one tileset or COPC file (streamed) rather than point-cloud files.
 bool is_tileset_scene(const SceneOptions& options);
+// --max-sse, or the source's default: 16 px for 3D Tiles, 2 px for COPC, whose node error is
+// its point spacing (so a level is refined while its spacing covers more than 2 pixels).
+double max_sse_for(const SceneOptions& options);
 
 // Adds the scene plugin for `options` to `engine`; throws stipple::Error for what the chosen
 // path cannot do (the compute renderer does not draw tilesets yet).

@@ -25,7 +25,20 @@ struct FetchOptions {
 struct FetchStats {
   int attempts = 0;
   long http_status = 0;
+  uint64_t total_size = 0;  // ranged reads: the whole file's size (Content-Range, or the file's)
 };
+
+// A byte range of a resource, named in its URI's fragment as `#bytes=FIRST-LAST` (inclusive, as
+// in HTTP; other `&key=value` fields may follow), so range reads pass through a Fetcher as plain
+// URIs. Servers never see fragments.
+struct ByteRange {
+  uint64_t offset = 0, size = 0;
+};
+std::string range_uri(const std::string& uri, uint64_t offset, uint64_t size);
+// Whether `uri` names a range; its value in `range`.
+bool parse_range_uri(const std::string& uri, ByteRange* range);
+// The value of `key` in the fragment's `&`-separated fields; empty when absent.
+std::string fragment_field(const std::string& uri, std::string_view key);
 
 bool is_url(std::string_view uri);
 // Resolves `relative` against the URI (file path or URL) of the document that referenced it.
@@ -34,7 +47,10 @@ std::string resolve_uri(const std::string& base_document, const std::string& rel
 // `uri` without query and fragment, for extension checks.
 std::string uri_path(const std::string& uri);
 
-// Throws stipple::Error naming the URI and the problem.
+// Throws stipple::Error naming the URI and the problem. A range URI reads exactly that range: a
+// positional read of a local file, or an HTTP Range request that must be answered with 206 and
+// the range asked for (a server that ignores ranges is an error, stopped after the range's size
+// instead of downloading the whole file); a range past the end is an error.
 std::vector<uint8_t> fetch(const std::string& uri, const FetchOptions& options = {},
                            FetchStats* stats = nullptr);
 

@@ -56,17 +56,24 @@ struct ImplicitTiling {
   Refine refine = Refine::Replace;
 };
 
+struct CopcFile;
+
 // Children of a tile that have not been read: external tilesets (its content is tileset JSON),
-// or the subtree rooted at it (implicit tiling: its own content is unknown until then too).
+// the subtree rooted at it (implicit tiling: its own content is unknown until then too), or the
+// COPC hierarchy page of its node (which lists the node itself too, like a subtree).
 // Immutable once made, so a worker can read it while the tileset grows.
 struct PendingChildren {
-  enum class Kind : uint8_t { External, Subtree } kind = Kind::External;
-  std::vector<std::string> uris;   // External: the tilesets; Subtree: the subtree file
+  enum class Kind : uint8_t { External, Subtree, CopcPage } kind = Kind::External;
+  // External: the tilesets; Subtree: the subtree file; CopcPage: the page's range URI.
+  std::vector<std::string> uris;
   std::vector<std::string> chain;  // External: tilesets from the root down (cycle detection)
   glm::dmat4 transform{1.0};       // External: the tile's, which the external roots inherit
   Refine refine = Refine::Replace;
   std::shared_ptr<const ImplicitTiling> implicit;  // Subtree
-  uint32_t level = 0, x = 0, y = 0, z = 0;         // Subtree: coordinates of its root tile
+  uint32_t level = 0, x = 0, y = 0, z = 0;         // Subtree, CopcPage: its root tile's key
+  std::shared_ptr<const CopcFile> copc;            // CopcPage
+  // Whether the tile's own content comes with the read (a subtree's or a page's root).
+  bool brings_content() const { return kind != Kind::External; }
 };
 
 struct Tile {
@@ -104,14 +111,21 @@ struct Tileset {
   uint32_t subtrees = 0;            // read so far
   uint32_t pending = 0;             // tiles with pending children
   bool implicit = false;
+  // A COPC file's octree (copc.hpp): tiles are nodes, contents their chunks' range URIs, in the
+  // file's coordinates (a local frame, Z-up).
+  std::shared_ptr<const CopcFile> copc;
 };
 
 using Fetcher = std::function<std::vector<uint8_t>(const std::string& uri)>;
 
 // Loads a tileset from a path or URL through io::fetch: the root document, and the root subtree
-// of implicit tiling found in it; external tilesets and child subtrees are left pending.
+// of implicit tiling found in it; external tilesets and child subtrees are left pending. A COPC
+// file (is_copc_input) gives its octree (load_copc_tileset).
 // A broken root is an Error; a broken subtree is recorded on its tile.
 Tileset load_tileset(const std::string& uri, const TilesetOptions& options = {});
+// The same through `fetcher` (tests count or fault requests with it).
+Tileset load_tileset(const std::string& uri, const Fetcher& fetcher,
+                     const TilesetOptions& options = {});
 // The same from bytes already read, fetching what they reference through `fetcher`.
 Tileset parse_tileset(std::span<const uint8_t> json_bytes, const std::string& uri,
                       const Fetcher& fetcher, const TilesetOptions& options = {});
