@@ -39,14 +39,18 @@ struct Rendered {
 
 Rendered render_compute(gpu::Context& ctx, const pc::BatchedCloud& cloud, const Camera& camera,
                         pc::ComputeRasterOptions options, uint32_t w, uint32_t h,
-                        bool force_fallback = false, uint64_t max_segment_points = 0) {
+                        bool force_fallback = false, uint64_t max_segment_points = 0,
+                        pc::DisplayPass display = pc::DisplayPass::Auto) {
   auto gpu_cloud = pc::upload_batched_cloud(ctx, cloud, {max_segment_points});
   auto target = gpu::create_offscreen_target(ctx, w, h);
-  auto pipeline = pc::create_compute_raster_pipeline(ctx, target.color_format, force_fallback);
+  auto pipeline =
+      pc::create_compute_raster_pipeline(ctx, target.color_format, force_fallback, display);
   options.background = {0, 0, 0};
+  options.storage_target = true;
   gpu::RenderGraph graph;
   graph.import_texture("color", target.color.get(), target.color_view.get(),
-                       {w, h, target.color_format, WGPUTextureUsage_RenderAttachment},
+                       {w, h, target.color_format,
+                        WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_StorageBinding},
                        gpu::Access::Writable);
   pc::add_compute_raster_passes(graph, pipeline, gpu_cloud, camera, options, w, h);
   gpu::TransientPool pool;
@@ -223,6 +227,27 @@ TEST_P(ComputeRaster, EyeDomeLightingDarkensBehindNearerNeighbours) {
   EXPECT_GT(weak, 0.01);
   EXPECT_GT(strong, weak + 0.05);
   EXPECT_LT(strong, 0.9);
+}
+
+// The display as a compute pass writing a storage texture gives the render pass's image, bit
+// for bit (tolerance 0), with EDL and with hole filling.
+TEST_P(ComputeRaster, DisplayAsComputePassMatchesTheRenderPass) {
+  auto ctx = context();
+  io::SceneParams scene;
+  scene.point_count = 300'000;
+  auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Hilbert);
+  const uint32_t w = 203, h = 117;  // not multiples of the 16 x 16 workgroups
+  Camera camera = frame_box(batched.world_bounds, double(w) / h, 30.0, 60.0, 40.0);
+  pc::ComputeRasterOptions options;
+  options.edl_strength = 60.0f;
+  options.edl_radius = 1.4f;
+  options.fill_radius = 1;
+  auto by_render =
+      render_compute(*ctx, batched, camera, options, w, h, false, 0, pc::DisplayPass::Render);
+  auto by_compute =
+      render_compute(*ctx, batched, camera, options, w, h, false, 0, pc::DisplayPass::Compute);
+  EXPECT_GT(test::coverage_stats(by_render.image, kBlack, 0).coverage, 0.2);
+  EXPECT_EQ(test::differing_fraction(by_render.image, by_compute.image, 0), 0.0);
 }
 
 TEST_P(ComputeRaster, PrecisionLevelsAgreeForSmallBatches) {

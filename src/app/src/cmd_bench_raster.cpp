@@ -166,8 +166,10 @@ void run_raster_bench(const RasterArgs& args) {
   out["runs"] = nlohmann::json::array();
 
   const WGPUTextureFormat format = WGPUTextureFormat_RGBA8Unorm;
-  gpu::Texture color = gpu::create_texture_2d(*ctx, args.width, args.height, format,
-                                              WGPUTextureUsage_RenderAttachment, "bench-color");
+  const WGPUTextureUsage usage =
+      WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_StorageBinding;
+  gpu::Texture color =
+      gpu::create_texture_2d(*ctx, args.width, args.height, format, usage, "bench-color");
   gpu::TextureView view = gpu::create_view(color);
   ThreadPool pool;
 
@@ -207,6 +209,7 @@ void run_raster_bench(const RasterArgs& args) {
     pc::ComputeRasterOptions basic, adaptive, hqs;
     basic.force_bits = 30;  // every coordinate bit loaded, as without adaptive precision
     hqs.hqs = true;
+    for (auto* o : {&basic, &adaptive, &hqs}) o->storage_target = true;  // compute display
     variants.push_back({"compute-basic", &raster64, basic});
     variants.push_back({"compute-precision", &raster64, adaptive});
     variants.push_back({"compute-hqs", &raster64, hqs});
@@ -228,8 +231,7 @@ void run_raster_bench(const RasterArgs& args) {
         for (uint32_t f = 0; f < args.warmup + args.frames; ++f) {
           gpu::RenderGraph graph;
           graph.import_texture("color", color.get(), view.get(),
-                               {args.width, args.height, format, WGPUTextureUsage_RenderAttachment},
-                               gpu::Access::Writable);
+                               {args.width, args.height, format, usage}, gpu::Access::Writable);
           if (variant.pipeline)
             pc::add_compute_raster_passes(graph, *variant.pipeline, raster_cloud, v.camera,
                                           variant.options, args.width, args.height);

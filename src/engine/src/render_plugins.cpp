@@ -180,8 +180,9 @@ void HeadlessTargetPlugin::build(Engine& engine) {
       [](Registry& render) {
         auto& t = render.resource<HeadlessTarget>();
         if (!t.color) {
-          const WGPUTextureUsage usage =
-              WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc;
+          // Storage: compute passes may write the image (the compute rasterizer's display).
+          const WGPUTextureUsage usage = WGPUTextureUsage_RenderAttachment |
+                                         WGPUTextureUsage_CopySrc | WGPUTextureUsage_StorageBinding;
           t.color = gpu::create_texture_2d(*render.resource<GpuContext>(), t.width, t.height,
                                            WGPUTextureFormat_RGBA8Unorm, usage, "headless-color");
           t.view = gpu::create_view(t.color);
@@ -192,7 +193,8 @@ void HeadlessTargetPlugin::build(Engine& engine) {
         target.width = t.width;
         target.height = t.height;
         target.format = WGPUTextureFormat_RGBA8Unorm;
-        target.usage = WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc;
+        target.usage = WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc |
+                       WGPUTextureUsage_StorageBinding;
         render.insert_resource(target);
       },
       "headless_target");

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <string_view>
 
 #include <webgpu/wgpu.h>
 #include <glm/gtc/type_ptr.hpp>
@@ -170,7 +171,7 @@ bool has_visibility64(const gpu::Context& ctx) {
 
 ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
                                                      WGPUTextureFormat color_format,
-                                                     bool force_fallback) {
+                                                     bool force_fallback, DisplayPass display) {
   ComputeRasterPipeline p;
   p.visibility64 = !force_fallback && has_visibility64(ctx);
   p.color_format = color_format;
@@ -183,12 +184,23 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   }
   p.accumulate = make_compute(ctx, "compute_raster_accumulate.wgsl");
 
-  gpu::ShaderModule display = gpu::create_shader_from_file(ctx, "compute_raster_display.wgsl");
-  p.display = gpu::create_fullscreen_pipeline(ctx, {.module = display.get(),
+  gpu::ShaderModule display_module =
+      gpu::create_shader_from_file(ctx, "compute_raster_display.wgsl");
+  p.display = gpu::create_fullscreen_pipeline(ctx, {.module = display_module.get(),
                                                     .vertex_entry = "vs_main",
                                                     .fragment_entry = "fs_main",
                                                     .format = color_format,
                                                     .label = "raster-display"});
+  if (display == DisplayPass::Auto) {
+    const char* env = std::getenv("STIPPLE_DISPLAY_PASS");
+    const std::string_view forced = env ? env : "";
+    display = forced == "render"                      ? DisplayPass::Render
+              : forced == "compute"                   ? DisplayPass::Compute
+              : ctx.description.adapter_type == "CPU" ? DisplayPass::Render
+                                                      : DisplayPass::Compute;
+  }
+  if (display == DisplayPass::Compute && color_format == WGPUTextureFormat_RGBA8Unorm)
+    p.display_compute = make_compute(ctx, "compute_raster_display_cs.wgsl");
 
   {
     using B = gpu::BufferBinding;
@@ -400,6 +412,30 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   if (options.fill_radius > 0)
     add_post_pass("raster-fill", p.fill, p.fill_params, options.fill_radius, "raster-filled");
 
+  if (options.storage_target && p.display_compute) {
+    const uint32_t gx = (width + 15) / 16, gy = (height + 15) / 16;
+    graph
+        .add_pass("raster-display", gpu::PassKind::Compute,
+                  [&p, &cloud, accum_name = shown, color_target, depth_name, gx,
+                   gy](gpu::PassContext& pc) {
+                    gpu::Context& ctx = pc.gpu();
+                    if (cloud.segments.empty()) return;
+                    auto layout = gpu::bind_group_layout_of(p.display_compute);
+                    auto group =
+                        gpu::create_bind_group(ctx, layout.get(),
+                                               {gpu::bind_buffer(0, cloud.segments[0].params.get()),
+                                                gpu::bind_buffer(1, pc.buffer(accum_name)),
+                                                gpu::bind_buffer(2, pc.buffer(depth_name)),
+                                                gpu::bind_texture(3, pc.view(color_target))});
+                    auto pass = pc.begin_compute_pass();
+                    gpu::dispatch(pass.get(), p.display_compute.get(), {group.get()}, gx, gy);
+                    wgpuComputePassEncoderEnd(pass.get());
+                  })
+        .read(shown)
+        .read(depth_name)
+        .write(color_target);
+    return;
+  }
   graph
       .add_pass("raster-display", gpu::PassKind::Render,
                 [&p, &cloud, accum_name = shown, color_target, depth_name](gpu::PassContext& pc) {

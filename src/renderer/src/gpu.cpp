@@ -634,7 +634,7 @@ OffscreenTarget create_offscreen_target(Context& ctx, uint32_t width, uint32_t h
   t.height = height;
   t.color = create_texture_2d(ctx, width, height, t.color_format,
                               WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc |
-                                  WGPUTextureUsage_TextureBinding,
+                                  WGPUTextureUsage_TextureBinding | WGPUTextureUsage_StorageBinding,
                               "offscreen-color");
   t.depth = create_texture_2d(ctx, width, height, t.depth_format,
                               WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_TextureBinding,

@@ -5,8 +5,9 @@
 // (depth atomicMin, colour atomicAdd within a depth tolerance), optional high-quality shading.
 //
 // Passes on the render graph: raster-clear, raster-depth (the geometry pass), then
-// raster-accumulate (HQS or fallback) or raster-resolve (64-bit), and raster-display, a
-// full-screen render pass into the imported colour target (any colour format).
+// raster-accumulate (HQS or fallback) or raster-resolve (64-bit), and raster-display into the
+// imported colour target: a compute pass through a storage binding where the target allows it
+// (RGBA8Unorm with storage usage), else a full-screen render pass (any colour format).
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -61,6 +62,8 @@ struct ComputeRasterPipeline {
   WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
   gpu::ComputePipeline clear, raster64, depth32, accumulate, resolve;
   gpu::RenderPipeline display;
+  // The display as a compute pass (RGBA8Unorm targets with storage usage); null otherwise.
+  gpu::ComputePipeline display_compute;
   gpu::Buffer counters;  // RasterCounters as u32s, cleared each frame
   // Hole filling and the occlusion check (seed 002, III-D): one layout, two entry points.
   gpu::BindGroupLayout fill_layout;
@@ -85,12 +88,21 @@ struct ComputeRasterOptions {
   // (0: off) and the neighbours' distance in pixels.
   float edl_strength = 0.0f;
   float edl_radius = 1.0f;
+  // The colour target has WGPUTextureUsage_StorageBinding: the display runs as a compute pass
+  // writing it (where the pipeline has one), else as a full-screen render pass.
+  bool storage_target = false;
 };
+
+// Which form the display pass takes. Auto: the compute form for RGBA8Unorm targets except on
+// CPU adapters, where a storage-texture write costs more than a fragment (lavapipe: 153 ms
+// against 17 ms at 1280x720); STIPPLE_DISPLAY_PASS=render or =compute overrides Auto.
+enum class DisplayPass { Auto, Render, Compute };
 
 // `force_fallback` runs the 32-bit two-pass pipeline even where 64-bit atomics exist.
 ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
                                                      WGPUTextureFormat color_format,
-                                                     bool force_fallback = false);
+                                                     bool force_fallback = false,
+                                                     DisplayPass display = DisplayPass::Auto);
 
 // Adds the rasterizer's passes, drawing into `color_target` (an imported writable texture of
 // width x height). The cloud and pipeline must outlive the graph's execution.
