@@ -63,18 +63,18 @@ Rendered render_compute(gpu::Context& ctx, const pc::BatchedCloud& cloud, const 
   return r;
 }
 
+// The billboard path at its plainest: 1-pixel squares, depth-tested, no EDL, black background;
+// colour from `base` (RGB by default).
 gpu::Image render_billboard(gpu::Context& ctx, const pc::PointCloud& cloud, const Camera& camera,
-                            uint32_t w, uint32_t h) {
+                            uint32_t w, uint32_t h, pc::PointRenderSettings style = {}) {
   auto gpu_cloud = pc::upload_point_cloud(ctx, cloud);
   auto target = gpu::create_offscreen_target(ctx, w, h);
   auto pipelines = pc::create_point_pipelines(ctx, target.color_format);
-  // The billboard path at its plainest: 1-pixel squares, depth-tested, RGB, no EDL.
-  pc::PointRenderSettings style;
+  if (style.color == pc::ColorMode::Auto) style.color = pc::ColorMode::Rgb;
   style.point_size = 1.0f;
   style.round = false;
   style.splat = pc::SplatMode::Naive;
   style.edl = false;
-  style.color = pc::ColorMode::Rgb;
   style.background = {0, 0, 0};
   pc::draw_points(ctx, pipelines, gpu_cloud, camera, style, target.color.get(),
                   target.color_view.get(), w, h);
@@ -118,6 +118,43 @@ TEST_P(ComputeRaster, AgreesWithBillboardsOnAutzen) {
   // 1.5 levels (measured: 0.1), fewer than 10 % of pixels off by more than 8 levels.
   expect_similar(billboard, compute.image, 0.01, 1.5, "compute vs billboard");
   EXPECT_LT(test::differing_fraction(billboard, compute.image, 8), 0.10);
+}
+
+// Every colour mode: the compute path's batches carry the colour the billboard shaders give
+// (pc::shade_point mirrors point_color), so the images agree as closely as in RGB.
+TEST_P(ComputeRaster, ColourModesMatchTheBillboardPath) {
+  // The generated scene has RGB, intensity, classes (ground, buildings, vegetation) and
+  // several returns.
+  const auto path =
+      std::filesystem::temp_directory_path() / ("stipple_colour_modes_" + GetParam() + ".las");
+  if (!std::filesystem::exists(path))
+    ASSERT_EQ(std::system((std::string(STIPPLE_BINARY) + " generate -n 200000 -o " + path.string() +
+                           " >/dev/null")
+                              .c_str()),
+              0);
+  auto ctx = context();
+  pc::LoadOptions load;
+  load.progress = false;
+  auto cloud = pc::load_point_cloud({path}, load);
+  const uint32_t w = 480, h = 270;
+  Camera camera = frame_box(cloud.world_bounds, double(w) / h);
+  for (pc::ColorMode mode :
+       {pc::ColorMode::Elevation, pc::ColorMode::Intensity, pc::ColorMode::Classification,
+        pc::ColorMode::ReturnNumber, pc::ColorMode::Constant}) {
+    pc::PointRenderSettings settings;
+    settings.color = mode;
+    settings.constant_color = {0.9f, 0.4f, 0.2f};
+    const pc::PointShading shading = pc::point_shading(settings, cloud.attributes);
+    auto batched = pc::build_batches(cloud, pc::SpatialOrder::Morton, pc::kBatchPoints, &shading);
+    // The billboard reference with the same ramps and constant colour.
+    auto billboard = render_billboard(*ctx, cloud, camera, w, h, settings);
+    auto compute = render_compute(*ctx, batched, camera, {}, w, h);
+    const std::string what = std::string("colour mode ") + pc::color_mode_name(mode);
+    // The same bounds as RGB: coverage within 1 %, mean within 1.5 levels, and fewer than 10 %
+    // of the pixels off by more than 8 levels (which point wins a pixel differs).
+    expect_similar(billboard, compute.image, 0.01, 1.5, what.c_str());
+    EXPECT_LT(test::differing_fraction(billboard, compute.image, 8), 0.10) << what;
+  }
 }
 
 TEST_P(ComputeRaster, CountersMatchCpuReference) {

@@ -175,9 +175,9 @@ void run_render(const RenderArgs& args) {
   engine.shutdown();
   // After the run: a tileset's attributes are known once its tiles are drawn.
   const std::string color_source =
-      compute ? "rgb"
-              : pc::color_mode_name(pc::resolve_color_mode(
-                    engine.main().resource<pc::SceneInfo>().attributes, settings.render.color));
+      virtualized ? "rgb"  // the pointlet cache keeps RGB
+                  : pc::color_mode_name(pc::resolve_color_mode(
+                        engine.main().resource<pc::SceneInfo>().attributes, settings.render.color));
   if (tileset) point_size = engine.main().resource<pc::PointDrawSettings>().render.point_size;
   const auto& stats = engine.render().resource<RenderStats>();
   const auto& description = engine.main().resource<GpuContext>()->description;

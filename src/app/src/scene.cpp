@@ -63,8 +63,11 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
   const bool compute = options.renderer == Renderer::Compute;
   if (is_tileset_scene(options)) {
     // 3D Tiles: streamed frame by frame with the camera (out of core).
-    if (compute) fail("--renderer compute does not draw tilesets yet");
     tiles3d::TilesetPlugin tiles;
+    tiles.compute = compute;
+    tiles.raster.hqs = options.hqs;
+    tiles.raster.fill_radius = options.fill_radius < 0 ? 0u : uint32_t(options.fill_radius);
+    tiles.raster.occlusion_beta = options.occlusion_beta;
     tiles.uri = options.inputs[0];
     tiles.streamer.traversal.max_sse = max_sse_for(options);
     tiles.streamer.traversal.memory_budget = options.memory_mb << 20;

@@ -235,15 +235,19 @@ void append_batches(BatchedCloud& out, std::span<const glm::dvec3> positions,
   finish_bounds(out);
 }
 
-BatchedCloud build_batches(const PointCloud& cloud, SpatialOrder order, uint32_t batch_points) {
+BatchedCloud build_batches(const PointCloud& cloud, SpatialOrder order, uint32_t batch_points,
+                           const PointShading* shading) {
   std::vector<glm::dvec3> positions;
   std::vector<uint32_t> colors;
   positions.reserve(cloud.point_count);
   colors.reserve(cloud.point_count);
+  const ColorMode mode =
+      shading ? resolve_color_mode(cloud.attributes, shading->mode) : ColorMode::Rgb;
   for (const PointChunk& chunk : cloud.chunks)
     for (const auto& v : chunk.vertices) {
       positions.push_back(chunk.origin + glm::dvec3(v.x, v.y, v.z));
-      colors.push_back(v.rgba);
+      colors.push_back(shading ? shade_point(*shading, mode, v, chunk.origin.y + double(v.y))
+                               : v.rgba);
     }
   BatchedCloud out;
   append_batches(out, positions, colors, order, batch_points);

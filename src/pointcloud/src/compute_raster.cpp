@@ -38,7 +38,7 @@ struct GpuBatch {
   float size[3];
   uint32_t first;
 };
-static_assert(sizeof(GpuBatch) == 32);
+static_assert(sizeof(GpuBatch) == kGpuBatchBytes);
 
 constexpr uint32_t kCounterWords = 11;  // see C_* in compute_raster_common.wgsl
 

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <optional>
 
 #include <glm/geometric.hpp>
 
@@ -40,6 +41,7 @@ struct RenderPointCloud {
   // The compute rasterizer's batches (built on first use), boxed for the same reason.
   std::unique_ptr<pc::GpuBatchedCloud> batched;
   uint64_t batched_generation = std::numeric_limits<uint64_t>::max();
+  std::optional<pc::PointShading> batched_shading;  // what the batches' colours were made for
 };
 
 // Render-world resource: the pipelines for the current target format.
@@ -143,10 +145,19 @@ void queue_point_clouds(Registry& render) {
     if (settings.compute) {
       // The compute rasterizer draws every batch it does not cull (no budget: it is the path
       // for billions of points).
-      if (!r.batched || r.batched_generation != r.generation) {
-        r.batched = std::make_unique<pc::GpuBatchedCloud>(
-            pc::upload_batched_cloud(ctx, pc::build_batches(*r.cloud, pc::SpatialOrder::Morton)));
+      // The batches carry the colour of the chosen mode: remade when it or its ramps change.
+      const pc::PointShading shading = pc::point_shading(settings.render, r.cloud->attributes);
+      const auto same = [](const pc::PointShading& a, const pc::PointShading& b) {
+        return a.mode == b.mode && a.elevation_range == b.elevation_range &&
+               a.intensity_range == b.intensity_range && a.constant_color == b.constant_color;
+      };
+      if (!r.batched || r.batched_generation != r.generation ||
+          !same(*r.batched_shading, shading)) {
+        r.batched = std::make_unique<pc::GpuBatchedCloud>(pc::upload_batched_cloud(
+            ctx,
+            pc::build_batches(*r.cloud, pc::SpatialOrder::Morton, pc::kBatchPoints, &shading)));
         r.batched_generation = r.generation;
+        r.batched_shading = shading;
       }
       pc::ComputeRasterOptions options;
       options.hqs = settings.hqs;

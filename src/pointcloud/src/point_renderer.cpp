@@ -630,4 +630,17 @@ uint64_t read_clod_survivors(gpu::Context& ctx, const GpuPointCloud& cloud) {
   return n;
 }
 
+PointShading point_shading(const PointRenderSettings& settings, const CloudAttributes& a) {
+  PointShading s;
+  s.mode = settings.color;
+  s.elevation_range = settings.elevation_range.y > settings.elevation_range.x
+                          ? settings.elevation_range
+                          : a.elevation_percentiles;
+  s.intensity_range = settings.intensity_range.y > settings.intensity_range.x
+                          ? settings.intensity_range
+                          : a.intensity_percentiles;
+  s.constant_color = settings.constant_color;
+  return s;
+}
+
 }  // namespace stipple::pc

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <optional>
 #include <unordered_map>
 
 #include "stipple/core/error.hpp"
@@ -10,6 +11,7 @@
 #include "stipple/engine/engine.hpp"
 #include "stipple/engine/render_plugins.hpp"
 #include "stipple/engine/viewport.hpp"
+#include "stipple/pointcloud/lod_batches.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/pointcloud/scene.hpp"
 #include "stipple/tiles3d/render_load.hpp"
@@ -42,6 +44,16 @@ struct TilesetGpu {
   WGPUTextureFormat format = WGPUTextureFormat_Undefined;
   uint64_t page_bytes = 0;
   std::unique_ptr<pc::PagedPoints> pages;  // created on first upload; null: dedicated buffers
+};
+
+// Render-world resource of the compute path: the tiles' LOD batches and the rasterizer.
+struct TilesetComputeGpu {
+  std::unique_ptr<pc::LodBatchStore> store;
+  std::unique_ptr<pc::ComputeRasterPipeline> pipeline;
+  WGPUTextureFormat format = WGPUTextureFormat_Undefined;
+  uint64_t capacity = 0;  // point slots
+  pc::ComputeRasterOptions raster;
+  std::vector<uint64_t> keys;  // this frame's drawn tiles
 };
 
 }  // namespace
@@ -181,7 +193,40 @@ void return_drawn(TilesetGpu& g) {
   g.drawn_tiles.clear();
 }
 
+// Prepare, compute path: tiles the main world dropped leave the store, newly drawn ones enter.
+void prepare_tileset_compute(Registry& render) {
+  auto& c = render.resource<TilesetComputeGpu>();
+  gpu::Context& ctx = *render.resource<GpuContext>();
+  if (!c.store)
+    c.store = std::make_unique<pc::LodBatchStore>(
+        pc::create_lod_batch_store(ctx, c.capacity, c.capacity / 1024 + 256));
+  pc::LodBatchStore& store = *c.store;
+  pc::collect_lod_frees(ctx, store);
+  auto& stats = render.resource<TilesetGpuStats>();
+  const auto* list = render.try_resource<TilesetDrawList>();
+  if (list) {
+    std::vector<uint64_t> gone;
+    for (const auto& [key, r] : store.resident)
+      if (!std::binary_search(list->resident.begin(), list->resident.end(), uint32_t(key)))
+        gone.push_back(key);
+    for (uint64_t key : gone) {
+      pc::release_lod_batches(store, key);
+      ++stats.frees;
+    }
+    for (const auto& data : list->draw) {
+      if (!data->batches || pc::has_lod_batches(store, data->tile, data->batches)) continue;
+      if (pc::upload_lod_batches(ctx, store, data->tile, data->batches)) ++stats.uploads;
+    }
+  }
+  stats.gpu_tiles = uint32_t(store.resident.size());
+  stats.gpu_points = store.resident_points;
+}
+
 void prepare_tileset(Registry& render) {
+  if (render.try_resource<TilesetComputeGpu>()) {
+    prepare_tileset_compute(render);
+    return;
+  }
   auto& g = render.resource<TilesetGpu>();
   return_drawn(g);
   gpu::Context& ctx = *render.resource<GpuContext>();
@@ -237,6 +282,11 @@ void prepare_tileset(Registry& render) {
 
 // PostDraw: the frame's work is submitted; ranges freed from now on wait for it.
 void mark_tileset_frame(Registry& render) {
+  if (auto* c = render.try_resource<TilesetComputeGpu>()) {
+    if (c->store && render.resource<FrameGraph>().executed)
+      pc::mark_lod_frame_submitted(*render.resource<GpuContext>(), *c->store);
+    return;
+  }
   auto& g = render.resource<TilesetGpu>();
   if (g.pages && render.resource<FrameGraph>().executed)
     pc::mark_frame_submitted(*render.resource<GpuContext>(), *g.pages);
@@ -250,9 +300,30 @@ void queue_tileset(Registry& render) {
   const auto& target = render.resource<RenderTarget>();
   const ExtractedCamera* extracted = first_extracted_camera(render);
   if (!extracted) return;
-  auto& g = render.resource<TilesetGpu>();
   const auto& settings = render.resource<pc::PointDrawSettings>();
   gpu::Context& ctx = *render.resource<GpuContext>();
+  if (auto* c = render.try_resource<TilesetComputeGpu>()) {
+    if (!c->pipeline || c->format != target.format) {
+      c->pipeline = std::make_unique<pc::ComputeRasterPipeline>(
+          pc::create_compute_raster_pipeline(ctx, target.format));
+      c->format = target.format;
+    }
+    c->keys.clear();
+    for (const auto& data : list->draw) c->keys.push_back(data->tile);
+    pc::GpuBatchedCloud& drawn = pc::select_lod_batches(ctx, *c->store, c->keys);
+    pc::ComputeRasterOptions options = c->raster;
+    options.background = settings.render.background;
+    options.edl_strength = settings.render.edl ? settings.render.edl_strength : 0.0f;
+    options.edl_radius = settings.render.edl_radius;
+    options.storage_target = (target.usage & WGPUTextureUsage_StorageBinding) != 0;
+    pc::add_compute_raster_passes(fg.graph, *c->pipeline, drawn, to_camera(*extracted), options,
+                                  target.width, target.height);
+    auto& stats = render.resource<RenderStats>();
+    stats.points_total = c->store->resident_points;
+    stats.points_drawn += drawn.point_count;
+    return;
+  }
+  auto& g = render.resource<TilesetGpu>();
   if (!g.pipelines || g.format != target.format) {
     g.pipelines =
         std::make_unique<pc::PointPipelines>(pc::create_point_pipelines(ctx, target.format));
@@ -310,9 +381,18 @@ void TilesetPlugin::build(Engine& engine) {
   s.height = height;
   // Workers convert each decoded tile to world-space chunks and drop the decoded form.
   StreamerOptions options = streamer;
-  options.prepare = [world = s.world_from_tileset](uint32_t tile, const glm::dmat4& transform,
-                                                   std::vector<io::PointContent>& contents) {
-    auto chunks = make_tile_chunks(tile, transform, world, contents);
+  // The compute path colours the batches as they are made: the elevation ramp spans the root
+  // volume (as the billboard path's default does); intensity needs --intensity-range, else it
+  // spans 0-65535 (the billboard path takes percentiles of the tiles drawn so far).
+  pc::CloudAttributes ramps;
+  ramps.elevation_percentiles = {s.world_bounds.min.y, s.world_bounds.max.y};
+  ramps.intensity_percentiles = {0.0, 65535.0};
+  std::optional<pc::PointShading> shading;
+  if (compute) shading = pc::point_shading(render, ramps);
+  options.prepare = [world = s.world_from_tileset, shading](
+                        uint32_t tile, const glm::dmat4& transform,
+                        std::vector<io::PointContent>& contents) {
+    auto chunks = make_tile_chunks(tile, transform, world, contents, shading ? &*shading : nullptr);
     std::vector<io::PointContent>().swap(contents);
     const uint64_t bytes = chunks->memory_bytes();
     return PreparedTile{std::move(chunks), bytes};
@@ -341,6 +421,14 @@ void TilesetPlugin::build(Engine& engine) {
   TilesetGpu g;
   g.page_bytes = gpu_page_bytes;
   engine.render().insert_resource(std::move(g));
+  if (compute) {
+    TilesetComputeGpu c;
+    // Every resident tile fits: each holds at least 36 bytes a point on the host (20 in its
+    // chunks, 16 in its batches); a quarter more leaves room for the free list's gaps.
+    c.capacity = streamer.traversal.memory_budget / 36 * 5 / 4;
+    c.raster = raster;
+    engine.render().insert_resource(std::move(c));
+  }
   engine.render().insert_resource(TilesetGpuStats{});
 
   pc::add_scene_picker(main, pick_tileset);

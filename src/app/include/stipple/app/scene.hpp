@@ -55,7 +55,7 @@ bool is_tileset_scene(const SceneOptions& options);
 double max_sse_for(const SceneOptions& options);
 
 // Adds the scene plugin for `options` to `engine`; throws stipple::Error for what the chosen
-// path cannot do (the compute renderer does not draw tilesets yet).
+// path cannot do.
 void add_scene_plugin(Engine& engine, const SceneOptions& options);
 
 // --renderer, --hqs, --max-sse, --memory-mb and the virtualized path's --virtual, --bucket,

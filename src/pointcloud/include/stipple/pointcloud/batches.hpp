@@ -72,9 +72,13 @@ void append_batches(BatchedCloud& out, std::span<const glm::dvec3> positions,
                     std::span<const uint32_t> colors, SpatialOrder order,
                     uint32_t batch_points = kBatchPoints);
 
-// A loaded cloud, sorted and batched as a whole.
+struct PointShading;
+
+// A loaded cloud, sorted and batched as a whole; colour words from `shading` (resolved for the
+// cloud's attributes), else the points' RGB.
 BatchedCloud build_batches(const PointCloud& cloud, SpatialOrder order,
-                           uint32_t batch_points = kBatchPoints);
+                           uint32_t batch_points = kBatchPoints,
+                           const PointShading* shading = nullptr);
 
 // The built-in scene of params.point_count points, generated in parallel pieces of consecutive
 // indices (each spatially coherent: the scene is scanned line by line), each piece sorted and

@@ -25,6 +25,9 @@ namespace stipple::pc {
 // Batched points on the GPU. Clouds larger than one storage binding (or with more batches than
 // one dispatch allows) are split at batch boundaries into segments, each with its own buffers
 // and dispatches; point indices in the visibility buffer are global (segment base + local).
+// Bytes of one entry of a segment's batch table (GpuBatch in the shaders).
+constexpr uint64_t kGpuBatchBytes = 32;
+
 struct GpuBatchedCloud {
   struct Segment {
     gpu::Buffer coarse, medium, fine, color;

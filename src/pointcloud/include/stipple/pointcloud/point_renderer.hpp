@@ -70,6 +70,10 @@ struct PointRenderSettings {
   glm::vec3 background{0.07f, 0.08f, 0.1f};
 };
 
+// The shading the billboard path would use for `settings` over a cloud with `attributes`
+// (explicit ramp ranges, else the attributes' percentiles); its mode may still be Auto.
+PointShading point_shading(const PointRenderSettings& settings, const CloudAttributes& attributes);
+
 SplatMode parse_splat_mode(const std::string& name);
 PointSizeMode parse_point_size_mode(const std::string& name);
 

@@ -9,6 +9,7 @@
 #include <glm/mat4x4.hpp>
 
 #include "stipple/io/pnts.hpp"
+#include "stipple/pointcloud/batches.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
 
 namespace stipple::tiles3d {
@@ -23,12 +24,18 @@ struct TileChunks {
   // Up to 128 intensities strided evenly through the tile: the drawn tiles' samples, weighted by
   // their point counts, give the intensity ramp's percentiles.
   std::vector<uint16_t> intensity_sample;
+  // The tile as LOD batches of the compute rasterizer (seed 001, section 3.5), sorted and
+  // quantized on the worker; null unless asked for.
+  std::shared_ptr<const pc::BatchedCloud> batches;
   uint64_t memory_bytes() const;
 };
 
-// A tile's decoded contents as chunks in the engine's world frame (on a streamer worker).
+// A tile's decoded contents as chunks in the engine's world frame (on a streamer worker), and
+// with `batches` as LOD batches too (Morton order), coloured by that shading (its mode resolved
+// for the tile's attributes).
 std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dmat4& tile_transform,
                                                    const glm::dmat4& world_from_tileset,
-                                                   const std::vector<io::PointContent>& contents);
+                                                   const std::vector<io::PointContent>& contents,
+                                                   const pc::PointShading* batches = nullptr);
 
 }  // namespace stipple::tiles3d

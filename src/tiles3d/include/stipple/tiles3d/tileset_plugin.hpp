@@ -7,6 +7,8 @@
 // budget), so the main thread never touches points; tiles it evicted are dropped. Extract hands
 // the render world the tiles to draw this frame (ids + shared chunk data) and the ids still
 // resident.
+// With `compute`, Prepare puts newly drawn tiles' LOD batches into a pc::LodBatchStore and
+// Queue hands the drawn tiles' batches to the compute rasterizer instead (seed 001, 3.5).
 // Render world, Prepare: uploads newly drawn tiles into ranges of shared suballocator pages
 // (pc::PagedPoints: writeBuffer, no buffer per tile), and frees the ranges of tiles no longer
 // resident once the frames that may still read them have completed (a FrameFence marked after
@@ -25,6 +27,7 @@
 #include <vector>
 
 #include "stipple/math/aabb.hpp"
+#include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/paged_points.hpp"
 #include "stipple/pointcloud/picking.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
@@ -98,6 +101,11 @@ struct TilesetPlugin {
   // Size of the suballocator pages that hold the tiles on the GPU; 0: two dedicated buffers per
   // chunk instead (the path before pages, kept for comparison).
   uint64_t gpu_page_bytes = uint64_t(32) << 20;
+  // Draw with the compute rasterizer: each tile is also made LOD batches on its worker, kept in
+  // a pc::LodBatchStore, and the drawn tiles' batches are rasterized (1-pixel points; EDL,
+  // background and edl settings from `render`, the rest from `raster`).
+  bool compute = false;
+  pc::ComputeRasterOptions raster;
   void build(Engine& engine);
 };
 
