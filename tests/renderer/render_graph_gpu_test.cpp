@@ -197,7 +197,8 @@ TEST_P(RenderGraphGpu, RenderCommandDumpsGraphAndPassTimes) {
   std::filesystem::create_directories(dir);
   std::string command =
       std::string(STIPPLE_BINARY) +
-      " render --scene-points 20000 --width 96 --height 64 --frames 3 --splat naive --no-edl "
+      " render --renderer billboard --scene-points 20000 --width 96 --height 64 --frames 3 "
+      "--splat naive --no-edl "
       "--backend " +
       GetParam() + " -o " + (dir / "out.png").string() + " --stats " +
       (dir / "stats.json").string() + " --dump-graph " + (dir / "graph.dot").string() + " > " +
@@ -220,7 +221,8 @@ TEST_P(RenderGraphGpu, RenderCommandDumpsGraphAndPassTimes) {
   // The full pipeline: CLOD, the three splatting passes with EDL; depth and the accumulation
   // texture are the transients.
   command = std::string(STIPPLE_BINARY) +
-            " render --scene-points 20000 --width 96 --height 64 --frames 2 --clod-k 0.001 "
+            " render --renderer billboard --scene-points 20000 --width 96 --height 64 --frames 2 "
+            "--clod-k 0.001 "
             "--backend " +
             GetParam() + " -o " + (dir / "full.png").string() + " --stats " +
             (dir / "full.json").string() + " > " + (dir / "log.txt").string() + " 2>&1";

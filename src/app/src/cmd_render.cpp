@@ -59,19 +59,24 @@ void run_render(const RenderArgs& args) {
   // The virtualized path (inputs over the host budget, or --virtual) draws with the compute
   // rasterizer too.
   const bool virtualized = use_virtual_path(args.scene);
-  const bool compute = args.scene.renderer == Renderer::Compute || virtualized;
   GpuPlugin gpu;
   gpu.options.backend = args.backend;
-  if (compute) gpu.options.optional_features = pc::compute_raster_features();
+  // Requested always: --renderer auto decides once the adapter is known.
+  gpu.options.optional_features = pc::compute_raster_features();
   engine.add_plugin(std::move(gpu));
+  std::string renderer_reason;
+  SceneOptions scene_options = args.scene;
+  scene_options.renderer =
+      resolve_renderer(scene_options, *engine.render().resource<GpuContext>(), &renderer_reason);
+  bool compute = scene_options.renderer == Renderer::Compute || virtualized;
   RenderGraphPlugin graph;
   graph.keep_history = true;
   graph.dump_graph = args.dump_graph;
   engine.add_plugin(std::move(graph));
   // 3D Tiles are streamed frame by frame with the camera; the PNG is written once the streamer
   // is idle (everything the view selects is resident), or at --max-frames.
-  const bool tileset = is_tileset_scene(args.scene);
-  add_scene_plugin(engine, args.scene);
+  const bool tileset = is_tileset_scene(scene_options);
+  add_scene_plugin(engine, scene_options);
   // The virtualized path loads what the view needs while frames run; the PNG is written once
   // nothing is loading any more (or at --max-frames).
   engine.add_plugin(tileset || virtualized
@@ -95,10 +100,24 @@ void run_render(const RenderArgs& args) {
   }
   main.emplace<Camera>(main.create(), camera);
   auto& settings = main.resource<pc::PointDrawSettings>();
+  const bool sized_by_data = settings.render.point_size <= 0;
+  size_t clouds = 0;
   main.view<pc::PointCloudData>().each([&](const pc::PointCloudData& data) {
+    ++clouds;
     if (settings.render.point_size <= 0)
       settings.render.point_size = pc::auto_point_size(*data.cloud, camera, args.height);
   });
+  // Auto: where the data's density gives 1-pixel points, the compute rasterizer draws the same
+  // image (blending as HQS does) far faster (measured on lavapipe, 12M points: 134 ms against
+  // 6953 ms a frame), on any adapter.
+  if (args.scene.renderer == Renderer::Auto && !compute && !tileset && sized_by_data &&
+      settings.render.point_size <= 1.0f && clouds > 0) {
+    compute = true;
+    settings.compute = true;
+    settings.hqs = settings.render.splat == pc::SplatMode::Blend;
+    renderer_reason = "auto: 1-pixel points";
+  }
+  std::printf("renderer: %s (%s)\n", compute ? "compute" : "billboard", renderer_reason.c_str());
   if (tileset) {
     // Frames run while tiles stream in (waiting for a load between frames); once idle, the point
     // size is fitted to what is drawn (unless given), `--frames` more frames run and the last is

@@ -41,12 +41,14 @@ void run_view(const ViewArgs& args) {
   if (!args.single_thread) engine.add_plugin(PipelinedRenderingPlugin{});
   GpuPlugin gpu;
   gpu.options.backend = args.backend;
-  if (args.scene.renderer == Renderer::Compute || use_virtual_path(args.scene))
-    gpu.options.optional_features = pc::compute_raster_features();
+  gpu.options.optional_features = pc::compute_raster_features();  // for --renderer auto
   engine.add_plugin(std::move(gpu));
   engine.add_plugin(RenderGraphPlugin{});
   const bool tileset = is_tileset_scene(args.scene);
   SceneOptions options = args.scene;
+  std::string reason;
+  options.renderer = resolve_renderer(options, *engine.render().resource<GpuContext>(), &reason);
+  std::printf("renderer: %s (%s)\n", renderer_name(options.renderer), reason.c_str());
   options.chunk_points = 1 << 16;  // a finer point budget
   add_scene_plugin(engine, options);
   platform::WindowOptions window;

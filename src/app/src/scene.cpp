@@ -15,6 +15,7 @@
 #include "stipple/io/las.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/virtual_cloud.hpp"
+#include "stipple/renderer/gpu.hpp"
 #include "stipple/tiler/tiler.hpp"
 #include "stipple/tiles3d/render_load.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
@@ -57,6 +58,47 @@ bool use_virtual_path(const SceneOptions& options, std::string* reason) {
         "{:.1f} GiB (--host-memory)",
         points, double(need) / (1 << 30), double(budget) / (1 << 30));
   return true;
+}
+
+const char* renderer_name(Renderer renderer) {
+  switch (renderer) {
+    case Renderer::Compute:
+      return "compute";
+    case Renderer::Billboard:
+      return "billboard";
+    default:
+      return "auto";
+  }
+}
+
+Renderer resolve_renderer(const SceneOptions& options, const gpu::Context& ctx,
+                          std::string* reason) {
+  auto say = [&](Renderer r, std::string why) {
+    if (reason) *reason = std::move(why);
+    return r;
+  };
+  if (options.renderer != Renderer::Auto) return say(options.renderer, "--renderer");
+  if (use_virtual_path(options))
+    return say(Renderer::Compute, "auto: the virtualized path draws with it");
+  // Points known up front: LAS/LAZ headers, a COPC header, the built-in scene; a 3D Tiles
+  // tileset's size is not.
+  uint64_t points = 0;
+  if (options.inputs.empty()) {
+    points = options.scene_points;
+  } else if (is_tileset_scene(options)) {
+    if (!io::is_copc_input(options.inputs[0]))
+      return say(Renderer::Billboard, "auto: a tileset's size is not known up front");
+    points = io::load_copc_tileset(options.inputs[0]).copc->header.point_count;
+  } else {
+    for (const auto& in : options.inputs) points += io::read_las_header(in).point_count;
+  }
+  constexpr uint64_t kComputeFrom = 10'000'000;
+  if (points >= kComputeFrom)
+    return say(Renderer::Compute,
+               fmt::format("auto: {} points on {}", points, ctx.description.adapter_type));
+  return say(
+      Renderer::Billboard,
+      fmt::format("auto: {} points, under {}: point sizes above one pixel", points, kComputeFrom));
 }
 
 void add_scene_plugin(Engine& engine, const SceneOptions& options) {
@@ -128,11 +170,14 @@ void add_scene_options(CLI::App* cmd, SceneOptions& options) {
   cmd->add_option_function<std::string>(
          "--renderer",
          [&options](const std::string& v) {
-           options.renderer = v == "compute" ? Renderer::Compute : Renderer::Billboard;
+           options.renderer = v == "compute"     ? Renderer::Compute
+                              : v == "billboard" ? Renderer::Billboard
+                                                 : Renderer::Auto;
          },
+         "auto (compute on a GPU from 10M points, else billboard; the summary says which), "
          "billboard (the point pipeline) or compute (compute rasterizer, 1-pixel points)")
-      ->check(CLI::IsMember({"billboard", "compute"}))
-      ->default_str("billboard");
+      ->check(CLI::IsMember({"auto", "billboard", "compute"}))
+      ->default_str("auto");
   cmd->add_flag("--hqs", options.hqs,
                 "Compute renderer: high-quality shading (average points within 1% of the "
                 "nearest depth)");
