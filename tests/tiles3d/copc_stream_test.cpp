@@ -150,3 +150,35 @@ TEST(CopcStream, ATruncatedNodeFailsAloneAndTheViewCompletes) {
   EXPECT_EQ(streamer.errors()[0].message.find(victim), 0u) << streamer.errors()[0].message;
   EXPECT_FALSE(streamer.update(v).render.empty());
 }
+
+// Potree's point budget: the selection draws at most --budget points (the nodes' declared
+// counts bound it before they load), coarser where the view wants more; without it every
+// point is drawn.
+TEST(CopcStream, APointBudgetBoundsTheSelection) {
+  STIPPLE_REQUIRE_DATA(path, "laz/lone-star.copc.laz");
+  for (uint64_t budget : {uint64_t(0), uint64_t(200'000), uint64_t(60'000)}) {
+    auto ts = std::make_shared<io::Tileset>(io::load_tileset(path.string()));
+    tiles3d::StreamerOptions options;
+    options.traversal.max_sse = 1e-6;
+    options.traversal.point_budget = budget;
+    tiles3d::TileStreamer streamer(ts, options);
+    tiles3d::View v;
+    v.world_from_tileset = tiles3d::world_from_tileset(*ts);
+    const glm::dvec3 c = (ts->copc->header.min + ts->copc->header.max) * 0.5;
+    v.camera.look_at(z_up_to_y_up(c + glm::dvec3(0, -60, 60)), z_up_to_y_up(c));
+    ASSERT_TRUE(stream_until_idle(streamer, v));
+    const auto& sel = streamer.update(v);
+    uint64_t drawn = 0;
+    for (uint32_t t : sel.render)
+      for (const auto& content : *streamer.content(t)) drawn += content.point_count;
+    if (budget == 0) {
+      EXPECT_EQ(drawn, 518862u);
+      EXPECT_FALSE(sel.budget_limited);
+    } else {
+      EXPECT_LE(drawn, budget);
+      EXPECT_GT(drawn, 0u);
+      EXPECT_TRUE(sel.budget_limited);
+      EXPECT_LE(sel.footprint_points, budget);
+    }
+  }
+}

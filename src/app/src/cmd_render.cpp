@@ -128,7 +128,8 @@ void run_render(const RenderArgs& args) {
         MainStage::Update,
         [settled = uint64_t(0), frames = uint64_t(args.frames), max_frames = args.max_frames,
          output = args.output, height = args.height, memory_mb = args.scene.memory_mb,
-         max_sse = max_sse_for(args.scene), auto_size](Registry& r) mutable {
+         max_sse = max_sse_for(args.scene), point_budget = args.scene.budget,
+         auto_size](Registry& r) mutable {
           auto& s = r.resource<tiles3d::TilesetStream>();
           const auto& stats = r.resource<tiles3d::TilesetStats>();
           bool capped = stats.frames >= max_frames;
@@ -147,9 +148,10 @@ void run_render(const RenderArgs& args) {
                 memory_mb);
           else if (settled == 0 && stats.budget_limited)
             STIPPLE_WARN(
-                "the view wants more than --memory-mb {}: drawn at a screen-space error of {:.1f} "
-                "px instead of --max-sse {} (raise --memory-mb for more detail)",
-                memory_mb, stats.sse_threshold, max_sse);
+                "the view wants more than --memory-mb {}{} allow: drawn at a screen-space error "
+                "of {:.1f} px instead of --max-sse {} (raise them for more detail)",
+                memory_mb, point_budget ? fmt::format(" and --budget {}", point_budget) : "",
+                stats.sse_threshold, max_sse);
           if (settled++ == 0 && auto_size && stats.drawn_points > 0) {
             Aabb drawn;
             for (uint32_t t : s.draw)

@@ -106,9 +106,6 @@ void add_view_command(CLI::App& cli) {
                   "WebGPU implementation: dawn or wgpu (default: $STIPPLE_BACKEND, else wgpu)")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
   add_point_render_options(cmd, args->scene.render);
-  cmd->add_option("--budget", args->scene.budget,
-                  "Draw at most this many points, nearest chunks first (0: all)")
-      ->capture_default_str();
   cmd->add_option("--scene-points", args->scene.scene_points, "Built-in scene: number of points")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))
       ->capture_default_str();

@@ -113,6 +113,7 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
     tiles.uri = options.inputs[0];
     tiles.streamer.traversal.max_sse = max_sse_for(options);
     tiles.streamer.traversal.memory_budget = options.memory_mb << 20;
+    tiles.streamer.traversal.point_budget = options.budget;
     tiles.render = options.render;
     engine.add_plugin(std::move(tiles));
     return;
@@ -214,6 +215,10 @@ void add_scene_options(CLI::App* cmd, SceneOptions& options) {
   cmd->add_option("--gpu-memory", options.gpu_memory,
                   "Virtualized: device memory for the points, e.g. 2G (default: what the bucket "
                   "needs, 32 bytes a point); a bucket that does not fit is lowered");
+  cmd->add_option("--budget", options.budget,
+                  "Point budget: draw at most this many points (0: all); point clouds: nearest "
+                  "chunks first; tilesets and COPC: coarser tiles where the view wants more")
+      ->capture_default_str();
   cmd->add_option("--memory-mb", options.memory_mb,
                   "Tilesets: resident tile memory budget in MiB (least recently used evicted)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 20))

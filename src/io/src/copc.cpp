@@ -325,6 +325,7 @@ Expansion read_copc_page(uint32_t tile, const PendingChildren& pending, size_t t
               -1, fmt::format("{}: node {} points to a page of its own (a cycle)", name, k.str()));
         } else if (en.point_count > 0) {
           e.contents.push_back(node_uri(file, en));
+          e.content_points = uint64_t(en.point_count);
         }
         own = true;
         continue;
@@ -353,7 +354,10 @@ Expansion read_copc_page(uint32_t tile, const PendingChildren& pending, size_t t
       Tile t = node_tile(file, k);
       t.parent = parent;
       t.depth = uint32_t(shift - 1);
-      if (en.point_count > 0) t.contents.push_back(node_uri(file, en));
+      if (en.point_count > 0) {
+        t.contents.push_back(node_uri(file, en));
+        t.content_points = uint64_t(en.point_count);
+      }
       if (en.point_count == -1)
         t.pending = page_pending(pending.copc, k, en.offset, uint64_t(en.byte_size));
       const int32_t local = int32_t(e.tiles.size());

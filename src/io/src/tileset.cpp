@@ -609,6 +609,7 @@ std::vector<std::pair<uint32_t, std::string>> attach_children(Tileset& ts, Expan
   ts.implicit = ts.implicit || e.implicit;
   for (auto& w : e.warnings) ts.warnings.push_back(std::move(w));
   for (auto& c : e.contents) ts.tiles[e.tile].contents.push_back(std::move(c));
+  ts.tiles[e.tile].content_points += e.content_points;
   const uint32_t depth = ts.tiles[e.tile].depth + 1;
   ts.tiles.reserve(base + e.tiles.size());
   for (size_t i = 0; i < e.tiles.size(); ++i) {

@@ -35,6 +35,7 @@ struct TileStreamer::Job {
   std::optional<io::Expansion> expansion;  // a read of pending children, not content
   std::string error;
   bool complete = false;  // every content fetched and decoded (even if cancelled meanwhile)
+  uint64_t points = 0;    // decoded (counted before prepare may consume the contents)
 };
 
 struct TileStreamer::Shared {
@@ -76,7 +77,7 @@ void TileStreamer::evict(uint32_t e) {
   release_prepared(e);
   stats_.resident_bytes -= states_[e].bytes;
   // The size stays known: what reloading it would cost, for the budget.
-  states_[e] = TileState{LoadState::Unloaded, states_[e].bytes, 0};
+  states_[e] = TileState{LoadState::Unloaded, states_[e].bytes, 0, states_[e].points};
   ++stats_.evictions;
 }
 
@@ -108,7 +109,10 @@ void TileStreamer::integrate() {
     for (const auto& c : job->result) bytes += c.memory_bytes();
     if (job->cancelled) {
       states_[t].state = LoadState::Unloaded;
-      if (job->complete) states_[t].bytes = bytes;  // known now, for the budget
+      if (job->complete) {  // known now, for the budgets
+        states_[t].bytes = bytes;
+        states_[t].points = job->points;
+      }
       // Cancelled after the work was done: kept where it fits without evicting anything.
       if (!job->complete || stats_.resident_bytes + bytes > options_.traversal.memory_budget) {
         ++stats_.loads_cancelled;
@@ -134,6 +138,7 @@ void TileStreamer::integrate() {
       // dropped, but its size is now known, so the traversal plans with it from now on.
       states_[t].state = LoadState::Unloaded;
       states_[t].bytes = bytes;
+      states_[t].points = job->points;
       ++stats_.discarded_over_budget;
       continue;
     }
@@ -153,6 +158,7 @@ void TileStreamer::make_resident(Job& job, uint64_t bytes) {
   }
   states_[t].state = LoadState::Loaded;
   states_[t].bytes = bytes;
+  states_[t].points = job.points;
   stats_.resident_bytes += bytes;
   stats_.peak_resident_bytes = std::max(stats_.peak_resident_bytes, stats_.resident_bytes);
   ++stats_.loads_completed;
@@ -223,6 +229,7 @@ void TileStreamer::start_jobs() {
                                      : decode_content(bytes, uri, limits, fetch));
         }
         job->complete = job->result.size() == uris.size();
+        for (const auto& c : job->result) job->points += c.point_count;
         // Prepared even when cancelled meanwhile, like the decode: the result may be kept.
         if (prepare && job->complete) job->prepared = prepare(job->tile, transform, job->result);
       } catch (const std::exception& e) {

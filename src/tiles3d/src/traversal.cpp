@@ -51,6 +51,11 @@ bool outside(const Planes& planes, const WorldBox& b) {
   return false;
 }
 
+// What a used tile takes: resident bytes and drawn points.
+struct Cost {
+  uint64_t bytes = 0, points = 0;
+};
+
 // One depth-first pass at a given screen-space error threshold.
 class Traversal {
  public:
@@ -73,7 +78,7 @@ class Traversal {
 
   // Returns whether what this tile wants drawn is resident (no hole where it is). `estimate`:
   // the size assumed for content never loaded (the nearest ancestor's known size).
-  bool visit(uint32_t index, uint64_t estimate) {
+  bool visit(uint32_t index, uint64_t estimate, uint64_t estimate_points) {
     const io::Tile& t = ts_.tiles[index];
     ++out_.visited;
     if (options_.frustum_cull && culled(t)) {
@@ -83,7 +88,10 @@ class Traversal {
     double d = t.box.distance(eye_) * scale_;
     double sse = screen_space_error(t.geometric_error, d, view_);
     const TileState& st = states_[index];
-    const uint64_t cost = st.bytes > 0 ? st.bytes : estimate;
+    const Cost cost{st.bytes > 0 ? st.bytes : estimate,
+                    st.points > 0            ? st.points
+                    : t.content_points > 0   ? t.content_points
+                                             : estimate_points};
     if (t.pending && t.pending->brings_content()) {
       // The root of a subtree (or COPC page) not read yet: its content and children come with
       // it.
@@ -103,7 +111,7 @@ class Traversal {
     // External tilesets not read yet are children that are not ready.
     auto visit_children = [&] {
       bool all = true;
-      for (uint32_t c : t.children) all &= visit(c, cost);
+      for (uint32_t c : t.children) all &= visit(c, cost.bytes, cost.points);
       if (t.pending) {
         expand(index, sse, d);
         all = false;
@@ -130,13 +138,16 @@ class Traversal {
     return false;
   }
 
-  // Bytes the used tiles need resident, each counted once.
-  uint64_t footprint() {
-    std::sort(costs_.begin(), costs_.end());
-    uint64_t sum = 0;
+  // Bytes the used tiles need resident and their points, each tile counted once.
+  void footprint(uint64_t* bytes, uint64_t* points) {
+    std::sort(costs_.begin(), costs_.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    *bytes = *points = 0;
     for (size_t i = 0; i < costs_.size(); ++i)
-      if (i == 0 || costs_[i].first != costs_[i - 1].first) sum += costs_[i].second;
-    return sum;
+      if (i == 0 || costs_[i].first != costs_[i - 1].first) {
+        *bytes += costs_[i].second.bytes;
+        *points += costs_[i].second.points;
+      }
   }
 
  private:
@@ -147,7 +158,7 @@ class Traversal {
   double threshold_;
   Selection& out_;
   std::vector<double>* candidates_;  // SSEs of tiles refined past max_sse (thresholds to try)
-  std::vector<std::pair<uint32_t, uint64_t>> costs_;  // (used tile, bytes)
+  std::vector<std::pair<uint32_t, Cost>> costs_;  // (used tile, its cost)
   Planes planes_;
   glm::dmat4 tileset_from_world_;
   glm::dvec3 eye_;
@@ -161,11 +172,11 @@ class Traversal {
     if (t.box.sphere_radius >= 0) b.sphere = t.box.sphere_radius * scale_;
     return outside(planes_, b);
   }
-  void use(uint32_t index, uint64_t cost) {
+  void use(uint32_t index, Cost cost) {
     out_.used.push_back(index);
     costs_.emplace_back(index, cost);
   }
-  void want(uint32_t index, double sse, double d, uint64_t cost) {
+  void want(uint32_t index, double sse, double d, Cost cost) {
     const io::Tile& t = ts_.tiles[index];
     if (t.contents.empty()) return;
     LoadState s = states_[index].state;
@@ -176,7 +187,7 @@ class Traversal {
       request(index, sse, d, cost);
     }
   }
-  void request(uint32_t index, double sse, double d, uint64_t cost) {
+  void request(uint32_t index, double sse, double d, Cost cost) {
     out_.loads.push_back({index, sse, d});
     use(index, cost);
   }
@@ -212,21 +223,28 @@ Selection select_tiles(const io::Tileset& tileset, const View& view,
   if (tileset.tiles.empty() || states.size() != tileset.tiles.size()) return out;
   // Content never loaded is assumed to be as large as the nearest ancestor's, or else the mean
   // of the sizes known: point tiles hold similar point counts at every level.
-  uint64_t known = 0, known_count = 0;
-  for (const auto& s : states)
+  uint64_t known = 0, known_count = 0, known_points = 0, points_count = 0;
+  for (const auto& s : states) {
     if (s.bytes > 0) known += s.bytes, ++known_count;
+    if (s.points > 0) known_points += s.points, ++points_count;
+  }
   const uint64_t estimate = known_count ? known / known_count : 0;
+  const uint64_t estimate_points = points_count ? known_points / points_count : 0;
   auto run = [&](double threshold, std::vector<double>* candidates) {
     Selection s;
     s.sse_threshold = threshold;
     Traversal traversal(tileset, view, states, options, threshold, s, candidates);
-    traversal.visit(0, estimate);
-    s.footprint = traversal.footprint();
+    traversal.visit(0, estimate, estimate_points);
+    traversal.footprint(&s.footprint, &s.footprint_points);
     return s;
+  };
+  auto within_budget = [&](const Selection& s) {
+    return s.footprint <= options.memory_budget &&
+           (options.point_budget == 0 || s.footprint_points <= options.point_budget);
   };
   std::vector<double> candidates;
   out = run(options.max_sse, &candidates);
-  if (out.footprint > options.memory_budget) {
+  if (!within_budget(out)) {
     // Over budget: the lowest threshold whose selection fits. Refinement decisions only change
     // where the threshold passes a refined tile's SSE, so those are the thresholds to try; the
     // footprint shrinks as the threshold grows.
@@ -237,7 +255,7 @@ Selection select_tiles(const io::Tileset& tileset, const View& view,
     while (lo < hi) {
       size_t mid = (lo + hi) / 2;
       Selection s = run(candidates[mid], nullptr);
-      if (s.footprint <= options.memory_budget) {
+      if (within_budget(s)) {
         best = std::move(s);
         hi = mid;
       } else {

@@ -83,6 +83,7 @@ struct Tile {
   double geometric_error = 0.0;
   Refine refine = Refine::Replace;
   std::vector<std::string> contents;  // resolved URIs of renderable content (pnts, glb, ...)
+  uint64_t content_points = 0;        // points its contents declare (COPC); 0: unknown
   int32_t parent = -1;
   std::vector<uint32_t> children;
   uint32_t depth = 0;
@@ -135,6 +136,7 @@ Tileset parse_tileset(std::span<const uint8_t> json_bytes, const std::string& ur
 struct Expansion {
   uint32_t tile = 0;
   std::vector<std::string> contents;  // for `tile` (the root of a subtree)
+  uint64_t content_points = 0;        // what they declare (COPC)
   std::vector<Tile> tiles;
   std::vector<std::pair<int32_t, std::string>> errors;  // (new tile, or -1: `tile`; message)
   std::vector<std::string> warnings;

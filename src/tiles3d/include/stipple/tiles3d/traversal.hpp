@@ -4,7 +4,7 @@
 // read (external tilesets, subtrees), what to cancel and what to evict.
 // Seed 000 section 4, eq. 1: SSE = eps * f / d, f = h / (2 tan(theta / 2)).
 //
-// The memory budget bounds the selection itself: when what a view wants (resident tiles it uses
+// The memory budget (and the point budget, where set) bounds the selection itself: when what a view wants (resident tiles it uses
 // plus the tiles it would load, at their known or estimated sizes) exceeds the budget, the
 // screen-space error threshold is raised, uniformly over the view, to the lowest value whose
 // selection fits. Coarser resident ancestors are drawn instead of requesting tiles that could
@@ -27,6 +27,7 @@ struct TileState {
   // after eviction so the budget knows what reloading costs), 0 when never loaded.
   uint64_t bytes = 0;
   uint64_t last_used = 0;  // frame it was last rendered or kept
+  uint64_t points = 0;     // points of its content once loaded (kept after eviction, like bytes)
 };
 
 struct View {
@@ -39,6 +40,10 @@ struct View {
 struct TraversalOptions {
   double max_sse = 16.0;                  // refine while a tile's SSE exceeds this (pixels)
   uint64_t memory_budget = 512ull << 20;  // resident bytes: bounds the selection, and eviction
+  // Points the selection may draw (Potree's point budget), bounded like the bytes: the error
+  // threshold rises until the selection's points fit. Points of a tile not loaded yet: the
+  // count its tile declares (COPC), else the nearest ancestor's. 0: no limit.
+  uint64_t point_budget = 0;
   bool frustum_cull = true;
 };
 
@@ -56,8 +61,10 @@ struct Selection {
   std::vector<uint32_t> evict;       // Loaded tiles to drop, least recently used first
   std::vector<uint32_t> used;        // tiles rendered or kept this frame (update last_used)
   uint32_t visited = 0, culled = 0;
-  // Bytes the selection needs resident (used tiles, loads at their known or estimated size).
+  // Bytes the selection needs resident (used tiles, loads at their known or estimated size),
+  // and the points of its used tiles (known, declared or estimated).
   uint64_t footprint = 0;
+  uint64_t footprint_points = 0;
   // The screen-space error threshold applied: max_sse, or higher when the budget limited detail.
   double sse_threshold = 0;
   bool budget_limited = false;
