@@ -141,6 +141,54 @@ TEST(Batches, GeneratedSceneIsDeterministicAndCompact) {
   EXPECT_LT(extent / double(a.batches.size()), scene * 0.25);
 }
 
+// A whole cloud of millions of points is sorted and batched on every core; the result is the
+// one the single-threaded sort gives (same total order: key, then index), word for word.
+TEST(Batches, ParallelBatchingEqualsTheSequentialSort) {
+  const size_t n = 3'000'000;  // over the parallel threshold
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<glm::dvec3> positions(n);
+  std::vector<uint32_t> colors(n);
+  for (size_t i = 0; i < n; ++i) {
+    // Clustered, with duplicates, so keys tie.
+    positions[i] = {std::floor(u(rng) * 3000) * 0.1, std::floor(u(rng) * 500) * 0.1,
+                    u(rng) < 0.5 ? 5.0 : u(rng) * 30};
+    colors[i] = uint32_t(i);
+  }
+  pc::BatchedCloud out;
+  pc::append_batches(out, positions, colors, pc::SpatialOrder::Morton);
+  // The reference: keys over the bounds, a plain sort of (key, index), batches of 10240.
+  Aabb box;
+  for (const auto& p : positions) box.extend(p);
+  const double extent = std::max({box.size().x, box.size().y, box.size().z, 1e-9});
+  const double scale = double((1u << 21) - 1) / extent;
+  std::vector<std::pair<uint64_t, uint32_t>> keyed(n);
+  for (size_t i = 0; i < n; ++i) {
+    glm::dvec3 c = (positions[i] - box.min) * scale;
+    keyed[i] = {pc::morton_key(uint32_t(c.x), uint32_t(c.y), uint32_t(c.z)), uint32_t(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  ASSERT_EQ(out.point_count(), n);
+  ASSERT_EQ(out.batches.size(), (n + pc::kBatchPoints - 1) / pc::kBatchPoints);
+  size_t wrong = 0;
+  for (size_t b = 0; b < out.batches.size(); ++b) {
+    const pc::Batch& batch = out.batches[b];
+    ASSERT_EQ(batch.first, b * pc::kBatchPoints);
+    Aabb expected;
+    for (uint32_t k = 0; k < batch.count; ++k)
+      expected.extend(positions[keyed[batch.first + k].second]);
+    wrong += batch.min != expected.min || batch.size != expected.size();
+    for (uint32_t k = 0; k < batch.count; ++k) {
+      const size_t i = batch.first + k;
+      const uint32_t src = keyed[i].second;
+      const auto q = pc::quantize(positions[src], batch.min, batch.size);
+      wrong += out.color[i] != src || out.coarse[i] != q.coarse || out.medium[i] != q.medium ||
+               out.fine[i] != q.fine;
+    }
+  }
+  EXPECT_EQ(wrong, 0u);
+}
+
 TEST(Culling, ClassifiesAndChoosesPrecision) {
   Camera camera;
   camera.fov_y = glm::radians(60.0);

@@ -164,6 +164,111 @@ glm::dvec3 dequantize(const QuantizedPoint& q, int bits, const glm::dvec3& min,
 
 namespace {
 
+// Below this many points one thread sorts and batches (tiles on streamer workers); above, the
+// shared pool does (whole clouds, the first frame of `render` waits for them).
+constexpr size_t kParallelBatching = size_t(1) << 21;
+
+ThreadPool& batching_pool() {
+  static ThreadPool pool;
+  return pool;
+}
+
+// The spatial sort of batch_into on every core, in the same total order (key, then index): the
+// keys' top 12 bits split the points into 4096 key ranges (histograms and scatter per slice),
+// each range is sorted on its own, and the batches are boxed and quantized in parallel.
+size_t batch_into_parallel(std::span<const glm::dvec3> positions, std::span<const uint32_t> colors,
+                           SpatialOrder order, uint32_t batch_points, uint64_t first_index,
+                           Batch* batches, uint32_t* coarse, uint32_t* medium, uint32_t* fine,
+                           uint32_t* color) {
+  ThreadPool& pool = batching_pool();
+  const size_t n = positions.size();
+  const size_t slices = size_t(pool.size()) * 4;
+  auto slice = [&](size_t s) { return std::pair{s * n / slices, (s + 1) * n / slices}; };
+  std::vector<uint32_t> perm(n);
+  if (order == SpatialOrder::None) {
+    pool.parallel_for(n, 1 << 16, [&](size_t b, size_t e) {
+      for (size_t i = b; i < e; ++i) perm[i] = uint32_t(i);
+    });
+  } else {
+    std::vector<Aabb> boxes(slices);
+    pool.parallel_for(slices, 1, [&](size_t sb, size_t se) {
+      for (size_t s = sb; s < se; ++s) {
+        auto [b, e] = slice(s);
+        for (size_t i = b; i < e; ++i) boxes[s].extend(positions[i]);
+      }
+    });
+    Aabb box;
+    for (const auto& b : boxes) box.extend(b);
+    const double extent = std::max({box.size().x, box.size().y, box.size().z, 1e-9});
+    const double scale = double((1u << 21) - 1) / extent;
+    constexpr int kBucketBits = 12;
+    constexpr size_t kBuckets = size_t(1) << kBucketBits;
+    std::vector<uint64_t> keys(n);
+    std::vector<uint32_t> histogram(slices * kBuckets, 0);
+    pool.parallel_for(slices, 1, [&](size_t sb, size_t se) {
+      for (size_t s = sb; s < se; ++s) {
+        auto [b, e] = slice(s);
+        uint32_t* h = &histogram[s * kBuckets];
+        for (size_t i = b; i < e; ++i) {
+          glm::dvec3 c = (positions[i] - box.min) * scale;
+          uint32_t x = uint32_t(c.x), y = uint32_t(c.y), z = uint32_t(c.z);
+          keys[i] = order == SpatialOrder::Morton ? morton_key(x, y, z) : hilbert_key(x, y, z);
+          ++h[keys[i] >> (63 - kBucketBits)];
+        }
+      }
+    });
+    // Bucket-major offsets: bucket k holds slice 0's points of k, then slice 1's, ...
+    std::vector<uint64_t> start(slices * kBuckets);
+    std::vector<uint64_t> bucket_start(kBuckets + 1, 0);
+    uint64_t at = 0;
+    for (size_t k = 0; k < kBuckets; ++k) {
+      bucket_start[k] = at;
+      for (size_t s = 0; s < slices; ++s) {
+        start[s * kBuckets + k] = at;
+        at += histogram[s * kBuckets + k];
+      }
+    }
+    bucket_start[kBuckets] = at;
+    std::vector<std::pair<uint64_t, uint32_t>> keyed(n);
+    pool.parallel_for(slices, 1, [&](size_t sb, size_t se) {
+      for (size_t s = sb; s < se; ++s) {
+        auto [b, e] = slice(s);
+        uint64_t* next = &start[s * kBuckets];
+        for (size_t i = b; i < e; ++i)
+          keyed[next[keys[i] >> (63 - kBucketBits)]++] = {keys[i], uint32_t(i)};
+      }
+    });
+    pool.parallel_for(kBuckets, 16, [&](size_t kb, size_t ke) {
+      for (size_t k = kb; k < ke; ++k) {
+        std::sort(keyed.begin() + std::ptrdiff_t(bucket_start[k]),
+                  keyed.begin() + std::ptrdiff_t(bucket_start[k + 1]));
+        for (uint64_t i = bucket_start[k]; i < bucket_start[k + 1]; ++i) perm[i] = keyed[i].second;
+      }
+    });
+  }
+  const size_t count = (n + batch_points - 1) / batch_points;
+  pool.parallel_for(count, 16, [&](size_t cb, size_t ce) {
+    for (size_t c = cb; c < ce; ++c) {
+      const size_t b = c * batch_points, e = std::min(n, b + batch_points);
+      Aabb bb;
+      for (size_t i = b; i < e; ++i) bb.extend(positions[perm[i]]);
+      Batch& batch = batches[c];
+      batch.min = bb.min;
+      batch.size = bb.size();
+      batch.first = first_index + b;
+      batch.count = uint32_t(e - b);
+      for (size_t i = b; i < e; ++i) {
+        QuantizedPoint q = quantize(positions[perm[i]], batch.min, batch.size);
+        coarse[i] = q.coarse;
+        medium[i] = q.medium;
+        fine[i] = q.fine;
+        color[i] = colors[perm[i]];
+      }
+    }
+  });
+  return count;
+}
+
 // Sorts and batches one run of points, writing batches and per-point words at the given places.
 // Returns the number of batches written (ceil(n / batch_points)).
 size_t batch_into(std::span<const glm::dvec3> positions, std::span<const uint32_t> colors,
@@ -229,9 +334,10 @@ void append_batches(BatchedCloud& out, std::span<const glm::dvec3> positions,
   out.medium.resize(base + n);
   out.fine.resize(base + n);
   out.color.resize(base + n);
-  batch_into(positions, colors, order, batch_points, base, out.batches.data() + batch_base,
-             out.coarse.data() + base, out.medium.data() + base, out.fine.data() + base,
-             out.color.data() + base);
+  (n >= kParallelBatching ? batch_into_parallel : batch_into)(
+      positions, colors, order, batch_points, base, out.batches.data() + batch_base,
+      out.coarse.data() + base, out.medium.data() + base, out.fine.data() + base,
+      out.color.data() + base);
   finish_bounds(out);
 }
 
