@@ -1,9 +1,14 @@
 #include "stipple/pointcloud/virtual_cloud.hpp"
 
+#include <malloc.h>
+
+#include <malloc.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdlib>
 #include <memory>
 #include <mutex>
 #include <numeric>
@@ -47,6 +52,7 @@ struct VirtualResidency {
   size_t count = 0;
   uint64_t budget = 0;  // bytes of records
   std::atomic<uint64_t> bytes{0}, loads{0}, points_read{0};
+  uint64_t unloaded_since_trim = 0;  // main thread: record bytes freed since the last trim
   std::atomic<uint32_t> pending{0};
   std::mutex progress_mutex;
   std::condition_variable progress;
@@ -85,6 +91,7 @@ struct VirtualResidency {
     slot.records.shrink_to_fit();
     slot.loaded.store(keep);
     bytes -= uint64_t(have - keep) * sizeof(PointletRecord);
+    unloaded_since_trim += uint64_t(have - keep) * sizeof(PointletRecord);
   }
 };
 
@@ -255,17 +262,21 @@ void select_points(Registry& render) {
         r.pending.load() == 0 && current && !v.lod_due && !gpu::readback_busy(*v.lod_ring);
     return;
   }
-  // The process budget: measured once the first frame made the GPU buffers (the first
-  // selection runs before they exist), then kept.
-  if (v.options.process_budget > 0 && !v.process_measured && stats.selections >= 1) {
-    v.process_measured = true;
+  // The process budget: measured from the second selection on (the first runs before the
+  // first frame made the GPU buffers), and again at every selection, since the rest of the
+  // process grows as the flight goes on (driver, tables). It only ever lowers the points'
+  // budget, so the view does not thin and thicken back and forth.
+  if (v.options.process_budget > 0 && stats.selections >= 1) {
     if (const uint64_t rss = resident_bytes(); rss > 0) {
       const uint64_t left = points_budget(v.options.process_budget, rss, r.bytes.load(), r.budget);
-      if (left < r.budget)
-        STIPPLE_INFO(
-            "host budget: the process holds {} MiB besides its points; {} MiB left for them",
-            (rss - std::min(rss, r.bytes.load())) >> 20, left >> 20);
-      r.budget = left;
+      if (left < r.budget) {
+        if (!v.process_measured || left + r.budget / 20 < r.budget)
+          STIPPLE_INFO(
+              "host budget: the process holds {} MiB besides its points; {} MiB left for them",
+              (rss - std::min(rss, r.bytes.load())) >> 20, left >> 20);
+        r.budget = left;
+      }
+      v.process_measured = true;
     }
   }
   stats.host_budget = r.budget;
@@ -289,6 +300,20 @@ void select_points(Registry& render) {
       if (!r.slots[i].in_flight.load())
         r.unload(i, uint32_t(double(r.slots[i].loaded.load()) * share));
   }
+  // Freed pointlet buffers stay in malloc's arenas (loads allocate on the workers, unloads free
+  // on this thread), resident but unused: past 256 MiB of them they are handed back, so the
+  // process budget measures what is in use.
+  if (r.unloaded_since_trim > (uint64_t(256) << 20) && !std::getenv("STIPPLE_NO_MALLOC_TRIM")) {
+    const auto t_trim = std::chrono::steady_clock::now();
+#ifdef __GLIBC__
+    malloc_trim(0);
+#endif
+    stats.trim_ms += ms_since(t_trim);
+    r.unloaded_since_trim = 0;
+  }
+#ifdef __GLIBC__
+  stats.heap_free_bytes = mallinfo2().fordblks;
+#endif
   // Loads for what is missing (with up to 25% more while the budget allows), and what to draw.
   // Loads go to the pool as a few tasks per worker (a task per pointlet costs more to queue than
   // many reads take), the pointlets that lack most first in every task.
@@ -381,6 +406,7 @@ void queue_virtual_cloud(Registry& render) {
   options.background = v.background;
   options.edl_strength = v.edl_strength;
   options.edl_radius = v.edl_radius;
+  options.storage_target = (target.usage & WGPUTextureUsage_StorageBinding) != 0;
   if (v.lod_due && gpu::readback_free(*v.lod_ring)) {
     const Camera camera = to_camera(*extracted);
     add_pointlet_lod_passes(fg.graph, *v.lod, *v.pointlets, camera, target.width, target.height,
