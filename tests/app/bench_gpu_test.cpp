@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdio>
@@ -72,3 +73,26 @@ TEST(BenchArgs, BadArgumentsFail) {
 
 INSTANTIATE_TEST_SUITE_P(Backends, Bench, ::testing::Values("dawn", "wgpu"),
                          [](const auto& info) { return info.param; });
+
+// `bench stream` flies the camera path over a COPC file: every frame timed, the points it drew
+// counted, and a non-tileset input refused.
+TEST(BenchStream, FliesTheCameraPathOverCopc) {
+  STIPPLE_REQUIRE_DATA(copc, "laz/lone-star.copc.laz");
+  const fs::path json =
+      fs::temp_directory_path() / ("stipple_bench_stream_" + std::to_string(::getpid()) + ".json");
+  auto r = test::run_stipple("bench stream " + copc.string() +
+                             " --frames 12 --width 320 --height 180 --json " + json.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("FPS avg"), std::string::npos) << r.output;
+  auto j = nlohmann::json::parse(std::ifstream(json));
+  EXPECT_EQ(j["frame_wall_ms"].size(), 12u);
+  EXPECT_GT(j["fps"]["average"].get<double>(), 0.0);
+  EXPECT_GT(j["points_drawn_mean"].get<double>(), 0.0);
+  EXPECT_LE(j["loads"].get<uint64_t>(), 15u);  // each of the 15 nodes at most once (no evictions)
+  EXPECT_EQ(j["errors"].get<uint64_t>(), 0u);
+  fs::remove(json);
+  auto bad =
+      test::run_stipple("bench stream " + (test::data_dir() / "las/autzen_trim.las").string());
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.output.find("not a tileset or a COPC file"), std::string::npos) << bad.output;
+}

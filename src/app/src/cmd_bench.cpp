@@ -442,6 +442,7 @@ void add_bench_command(CLI::App& cli) {
   cmd->callback([args] { run_suballoc(*args); });
   add_bench_raster_command(*bench);
   add_bench_virtual_command(*bench);
+  add_bench_stream_command(*bench);
   add_bench_points_command(bench);
 }
 

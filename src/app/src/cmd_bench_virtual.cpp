@@ -21,6 +21,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "stipple/app/camera_path.hpp"
 #include "stipple/app/commands.hpp"
 #include "stipple/app/scene.hpp"
 #include "stipple/core/atomic_file.hpp"
@@ -45,33 +46,13 @@ struct VirtualBenchArgs {
   std::vector<uint64_t> buckets = {25'000'000};
   uint32_t width = 1920, height = 1080;
   uint32_t frames = 600;
-  double turns = 1.0;                     // orbits over the path
-  double fov_min = 20.0, fov_max = 90.0;  // degrees: the zoom
-  double zoom_cycles = 2.0;               // zoom in and out this often along the path
-  double elevation = 35.0;                // degrees above the horizon
+  CameraPath path;
   uint32_t fill_radius = 1;
   float occlusion_beta = 0.0f;
   uint32_t psnr_views = 0;
   std::string cache_dir, host_memory, gpu_memory, backend, json;
   uint64_t pointlets = pc::kDefaultPointlets;
 };
-
-// The path's camera at t in [0, 1): orbiting the centre at the distance that frames the cloud
-// at the widest field of view, the field of view following a cosine between the limits.
-Camera path_camera(const VirtualBenchArgs& a, const Aabb& world, double t, double aspect) {
-  const double fov =
-      a.fov_min + (a.fov_max - a.fov_min) * 0.5 * (1.0 + std::cos(2.0 * M_PI * a.zoom_cycles * t));
-  Camera wide = frame_box(world, aspect, 0.0, a.elevation, a.fov_max);
-  const double distance = glm::length(wide.position - world.center());
-  const double az = 2.0 * M_PI * a.turns * t, el = glm::radians(a.elevation);
-  const glm::dvec3 c = world.center();
-  const glm::dvec3 eye = c + distance * glm::dvec3(std::cos(el) * std::sin(az), std::sin(el),
-                                                   std::cos(el) * std::cos(az));
-  Camera camera = wide;
-  camera.fov_y = glm::radians(fov);
-  camera.look_at(eye, c);
-  return camera;
-}
 
 std::unique_ptr<Engine> make_engine(const VirtualBenchArgs& a, uint64_t bucket, uint32_t fill) {
   auto engine = std::make_unique<Engine>();
@@ -106,17 +87,9 @@ struct FlightResult {
   double select_ms = 0, lod_ms = 0, update_ms = 0, residency_ms = 0, wait_ms = 0,
          write_ms = 0;  // CPU, summed over frames
   uint64_t peak_host = 0, peak_gpu = 0, staging = 0, points = 0;
-  double load_s = 0;
+  uint64_t peak_process = 0, peak_heap_free = 0, host_budget = 0;
+  double load_s = 0, trim_ms = 0;
 };
-
-// Average FPS of the slowest `fraction` of frames (the "1% low").
-double low_fps(std::vector<double> ms, double fraction) {
-  if (ms.empty()) return 0;
-  std::sort(ms.begin(), ms.end(), std::greater<>());
-  const size_t n = std::max<size_t>(1, size_t(std::floor(ms.size() * fraction)));
-  const double mean = std::accumulate(ms.begin(), ms.begin() + n, 0.0) / n;
-  return mean > 0 ? 1000.0 / mean : 0;
-}
 
 FlightResult fly(const VirtualBenchArgs& a, uint64_t bucket) {
   FlightResult out;
@@ -129,12 +102,12 @@ FlightResult fly(const VirtualBenchArgs& a, uint64_t bucket) {
   out.points = main.resource<pc::SceneInfo>().points;
   const double aspect = double(a.width) / a.height;
   const Entity camera = main.create();
-  main.emplace<Camera>(camera, path_camera(a, world, 0.0, aspect));
+  main.emplace<Camera>(camera, path_camera(a.path, world, 0.0, aspect));
   Registry& render = engine->render();
   Progress progress(fmt::format("B = {:.1f} M", bucket / 1e6), a.frames, "frames");
   uint64_t selections = 0;
   for (uint32_t f = 0; f < a.frames; ++f) {
-    main.get<Camera>(camera) = path_camera(a, world, double(f) / a.frames, aspect);
+    main.get<Camera>(camera) = path_camera(a.path, world, double(f) / a.frames, aspect);
     const auto t0 = std::chrono::steady_clock::now();
     engine->update();
     const auto& rs = render.resource<RenderStats>();
@@ -155,6 +128,10 @@ FlightResult fly(const VirtualBenchArgs& a, uint64_t bucket) {
     }
     out.peak_host = std::max(out.peak_host, vs.host_bytes);
     out.peak_gpu = std::max(out.peak_gpu, vs.gpu_bytes);
+    out.peak_process = std::max(out.peak_process, vs.process_bytes);
+    out.peak_heap_free = std::max(out.peak_heap_free, vs.heap_free_bytes);
+    out.host_budget = vs.host_budget;
+    out.trim_ms = vs.trim_ms;
     out.staging = vs.staging_bytes;
     if (vs.bucket) out.bucket = vs.bucket;  // lowered when it does not fit --gpu-memory
     progress.advance(1);
@@ -214,7 +191,7 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
   j["width"] = a.width;
   j["height"] = a.height;
   j["frames"] = a.frames;
-  j["fov_deg"] = {a.fov_min, a.fov_max};
+  j["fov_deg"] = {a.path.fov_min, a.path.fov_max};
   j["fill_radius"] = a.fill_radius;
   j["occlusion_beta"] = a.occlusion_beta;
   j["runs"] = nlohmann::json::array();
@@ -264,6 +241,10 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
     run["peak_gpu_bytes"] = r.peak_gpu;
     run["staging_bytes"] = r.staging;
     run["peak_rss_bytes"] = rss;
+    run["peak_process_bytes_at_selection"] = r.peak_process;
+    run["peak_heap_free_bytes"] = r.peak_heap_free;
+    run["points_budget_bytes_last"] = r.host_budget;
+    run["malloc_trim_ms_total"] = r.trim_ms;
     run["open_s"] = r.load_s;
     j["runs"].push_back(run);
     std::printf("           stages (GPU ms, mean a frame):");
@@ -289,7 +270,7 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
     }
     std::vector<Camera> views;
     for (uint32_t v = 0; v < a.psnr_views; ++v)
-      views.push_back(path_camera(a, world, (v + 0.5) / a.psnr_views, aspect));
+      views.push_back(path_camera(a.path, world, (v + 0.5) / a.psnr_views, aspect));
     nlohmann::json pj = nlohmann::json::array();
     for (uint32_t fill : {0u, a.fill_radius}) {
       auto reference = settled_images(a, points, fill, views);
@@ -327,16 +308,7 @@ void add_bench_virtual_command(CLI::App& bench) {
   cmd->add_option("--frames", a->frames, "Frames along the path")
       ->check(CLI::Range(1u, 1000000u))
       ->capture_default_str();
-  cmd->add_option("--turns", a->turns, "Orbits along the path")->capture_default_str();
-  cmd->add_option("--fov-min", a->fov_min, "Narrowest vertical field of view (degrees)")
-      ->check(CLI::Range(1.0, 170.0))
-      ->capture_default_str();
-  cmd->add_option("--fov-max", a->fov_max, "Widest vertical field of view (degrees)")
-      ->check(CLI::Range(1.0, 170.0))
-      ->capture_default_str();
-  cmd->add_option("--zoom-cycles", a->zoom_cycles, "Zoom in and out this often along the path")
-      ->capture_default_str();
-  cmd->add_option("--elevation", a->elevation, "Camera elevation (degrees)")->capture_default_str();
+  add_camera_path_options(cmd, a->path);
   cmd->add_option("--fill-radius", a->fill_radius, "Hole filling radius (0: off)")
       ->check(CLI::Range(0, 8))
       ->capture_default_str();
@@ -354,7 +326,8 @@ void add_bench_virtual_command(CLI::App& bench) {
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
   cmd->add_option("--json", a->json, "Write the results (and every frame's times) as JSON");
   cmd->callback([a] {
-    if (a->fov_min > a->fov_max) fail("--fov-min {} exceeds --fov-max {}", a->fov_min, a->fov_max);
+    if (a->path.fov_min > a->path.fov_max)
+      fail("--fov-min {} exceeds --fov-max {}", a->path.fov_min, a->path.fov_max);
     run_virtual_bench(*a);
   });
 }

@@ -1,0 +1,170 @@
+// `stipple bench stream`: a 3D Tiles tileset or a COPC file streamed along seed 002's camera
+// path (an orbit while the field of view zooms), drawn headless by the compute rasterizer (LOD
+// batches) or by billboards. Frames do not wait for loads (as in a viewer): each frame is one
+// engine update, timed; the summary is FPS statistics (average, min, max, 1% and 0.1% lows),
+// GPU ms, drawn and resident points, loads and evictions, peak resident bytes and RSS.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "stipple/app/camera_path.hpp"
+#include "stipple/app/commands.hpp"
+#include "stipple/app/scene.hpp"
+#include "stipple/core/atomic_file.hpp"
+#include "stipple/core/error.hpp"
+#include "stipple/core/memory.hpp"
+#include "stipple/core/progress.hpp"
+#include "stipple/core/stats.hpp"
+#include "stipple/engine/camera.hpp"
+#include "stipple/engine/engine.hpp"
+#include "stipple/engine/plugins.hpp"
+#include "stipple/engine/render_plugins.hpp"
+#include "stipple/pointcloud/compute_raster.hpp"
+#include "stipple/pointcloud/scene.hpp"
+#include "stipple/tiles3d/tileset_plugin.hpp"
+
+namespace stipple::app {
+namespace {
+
+struct StreamBenchArgs {
+  std::string input;
+  std::string renderer = "compute";
+  uint32_t width = 1920, height = 1080;
+  uint32_t frames = 600;
+  CameraPath path;
+  double max_sse = 0;  // 0: the source's default
+  uint64_t memory_mb = 4096, budget = 0;
+  std::string backend, json;
+};
+
+void run_stream_bench(const StreamBenchArgs& a) {
+  Engine engine;
+  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
+  GpuPlugin gpu;
+  gpu.options.backend = a.backend;
+  gpu.options.optional_features = pc::compute_raster_features();
+  engine.add_plugin(std::move(gpu));
+  RenderGraphPlugin graph;
+  graph.keep_history = true;
+  engine.add_plugin(std::move(graph));
+  SceneOptions scene;
+  scene.inputs = {a.input};
+  if (!is_tileset_scene(scene)) fail("bench stream: {} is not a tileset or a COPC file", a.input);
+  scene.renderer = a.renderer == "compute" ? Renderer::Compute : Renderer::Billboard;
+  scene.max_sse = a.max_sse;
+  scene.memory_mb = a.memory_mb;
+  scene.budget = a.budget;
+  scene.render.point_size = a.renderer == "compute" ? 1.0f : 2.0f;
+  add_scene_plugin(engine, scene);
+  engine.add_plugin(HeadlessTargetPlugin{a.width, a.height, "", 0});
+
+  Registry& main = engine.main();
+  Registry& render = engine.render();
+  const Aabb world = main.resource<pc::SceneInfo>().world_bounds;
+  const double aspect = double(a.width) / a.height;
+  const Entity camera = main.create();
+  main.emplace<Camera>(camera, path_camera(a.path, world, 0.0, aspect));
+  std::vector<double> wall_ms, gpu_ms;
+  std::vector<uint64_t> drawn;
+  Progress progress("streaming", a.frames, "frames");
+  for (uint32_t f = 0; f < a.frames; ++f) {
+    main.get<Camera>(camera) = path_camera(a.path, world, double(f) / a.frames, aspect);
+    const auto t0 = std::chrono::steady_clock::now();
+    engine.update();
+    wall_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    const auto& rs = render.resource<RenderStats>();
+    gpu_ms.push_back(rs.gpu_ms.empty() ? 0.0 : rs.gpu_ms.back());
+    drawn.push_back(main.resource<tiles3d::TilesetStats>().drawn_points);
+    progress.advance(1);
+  }
+  progress.finish();
+  const auto stats = main.resource<tiles3d::TilesetStats>();
+  engine.shutdown();
+
+  const double total = std::accumulate(wall_ms.begin(), wall_ms.end(), 0.0);
+  const double avg = total > 0 ? 1000.0 * double(wall_ms.size()) / total : 0;
+  const double slowest = *std::max_element(wall_ms.begin(), wall_ms.end());
+  const double fastest = *std::min_element(wall_ms.begin(), wall_ms.end());
+  const double gpu_median = median(gpu_ms);
+  const double drawn_mean =
+      double(std::accumulate(drawn.begin(), drawn.end(), uint64_t(0))) / double(drawn.size());
+  const uint64_t rss = peak_resident_bytes();
+  std::printf("%s (%s, %ux%u, %u frames)\n", a.input.c_str(), a.renderer.c_str(), a.width, a.height,
+              a.frames);
+  std::printf(
+      "  FPS avg %.1f, min %.1f, max %.1f, 1%% low %.1f, 0.1%% low %.1f; GPU %.3f ms (median)\n",
+      avg, 1000.0 / slowest, 1000.0 / fastest, low_fps(wall_ms, 0.01), low_fps(wall_ms, 0.001),
+      gpu_median);
+  std::printf(
+      "  drawn %.2f M points a frame (mean); %llu loads, %llu evictions, %llu errors; peak "
+      "resident %.1f MiB of %.1f; RSS %.1f MiB\n",
+      drawn_mean / 1e6, static_cast<unsigned long long>(stats.loads_completed),
+      static_cast<unsigned long long>(stats.evictions),
+      static_cast<unsigned long long>(stats.errors), stats.peak_resident_bytes / 1048576.0,
+      stats.memory_budget / 1048576.0, rss / 1048576.0);
+  if (!a.json.empty()) {
+    nlohmann::json j;
+    j["input"] = a.input;
+    j["renderer"] = a.renderer;
+    j["width"] = a.width;
+    j["height"] = a.height;
+    j["frames"] = a.frames;
+    j["fps"] = {{"average", avg},
+                {"min", 1000.0 / slowest},
+                {"max", 1000.0 / fastest},
+                {"low_1pct", low_fps(wall_ms, 0.01)},
+                {"low_0_1pct", low_fps(wall_ms, 0.001)}};
+    j["gpu_ms_median"] = gpu_median;
+    j["frame_wall_ms"] = wall_ms;
+    j["frame_gpu_ms"] = gpu_ms;
+    j["points_drawn_mean"] = drawn_mean;
+    j["loads"] = stats.loads_completed;
+    j["evictions"] = stats.evictions;
+    j["errors"] = stats.errors;
+    j["peak_resident_bytes"] = stats.peak_resident_bytes;
+    j["memory_budget"] = stats.memory_budget;
+    j["peak_rss_bytes"] = rss;
+    write_file_atomically(a.json, j.dump(1));
+  }
+}
+
+}  // namespace
+
+void add_bench_stream_command(CLI::App& bench) {
+  auto a = std::make_shared<StreamBenchArgs>();
+  auto* cmd = bench.add_subcommand(
+      "stream", "A tileset or COPC file streamed along the seed's camera path: FPS statistics");
+  cmd->add_option("input", a->input, "tileset.json (path or URL) or COPC file")->required();
+  cmd->add_option("--renderer", a->renderer, "compute (LOD batches) or billboard")
+      ->check(CLI::IsMember({"compute", "billboard"}))
+      ->capture_default_str();
+  cmd->add_option("--width", a->width, "Image width")->capture_default_str();
+  cmd->add_option("--height", a->height, "Image height")->capture_default_str();
+  cmd->add_option("--frames", a->frames, "Frames along the path")
+      ->check(CLI::Range(1u, 1000000u))
+      ->capture_default_str();
+  add_camera_path_options(cmd, a->path);
+  cmd->add_option("--max-sse", a->max_sse,
+                  "Screen-space error threshold (pixels; default 16 for 3D Tiles, 2 for COPC)");
+  cmd->add_option("--memory-mb", a->memory_mb, "Resident tile memory budget (MiB)")
+      ->capture_default_str();
+  cmd->add_option("--budget", a->budget, "Point budget (0: none)")->capture_default_str();
+  cmd->add_option("--backend", a->backend, "WebGPU implementation: dawn or wgpu")
+      ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
+  cmd->add_option("--json", a->json, "Write the results (and every frame's times) as JSON");
+  cmd->callback([a] {
+    if (a->path.fov_min > a->path.fov_max)
+      fail("--fov-min {} exceeds --fov-max {}", a->path.fov_min, a->path.fov_max);
+    run_stream_bench(*a);
+  });
+}
+
+}  // namespace stipple::app
