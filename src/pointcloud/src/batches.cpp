@@ -343,18 +343,29 @@ void append_batches(BatchedCloud& out, std::span<const glm::dvec3> positions,
 
 BatchedCloud build_batches(const PointCloud& cloud, SpatialOrder order, uint32_t batch_points,
                            const PointShading* shading) {
-  std::vector<glm::dvec3> positions;
-  std::vector<uint32_t> colors;
-  positions.reserve(cloud.point_count);
-  colors.reserve(cloud.point_count);
+  // Gathered (and shaded) chunk by chunk on the batching pool for whole clouds.
+  std::vector<size_t> first(cloud.chunks.size() + 1, 0);
+  for (size_t c = 0; c < cloud.chunks.size(); ++c)
+    first[c + 1] = first[c] + cloud.chunks[c].vertices.size();
+  std::vector<glm::dvec3> positions(first.back());
+  std::vector<uint32_t> colors(first.back());
   const ColorMode mode =
       shading ? resolve_color_mode(cloud.attributes, shading->mode) : ColorMode::Rgb;
-  for (const PointChunk& chunk : cloud.chunks)
-    for (const auto& v : chunk.vertices) {
-      positions.push_back(chunk.origin + glm::dvec3(v.x, v.y, v.z));
-      colors.push_back(shading ? shade_point(*shading, mode, v, chunk.origin.y + double(v.y))
-                               : v.rgba);
+  auto gather = [&](size_t cb, size_t ce) {
+    for (size_t c = cb; c < ce; ++c) {
+      const PointChunk& chunk = cloud.chunks[c];
+      size_t i = first[c];
+      for (const auto& v : chunk.vertices) {
+        positions[i] = chunk.origin + glm::dvec3(v.x, v.y, v.z);
+        colors[i++] = shading ? shade_point(*shading, mode, v, chunk.origin.y + double(v.y))
+                              : v.rgba;
+      }
     }
+  };
+  if (first.back() >= kParallelBatching)
+    batching_pool().parallel_for(cloud.chunks.size(), 1, gather);
+  else
+    gather(0, cloud.chunks.size());
   BatchedCloud out;
   append_batches(out, positions, colors, order, batch_points);
   return out;
