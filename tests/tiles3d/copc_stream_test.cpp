@@ -52,6 +52,15 @@ const fs::path& deep_copc() {
   return path;
 }
 
+// Looking at the data's centre from `distance` south and as high (file units).
+tiles3d::View oblique_view(const io::Tileset& ts, double distance) {
+  tiles3d::View v;
+  v.world_from_tileset = tiles3d::world_from_tileset(ts);
+  const glm::dvec3 c = (ts.copc->header.min + ts.copc->header.max) * 0.5;
+  v.camera.look_at(z_up_to_y_up(c + glm::dvec3(0, -distance, distance)), z_up_to_y_up(c));
+  return v;
+}
+
 bool stream_until_idle(tiles3d::TileStreamer& s, const tiles3d::View& v) {
   for (int i = 0; i < 5000; ++i) {
     s.update(v);
@@ -107,9 +116,7 @@ TEST(CopcStream, APartialViewReadsAStrictSubsetOfTheNodes) {
   options.traversal.max_sse = 1e-6;
   options.traversal.memory_budget = 4ull << 30;
   tiles3d::TileStreamer whole(ts2, options);
-  tiles3d::View far = v;
-  const glm::dvec3 c = (h.min + h.max) * 0.5;
-  far.camera.look_at(z_up_to_y_up(c + glm::dvec3(0, -3000, 3000)), z_up_to_y_up(c));
+  const tiles3d::View far = oblique_view(*ts2, 3000);
   ASSERT_TRUE(stream_until_idle(whole, far));
   EXPECT_EQ(every.nodes.size(), nodes);
   uint64_t points = 0;
@@ -138,10 +145,7 @@ TEST(CopcStream, ATruncatedNodeFailsAloneAndTheViewCompletes) {
   options.fetcher = fetcher;
   options.traversal.max_sse = 1e-6;
   tiles3d::TileStreamer streamer(ts, options);
-  tiles3d::View v;
-  v.world_from_tileset = tiles3d::world_from_tileset(*ts);
-  const glm::dvec3 c = (ts->copc->header.min + ts->copc->header.max) * 0.5;
-  v.camera.look_at(z_up_to_y_up(c + glm::dvec3(0, -60, 60)), z_up_to_y_up(c));
+  const tiles3d::View v = oblique_view(*ts, 60);
   ASSERT_TRUE(stream_until_idle(streamer, v));
   auto stats = streamer.stats();
   EXPECT_EQ(stats.failed, 1u);
@@ -162,10 +166,7 @@ TEST(CopcStream, APointBudgetBoundsTheSelection) {
     options.traversal.max_sse = 1e-6;
     options.traversal.point_budget = budget;
     tiles3d::TileStreamer streamer(ts, options);
-    tiles3d::View v;
-    v.world_from_tileset = tiles3d::world_from_tileset(*ts);
-    const glm::dvec3 c = (ts->copc->header.min + ts->copc->header.max) * 0.5;
-    v.camera.look_at(z_up_to_y_up(c + glm::dvec3(0, -60, 60)), z_up_to_y_up(c));
+    const tiles3d::View v = oblique_view(*ts, 60);
     ASSERT_TRUE(stream_until_idle(streamer, v));
     const auto& sel = streamer.update(v);
     uint64_t drawn = 0;

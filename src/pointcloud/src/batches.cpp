@@ -173,6 +173,46 @@ ThreadPool& batching_pool() {
   return pool;
 }
 
+// Cells of the curve are cubes: one scale for every axis of the bounding box.
+double curve_scale(const Aabb& box) {
+  const double extent = std::max({box.size().x, box.size().y, box.size().z, 1e-9});
+  return double((1u << 21) - 1) / extent;
+}
+
+uint64_t curve_key(const glm::dvec3& p, const glm::dvec3& min, double scale, SpatialOrder order) {
+  const glm::dvec3 c = (p - min) * scale;
+  const uint32_t x = uint32_t(c.x), y = uint32_t(c.y), z = uint32_t(c.z);
+  return order == SpatialOrder::Morton ? morton_key(x, y, z) : hilbert_key(x, y, z);
+}
+
+// Where batch_into writes: the batches and the per-point words, from the run's first index.
+struct BatchTarget {
+  uint64_t first_index;
+  Batch* batches;
+  uint32_t *coarse, *medium, *fine, *color;
+};
+
+// Batch c of the sorted run: its box over its points, then each point quantized in it.
+void write_batch(std::span<const glm::dvec3> positions, std::span<const uint32_t> colors,
+                 const std::vector<uint32_t>& perm, size_t c, uint32_t batch_points,
+                 const BatchTarget& t) {
+  const size_t b = c * batch_points, e = std::min(perm.size(), b + batch_points);
+  Aabb box;
+  for (size_t i = b; i < e; ++i) box.extend(positions[perm[i]]);
+  Batch& batch = t.batches[c];
+  batch.min = box.min;
+  batch.size = box.size();
+  batch.first = t.first_index + b;
+  batch.count = uint32_t(e - b);
+  for (size_t i = b; i < e; ++i) {
+    const QuantizedPoint q = quantize(positions[perm[i]], batch.min, batch.size);
+    t.coarse[i] = q.coarse;
+    t.medium[i] = q.medium;
+    t.fine[i] = q.fine;
+    t.color[i] = colors[perm[i]];
+  }
+}
+
 // The spatial sort of batch_into on every core, in the same total order (key, then index): the
 // keys' top 12 bits split the points into 4096 key ranges (histograms and scatter per slice),
 // each range is sorted on its own, and the batches are boxed and quantized in parallel.
@@ -199,8 +239,7 @@ size_t batch_into_parallel(std::span<const glm::dvec3> positions, std::span<cons
     });
     Aabb box;
     for (const auto& b : boxes) box.extend(b);
-    const double extent = std::max({box.size().x, box.size().y, box.size().z, 1e-9});
-    const double scale = double((1u << 21) - 1) / extent;
+    const double scale = curve_scale(box);
     constexpr int kBucketBits = 12;
     constexpr size_t kBuckets = size_t(1) << kBucketBits;
     std::vector<uint64_t> keys(n);
@@ -210,9 +249,7 @@ size_t batch_into_parallel(std::span<const glm::dvec3> positions, std::span<cons
         auto [b, e] = slice(s);
         uint32_t* h = &histogram[s * kBuckets];
         for (size_t i = b; i < e; ++i) {
-          glm::dvec3 c = (positions[i] - box.min) * scale;
-          uint32_t x = uint32_t(c.x), y = uint32_t(c.y), z = uint32_t(c.z);
-          keys[i] = order == SpatialOrder::Morton ? morton_key(x, y, z) : hilbert_key(x, y, z);
+          keys[i] = curve_key(positions[i], box.min, scale, order);
           ++h[keys[i] >> (63 - kBucketBits)];
         }
       }
@@ -247,24 +284,9 @@ size_t batch_into_parallel(std::span<const glm::dvec3> positions, std::span<cons
     });
   }
   const size_t count = (n + batch_points - 1) / batch_points;
+  const BatchTarget target{first_index, batches, coarse, medium, fine, color};
   pool.parallel_for(count, 16, [&](size_t cb, size_t ce) {
-    for (size_t c = cb; c < ce; ++c) {
-      const size_t b = c * batch_points, e = std::min(n, b + batch_points);
-      Aabb bb;
-      for (size_t i = b; i < e; ++i) bb.extend(positions[perm[i]]);
-      Batch& batch = batches[c];
-      batch.min = bb.min;
-      batch.size = bb.size();
-      batch.first = first_index + b;
-      batch.count = uint32_t(e - b);
-      for (size_t i = b; i < e; ++i) {
-        QuantizedPoint q = quantize(positions[perm[i]], batch.min, batch.size);
-        coarse[i] = q.coarse;
-        medium[i] = q.medium;
-        fine[i] = q.fine;
-        color[i] = colors[perm[i]];
-      }
-    }
+    for (size_t c = cb; c < ce; ++c) write_batch(positions, colors, perm, c, batch_points, target);
   });
   return count;
 }
@@ -280,36 +302,16 @@ size_t batch_into(std::span<const glm::dvec3> positions, std::span<const uint32_
   if (order != SpatialOrder::None && n > 1) {
     Aabb box;
     for (const auto& p : positions) box.extend(p);
-    double extent = std::max({box.size().x, box.size().y, box.size().z, 1e-9});
-    double scale = double((1u << 21) - 1) / extent;  // a cube: cells are cubes
+    const double scale = curve_scale(box);
     std::vector<std::pair<uint64_t, uint32_t>> keyed(n);
-    for (size_t i = 0; i < n; ++i) {
-      glm::dvec3 c = (positions[i] - box.min) * scale;
-      uint32_t x = uint32_t(c.x), y = uint32_t(c.y), z = uint32_t(c.z);
-      keyed[i] = {order == SpatialOrder::Morton ? morton_key(x, y, z) : hilbert_key(x, y, z),
-                  uint32_t(i)};
-    }
+    for (size_t i = 0; i < n; ++i)
+      keyed[i] = {curve_key(positions[i], box.min, scale, order), uint32_t(i)};
     std::sort(keyed.begin(), keyed.end());
     for (size_t i = 0; i < n; ++i) perm[i] = keyed[i].second;
   }
-  size_t count = 0;
-  for (size_t b = 0; b < n; b += batch_points, ++count) {
-    size_t e = std::min(n, b + batch_points);
-    Aabb box;
-    for (size_t i = b; i < e; ++i) box.extend(positions[perm[i]]);
-    Batch& batch = batches[count];
-    batch.min = box.min;
-    batch.size = box.size();
-    batch.first = first_index + b;
-    batch.count = uint32_t(e - b);
-    for (size_t i = b; i < e; ++i) {
-      QuantizedPoint q = quantize(positions[perm[i]], batch.min, batch.size);
-      coarse[i] = q.coarse;
-      medium[i] = q.medium;
-      fine[i] = q.fine;
-      color[i] = colors[perm[i]];
-    }
-  }
+  const size_t count = (n + batch_points - 1) / batch_points;
+  const BatchTarget target{first_index, batches, coarse, medium, fine, color};
+  for (size_t c = 0; c < count; ++c) write_batch(positions, colors, perm, c, batch_points, target);
   return count;
 }
 
@@ -357,8 +359,8 @@ BatchedCloud build_batches(const PointCloud& cloud, SpatialOrder order, uint32_t
       size_t i = first[c];
       for (const auto& v : chunk.vertices) {
         positions[i] = chunk.origin + glm::dvec3(v.x, v.y, v.z);
-        colors[i++] = shading ? shade_point(*shading, mode, v, chunk.origin.y + double(v.y))
-                              : v.rgba;
+        colors[i++] =
+            shading ? shade_point(*shading, mode, v, chunk.origin.y + double(v.y)) : v.rgba;
       }
     }
   };
