@@ -312,7 +312,8 @@ void select_points(Registry& render) {
     r.unloaded_since_trim = 0;
   }
 #ifdef __GLIBC__
-  stats.heap_free_bytes = mallinfo2().fordblks;
+  // Sampled: mallinfo2 walks every arena's free lists (milliseconds with millions of chunks).
+  if (stats.selections % 64 == 1) stats.heap_free_bytes = mallinfo2().fordblks;
 #endif
   // Loads for what is missing (with up to 25% more while the budget allows), and what to draw.
   // Loads go to the pool as a few tasks per worker (a task per pointlet costs more to queue than

@@ -80,7 +80,7 @@ struct VirtualCloudStats {
   double staging_wait_ms = 0, fresh_write_ms = 0;  // parts of upload_ms
   double select_ms = 0;          // CPU ms of this frame's selection work (all of it)
   double trim_ms = 0;            // CPU ms spent handing freed heap memory back (summed)
-  uint64_t heap_free_bytes = 0;  // free bytes held in malloc's arenas (glibc), last selection
+  uint64_t heap_free_bytes = 0;  // free bytes held in malloc's arenas (glibc), every 64th selection
   // GPU ms of the last frame in the five stages of seed 002, Fig. 15 (kStageNames).
   std::array<double, 5> stage_ms{};
 };
