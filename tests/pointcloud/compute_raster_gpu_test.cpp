@@ -127,11 +127,11 @@ TEST_P(ComputeRaster, ColourModesMatchTheBillboardPath) {
   // several returns.
   const auto path =
       std::filesystem::temp_directory_path() / ("stipple_colour_modes_" + GetParam() + ".las");
-  if (!std::filesystem::exists(path))
-    ASSERT_EQ(std::system((std::string(STIPPLE_BINARY) + " generate -n 200000 -o " + path.string() +
-                           " >/dev/null")
-                              .c_str()),
-              0);
+  if (!std::filesystem::exists(path)) {
+    const std::string generate =
+        std::string(STIPPLE_BINARY) + " generate -n 200000 -o " + path.string() + " >/dev/null";
+    ASSERT_EQ(std::system(generate.c_str()), 0);
+  }
   auto ctx = context();
   pc::LoadOptions load;
   load.progress = false;
