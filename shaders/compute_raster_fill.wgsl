@@ -7,6 +7,10 @@
 //   fill_main: hole filling. An empty pixel with at least one non-empty pixel in its n x n
 //     neighbourhood (n = 2 radius + 1) takes the mean colour of those pixels; larger holes and
 //     the background beyond the cloud's edge stay empty.
+// And before them, for points larger than one pixel:
+//   dilate_main: depth-aware dilation of the visibility buffer. Every drawn pixel stands for a
+//     disc of the point size (offsets with dx^2 + dy^2 <= radius2); a pixel takes the nearest
+//     of the discs that cover it, colour and depth, as a depth test of splats would.
 struct FillParams {
   width: u32,
   height: u32,
@@ -15,13 +19,15 @@ struct FillParams {
   depth_word: u32,    // which word holds the depth
   beta: f32,          // occlusion threshold, radians
   pixel_tan: f32,     // tan(FOV_x / width)
-  _pad: u32,
+  radius2: f32,       // dilation: squared disc radius (pixels)
 }
 
 @group(0) @binding(0) var<uniform> fp: FillParams;
 @group(0) @binding(1) var<storage, read> depth_buffer: array<u32>;
 @group(0) @binding(2) var<storage, read> accum_in: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read_write> accum_out: array<vec4<u32>>;
+// dilate_main only: the dilated depth buffer, in the input's layout.
+@group(0) @binding(4) var<storage, read_write> depth_out: array<u32>;
 
 fn depth_of(pixel: u32) -> f32 {
   return bitcast<f32>(depth_buffer[pixel * fp.depth_stride + fp.depth_word]);
@@ -100,4 +106,42 @@ fn fill_main(@builtin(global_invocation_id) id: vec3<u32>) {
     return;
   }
   accum_out[pixel] = vec4<u32>(vec3<u32>(round(sum / f32(n))), 1u);
+}
+
+@compute @workgroup_size(16, 16)
+fn dilate_main(@builtin(global_invocation_id) id: vec3<u32>) {
+  if (id.x >= fp.width || id.y >= fp.height) {
+    return;
+  }
+  let pixel = id.y * fp.width + id.x;
+  // Depths are positive floats: their bits order as u32s (the clear value is the largest).
+  var best = pixel;
+  var best_depth = 0xffffffffu;
+  if (accum_in[pixel].w != 0u) {
+    best_depth = depth_buffer[pixel * fp.depth_stride + fp.depth_word];
+  }
+  let r = i32(fp.radius);
+  for (var dy = -r; dy <= r; dy++) {
+    for (var dx = -r; dx <= r; dx++) {
+      let x = i32(id.x) + dx;
+      let y = i32(id.y) + dy;
+      if (f32(dx * dx + dy * dy) > fp.radius2 || x < 0 || y < 0 || x >= i32(fp.width) ||
+          y >= i32(fp.height)) {
+        continue;
+      }
+      let q = u32(y) * fp.width + u32(x);
+      if (accum_in[q].w == 0u) {
+        continue;
+      }
+      let d = depth_buffer[q * fp.depth_stride + fp.depth_word];
+      if (d < best_depth) {
+        best = q;
+        best_depth = d;
+      }
+    }
+  }
+  accum_out[pixel] = accum_in[best];
+  for (var w = 0u; w < fp.depth_stride; w++) {
+    depth_out[pixel * fp.depth_stride + w] = depth_buffer[best * fp.depth_stride + w];
+  }
 }

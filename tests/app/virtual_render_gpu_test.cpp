@@ -82,7 +82,9 @@ TEST(VirtualRender, GeographicInputMatchesTheInMemoryRender) {
       fs::temp_directory_path() / ("stipple-virtual-geo-" + std::to_string(getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
-  const std::string size = " --width 400 --height 300 --fill-radius 0";
+  // 1-pixel points on both (the virtualized path draws 1-pixel points; the in-memory compute
+  // path dilates to --point-size, which defaults to the data's density).
+  const std::string size = " --width 400 --height 300 --fill-radius 0 --point-size 1";
   auto memory = test::run_stipple("render " + path.string() + " --renderer compute -o " +
                                   (dir / "memory.png").string() + size);
   ASSERT_EQ(memory.exit_code, 0) << memory.output;

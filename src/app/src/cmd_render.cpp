@@ -189,7 +189,9 @@ void run_render(const RenderArgs& args) {
         },
         "render_when_loaded");
   }
-  float point_size = compute ? 1.0f : settings.render.point_size;
+  float point_size = virtualized ? 1.0f
+                     : compute   ? pc::compute_point_size(settings.render)
+                                 : settings.render.point_size;
   auto load_end = std::chrono::steady_clock::now();
 
   engine.run();

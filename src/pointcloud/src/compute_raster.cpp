@@ -215,6 +215,13 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
     const auto uniform = WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst;
     p.occlusion_params = gpu::create_buffer(ctx, 32, uniform, "raster-occlusion-params");
     p.fill_params = gpu::create_buffer(ctx, 32, uniform, "raster-fill-params");
+    p.dilate_layout = gpu::create_compute_layout(
+        ctx, {B::Uniform, B::ReadOnlyStorage, B::ReadOnlyStorage, B::Storage, B::Storage},
+        "raster-dilate");
+    p.dilate_pipeline_layout = gpu::create_pipeline_layout(ctx, {p.dilate_layout.get()});
+    p.dilate = gpu::create_compute_pipeline(ctx, fill.get(), "dilate_main",
+                                            p.dilate_pipeline_layout.get(), "raster-dilate");
+    p.dilate_params = gpu::create_buffer(ctx, 32, uniform, "raster-dilate-params");
   }
   p.counters = gpu::create_buffer(
       ctx, kCounterWords * 4 + 4,
@@ -372,12 +379,13 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
         .write(accum_name);
   }
 
-  // Seed 002, III-D: the occlusion check, then hole filling, each into a buffer of its own.
-  std::string shown = accum_name;
+  // Seed 002, III-D: the occlusion check, then hole filling, each into a buffer of its own;
+  // before them, points larger than a pixel dilated (colour and depth).
+  std::string shown = accum_name, depth_shown = depth_name;
   struct FillParams {
     uint32_t width, height, radius, depth_stride, depth_word;
     float beta, pixel_tan;
-    uint32_t pad;
+    float radius2;
   };
   const double tan_half_x = std::tan(camera.fov_y * 0.5) * double(width) / double(height);
   const float pixel_tan = float(std::tan(2.0 * std::atan(tan_half_x) / double(width)));
@@ -389,7 +397,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
     graph
         .add_pass(
             name, gpu::PassKind::Compute,
-            [&p, &pipeline, &uniforms, fp, depth_name, in = shown, out, groups_x,
+            [&p, &pipeline, &uniforms, fp, depth_name = depth_shown, in = shown, out, groups_x,
              groups_y](gpu::PassContext& pc) {
               gpu::Context& ctx = pc.gpu();
               gpu::write_buffer(ctx, uniforms.get(), 0, fp);
@@ -401,11 +409,40 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
               gpu::dispatch(pass.get(), pipeline.get(), {group.get()}, groups_x, groups_y);
               wgpuComputePassEncoderEnd(pass.get());
             })
-        .read(depth_name)
+        .read(depth_shown)
         .read(shown)
         .create_buffer(out, {pixels * 16, WGPUBufferUsage_Storage});
     shown = out;
   };
+  if (options.point_size >= 2.0f) {
+    const float r = options.point_size * 0.5f;
+    const FillParams fp{
+        width,     height, uint32_t(std::ceil(r)), use64 ? 2u : 1u, use64 ? 1u : 0u, 0.0f,
+        pixel_tan, r * r};
+    const uint64_t depth_bytes = pixels * (use64 ? 8 : 4);
+    graph
+        .add_pass(
+            "raster-dilate", gpu::PassKind::Compute,
+            [&p, fp, depth_name, in = shown, groups_x, groups_y](gpu::PassContext& pc) {
+              gpu::Context& ctx = pc.gpu();
+              gpu::write_buffer(ctx, p.dilate_params.get(), 0, fp);
+              auto group = gpu::create_bind_group(
+                  ctx, p.dilate_layout.get(),
+                  {gpu::bind_buffer(0, p.dilate_params.get()),
+                   gpu::bind_buffer(1, pc.buffer(depth_name)), gpu::bind_buffer(2, pc.buffer(in)),
+                   gpu::bind_buffer(3, pc.buffer("raster-dilated")),
+                   gpu::bind_buffer(4, pc.buffer("raster-dilated-depth"))});
+              auto pass = pc.begin_compute_pass();
+              gpu::dispatch(pass.get(), p.dilate.get(), {group.get()}, groups_x, groups_y);
+              wgpuComputePassEncoderEnd(pass.get());
+            })
+        .read(depth_name)
+        .read(shown)
+        .create_buffer("raster-dilated", {pixels * 16, WGPUBufferUsage_Storage})
+        .create_buffer("raster-dilated-depth", {depth_bytes, WGPUBufferUsage_Storage});
+    shown = "raster-dilated";
+    depth_shown = "raster-dilated-depth";
+  }
   if (options.occlusion_beta > 0.0f && options.occlusion_radius > 0)
     add_post_pass("raster-occlusion", p.occlusion, p.occlusion_params, options.occlusion_radius,
                   "raster-visible");
@@ -416,7 +453,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
     const uint32_t gx = (width + 15) / 16, gy = (height + 15) / 16;
     graph
         .add_pass("raster-display", gpu::PassKind::Compute,
-                  [&p, &cloud, accum_name = shown, color_target, depth_name, gx,
+                  [&p, &cloud, accum_name = shown, color_target, depth_name = depth_shown, gx,
                    gy](gpu::PassContext& pc) {
                     gpu::Context& ctx = pc.gpu();
                     if (cloud.segments.empty()) return;
@@ -432,13 +469,14 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                     wgpuComputePassEncoderEnd(pass.get());
                   })
         .read(shown)
-        .read(depth_name)
+        .read(depth_shown)
         .write(color_target);
     return;
   }
   graph
       .add_pass("raster-display", gpu::PassKind::Render,
-                [&p, &cloud, accum_name = shown, color_target, depth_name](gpu::PassContext& pc) {
+                [&p, &cloud, accum_name = shown, color_target,
+                 depth_name = depth_shown](gpu::PassContext& pc) {
                   gpu::Context& ctx = pc.gpu();
                   auto layout = gpu::bind_group_layout_of(p.display);
                   if (cloud.segments.empty()) return;
@@ -451,7 +489,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                                        WGPUColor{0, 0, 0, 1});
                 })
       .read(shown)
-      .read(depth_name)
+      .read(depth_shown)
       .write(color_target);
 }
 

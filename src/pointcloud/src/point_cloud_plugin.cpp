@@ -166,6 +166,7 @@ void queue_point_clouds(Registry& render) {
       options.background = settings.render.background;
       options.edl_strength = settings.render.edl ? settings.render.edl_strength : 0.0f;
       options.edl_radius = settings.render.edl_radius;
+      options.point_size = compute_point_size(settings.render);
       options.storage_target = (target.usage & WGPUTextureUsage_StorageBinding) != 0;
       pc::add_compute_raster_passes(fg.graph, *cache.raster, *r.batched, camera, options,
                                     target.width, target.height);

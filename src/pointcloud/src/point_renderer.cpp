@@ -630,6 +630,10 @@ uint64_t read_clod_survivors(gpu::Context& ctx, const GpuPointCloud& cloud) {
   return n;
 }
 
+float compute_point_size(const PointRenderSettings& settings) {
+  return settings.size_mode == PointSizeMode::Fixed ? std::max(1.0f, settings.point_size) : 1.0f;
+}
+
 PointShading point_shading(const PointRenderSettings& settings, const CloudAttributes& a) {
   PointShading s;
   s.mode = settings.color;

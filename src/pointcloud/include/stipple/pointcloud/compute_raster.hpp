@@ -73,6 +73,11 @@ struct ComputeRasterPipeline {
   gpu::PipelineLayout fill_pipeline_layout;
   gpu::ComputePipeline occlusion, fill;
   gpu::Buffer occlusion_params, fill_params;
+  // Points larger than one pixel: depth-aware dilation (its layout adds the output depth).
+  gpu::BindGroupLayout dilate_layout;
+  gpu::PipelineLayout dilate_pipeline_layout;
+  gpu::ComputePipeline dilate;
+  gpu::Buffer dilate_params;
 };
 
 struct ComputeRasterOptions {
@@ -91,6 +96,9 @@ struct ComputeRasterOptions {
   // (0: off) and the neighbours' distance in pixels.
   float edl_strength = 0.0f;
   float edl_radius = 1.0f;
+  // Point diameter in pixels: from 2 up, every drawn pixel is dilated to a disc of it, the
+  // nearest disc winning each pixel (a depth test of round splats), before occlusion and fill.
+  float point_size = 1.0f;
   // The colour target has WGPUTextureUsage_StorageBinding: the display runs as a compute pass
   // writing it (where the pipeline has one), else as a full-screen render pass.
   bool storage_target = false;

@@ -70,6 +70,10 @@ struct PointRenderSettings {
   glm::vec3 background{0.07f, 0.08f, 0.1f};
 };
 
+// The point diameter the compute rasterizer dilates to: the fixed size in pixels (attenuated
+// and adaptive sizes are the billboard path's), at least 1.
+float compute_point_size(const PointRenderSettings& settings);
+
 // The shading the billboard path would use for `settings` over a cloud with `attributes`
 // (explicit ramp ranges, else the attributes' percentiles); its mode may still be Auto.
 PointShading point_shading(const PointRenderSettings& settings, const CloudAttributes& attributes);
