@@ -12,6 +12,7 @@
 #include "stipple/core/log.hpp"
 #include "stipple/engine/engine.hpp"
 #include "stipple/io/copc.hpp"
+#include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/virtual_cloud.hpp"
@@ -88,7 +89,9 @@ Renderer resolve_renderer(const SceneOptions& options, const gpu::Context& ctx,
   } else if (is_tileset_scene(options)) {
     if (!io::is_copc_input(options.inputs[0]))
       return say(Renderer::Billboard, "auto: a tileset's size is not known up front");
-    points = io::load_copc_tileset(options.inputs[0]).copc->header.point_count;
+    // The header and VLRs only: the plugin opens the hierarchy (and reads the root node).
+    const io::Fetcher fetcher = [](const std::string& uri) { return io::fetch(uri); };
+    points = io::open_copc(options.inputs[0], fetcher)->header.point_count;
   } else {
     for (const auto& in : options.inputs) points += io::read_las_header(in).point_count;
   }
