@@ -8,6 +8,8 @@
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
 
+#include "stipple/core/error.hpp"
+
 namespace stipple::app {
 
 Camera path_camera(const CameraPath& a, const Aabb& world, double t, double aspect) {
@@ -36,6 +38,10 @@ void add_camera_path_options(CLI::App* cmd, CameraPath& a) {
   cmd->add_option("--zoom-cycles", a.zoom_cycles, "Zoom in and out this often along the path")
       ->capture_default_str();
   cmd->add_option("--elevation", a.elevation, "Camera elevation (degrees)")->capture_default_str();
+}
+
+void check_camera_path(const CameraPath& a) {
+  if (a.fov_min > a.fov_max) fail("--fov-min {} exceeds --fov-max {}", a.fov_min, a.fov_max);
 }
 
 double low_fps(std::vector<double> ms, double fraction) {

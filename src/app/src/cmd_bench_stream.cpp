@@ -161,8 +161,7 @@ void add_bench_stream_command(CLI::App& bench) {
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
   cmd->add_option("--json", a->json, "Write the results (and every frame's times) as JSON");
   cmd->callback([a] {
-    if (a->path.fov_min > a->path.fov_max)
-      fail("--fov-min {} exceeds --fov-max {}", a->path.fov_min, a->path.fov_max);
+    check_camera_path(a->path);
     run_stream_bench(*a);
   });
 }

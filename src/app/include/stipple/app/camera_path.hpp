@@ -22,6 +22,8 @@ Camera path_camera(const CameraPath& path, const Aabb& world, double t, double a
 
 // --turns, --fov-min, --fov-max, --zoom-cycles, --elevation.
 void add_camera_path_options(CLI::App* cmd, CameraPath& path);
+// Throws stipple::Error for a path the options cannot mean (a zoom range upside down).
+void check_camera_path(const CameraPath& path);
 
 // FPS of the slowest `fraction` of frames (the "1% low") from frame times in ms.
 double low_fps(std::vector<double> ms, double fraction);
