@@ -1,8 +1,10 @@
 // Colour accumulation (seed 003 section 4.3; high-quality shading, seed 001 section 3.6): every
-// point within a relative depth tolerance of the pixel's nearest depth adds its colour and a
-// count with 32-bit atomicAdd; the display pass divides. The depth comes from the 32-bit depth
-// buffer or from the high word of the 64-bit visibility buffer (depth_stride / depth_word).
+// point within a relative depth tolerance of the pixel's nearest depth adds its colour (shaded
+// in the frame's mode) and a count with 32-bit atomicAdd; the display pass divides. The depth
+// comes from the 32-bit depth buffer or from the high word of the 64-bit visibility buffer
+// (depth_stride / depth_word).
 #include "compute_raster_batch.wgsl"
+#include "compute_raster_shading.wgsl"
 
 @group(0) @binding(5) var<storage, read> colors: array<u32>;
 @group(0) @binding(6) var<storage, read> depth_buffer: array<u32>;
@@ -22,7 +24,8 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups
   let b = batches[batch];
   for (var i = lid; i < b.count; i += WORKGROUP) {
     let index = b.first + i;
-    let pr = project(params, load_position(b, bits, index));
+    let position = load_position(b, bits, index);
+    let pr = project(params, position);
     if (!pr.valid) {
       continue;
     }
@@ -30,11 +33,11 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups
     if (pr.depth > nearest * (1.0 + params.depth_tolerance)) {
       continue;
     }
-    let rgba = colors[index];
+    let c = channels(shade(colors[index], attributes_of(index), position.y));
     let o = pr.pixel * 4u;
-    atomicAdd(&accum[o], rgba & 255u);
-    atomicAdd(&accum[o + 1u], (rgba >> 8u) & 255u);
-    atomicAdd(&accum[o + 2u], (rgba >> 16u) & 255u);
+    atomicAdd(&accum[o], c.x);
+    atomicAdd(&accum[o + 1u], c.y);
+    atomicAdd(&accum[o + 2u], c.z);
     atomicAdd(&accum[o + 3u], 1u);
   }
 }

@@ -1,13 +1,38 @@
 // Visibility buffer resolve (seed 001, section 3.3): the point index of each pixel's nearest
-// point becomes its colour; only visible points' colours are read. Runs once per segment, each
-// resolving the pixels whose point it holds. Writes the accumulation layout (sum, count = 1) so
-// one display pass serves every variant.
+// point becomes its colour; only visible points' words are read. Runs once per segment, each
+// resolving the pixels whose point it holds. The elevation mode needs the point's height: its
+// batch is found by binary search in the segment's batch table (sorted by first index) and the
+// point dequantized at full precision, as the billboard path colours the exact position (a ray
+// through the pixel centre would favour the near half of each pixel). Writes the accumulation
+// layout (sum, count = 1) so one display pass serves every variant.
 #include "compute_raster_common.wgsl"
+#include "compute_raster_shading.wgsl"
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> visibility: array<u32>;
 @group(0) @binding(2) var<storage, read> colors: array<u32>;
 @group(0) @binding(3) var<storage, read_write> accum: array<u32>;
+
+@group(0) @binding(4) var<storage, read> batches: array<GpuBatch>;
+@group(0) @binding(5) var<storage, read> coarse: array<u32>;
+@group(0) @binding(6) var<storage, read> medium: array<u32>;
+@group(0) @binding(7) var<storage, read> fine: array<u32>;
+
+// Camera-relative position of point `index` of this segment (30 bits per axis).
+fn point_position(index: u32) -> vec3<f32> {
+  var lo = 0u;
+  var hi = params.batch_count;  // the batch holding index is the last with first <= index
+  while (hi - lo > 1u) {
+    let mid = (lo + hi) / 2u;
+    if (batches[mid].first <= index) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  let b = batches[lo];
+  return b.offset + box_fraction(30u, coarse[index], medium[index], fine[index]) * b.size;
+}
 
 @compute @workgroup_size(16, 16)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -15,17 +40,22 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     return;
   }
   let pixel = id.y * params.width + id.x;
-  if (visibility[pixel * 2u + 1u] == 0xffffffffu) {
+  let depth_bits = visibility[pixel * 2u + 1u];
+  if (depth_bits == 0xffffffffu) {
     return;  // empty
   }
   let local_index = visibility[pixel * 2u] - params.segment_base;  // wraps when below
   if (local_index >= params.segment_points) {
     return;
   }
-  let rgba = colors[local_index];
+  var rel_y = 0.0;
+  if (shading.mode == 4u && params.batch_count > 0u) {
+    rel_y = point_position(local_index).y;
+  }
+  let c = channels(shade(colors[local_index], attributes_of(local_index), rel_y));
   let o = pixel * 4u;
-  accum[o] = rgba & 255u;
-  accum[o + 1u] = (rgba >> 8u) & 255u;
-  accum[o + 2u] = (rgba >> 16u) & 255u;
+  accum[o] = c.x;
+  accum[o + 1u] = c.y;
+  accum[o + 2u] = c.z;
   accum[o + 3u] = 1u;
 }

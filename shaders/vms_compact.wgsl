@@ -6,7 +6,8 @@
 // spread over pointlets (the seed names idle threads in compaction as its main bottleneck); a
 // workgroup's 256 destinations find their jobs by binary search between the first jobs of this
 // workgroup and the next, which the CPU puts in front of the jobs. Positions (three words) and
-// colours are separate entry points: each binds at most eight storage buffers.
+// the colour and attribute words are separate entry points: each binds at most eight storage
+// buffers. A new point is five words in `fresh`: coarse, medium, fine, colour, attributes.
 
 struct Params {
   total: u32,    // points in the next frame's buffers
@@ -24,7 +25,7 @@ struct Job {
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> info: array<u32>;
-@group(0) @binding(2) var<storage, read> fresh: array<vec4<u32>>;  // coarse, medium, fine, colour
+@group(0) @binding(2) var<storage, read> fresh: array<u32>;
 @group(0) @binding(3) var<storage, read> src_a: array<u32>;
 @group(0) @binding(4) var<storage, read> src_b: array<u32>;
 @group(0) @binding(5) var<storage, read> src_c: array<u32>;
@@ -81,10 +82,10 @@ fn compact_positions(@builtin(workgroup_id) group: vec3<u32>,
   }
   let s = source_of(index);
   if (s.fresh) {
-    let p = fresh[s.at];
-    dst_a[index] = p.x;
-    dst_b[index] = p.y;
-    dst_c[index] = p.z;
+    let at = s.at * 5u;
+    dst_a[index] = fresh[at];
+    dst_b[index] = fresh[at + 1u];
+    dst_c[index] = fresh[at + 2u];
   } else {
     dst_a[index] = src_a[s.at];
     dst_b[index] = src_b[s.at];
@@ -101,8 +102,10 @@ fn compact_colors(@builtin(workgroup_id) group: vec3<u32>,
   }
   let s = source_of(index);
   if (s.fresh) {
-    dst_a[index] = fresh[s.at].w;
+    dst_a[index] = fresh[s.at * 5u + 3u];
+    dst_b[index] = fresh[s.at * 5u + 4u];
   } else {
     dst_a[index] = src_a[s.at];
+    dst_b[index] = src_b[s.at];
   }
 }

@@ -95,7 +95,7 @@ Framed load_framed(const std::filesystem::path& path, uint32_t w, uint32_t h) {
   Framed f;
   f.cloud = pc::load_point_cloud({path}, load);
   f.camera = frame_box(f.cloud.world_bounds, double(w) / h);
-  f.batched = pc::build_batches(f.cloud, pc::SpatialOrder::Morton);
+  f.batched = pc::build_batches(f.cloud);
   return f;
 }
 
@@ -134,8 +134,9 @@ TEST_P(ComputeRaster, AgreesWithBillboardsOnAutzen) {
   EXPECT_LT(test::differing_fraction(billboard, compute.image, 8), 0.10);
 }
 
-// Every colour mode: the compute path's batches carry the colour the billboard shaders give
-// (pc::shade_point mirrors point_color), so the images agree as closely as in RGB.
+// Every colour mode: the compute path shades the visible points from their RGB and attribute
+// words as the billboard shaders do (point_colors.wgsl is shared), so the images agree as
+// closely as in RGB. One batching serves every mode: the mode is a per-frame uniform.
 TEST_P(ComputeRaster, ColourModesMatchTheBillboardPath) {
   // The generated scene has RGB, intensity, classes (ground, buildings, vegetation) and
   // several returns.
@@ -152,17 +153,18 @@ TEST_P(ComputeRaster, ColourModesMatchTheBillboardPath) {
   auto cloud = pc::load_point_cloud({path}, load);
   const uint32_t w = 480, h = 270;
   Camera camera = frame_box(cloud.world_bounds, double(w) / h);
+  const auto batched = pc::build_batches(cloud);
   for (pc::ColorMode mode :
        {pc::ColorMode::Elevation, pc::ColorMode::Intensity, pc::ColorMode::Classification,
         pc::ColorMode::ReturnNumber, pc::ColorMode::Constant}) {
     pc::PointRenderSettings settings;
     settings.color = mode;
     settings.constant_color = {0.9f, 0.4f, 0.2f};
-    const pc::PointShading shading = pc::point_shading(settings, cloud.attributes);
-    auto batched = pc::build_batches(cloud, pc::SpatialOrder::Morton, pc::kBatchPoints, &shading);
+    pc::ComputeRasterOptions options;
+    options.shading = pc::point_shading(settings, cloud.attributes);
     // The billboard reference with the same ramps and constant colour.
     auto billboard = render_billboard(*ctx, cloud, camera, w, h, settings);
-    auto compute = render_compute(*ctx, batched, camera, {}, w, h);
+    auto compute = render_compute(*ctx, batched, camera, options, w, h);
     const std::string what = std::string("colour mode ") + pc::color_mode_name(mode);
     // The same bounds as RGB: coverage within 1 %, mean within 1.5 levels, and fewer than 10 %
     // of the pixels off by more than 8 levels (which point wins a pixel differs).

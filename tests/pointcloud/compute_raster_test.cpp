@@ -142,30 +142,37 @@ TEST(Batches, GeneratedSceneIsDeterministicAndCompact) {
 }
 
 // A whole cloud of millions of points is sorted and batched on every core; the result is the
-// one the single-threaded sort gives (same total order: key, then index), word for word.
+// one a plain sort gives (same total order: 30-bit curve key, then index), word for word.
 TEST(Batches, ParallelBatchingEqualsTheSequentialSort) {
   const size_t n = 3'000'000;  // over the parallel threshold
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::vector<glm::dvec3> positions(n);
-  std::vector<uint32_t> colors(n);
+  std::vector<uint32_t> colors(n), attributes(n);
   for (size_t i = 0; i < n; ++i) {
     // Clustered, with duplicates, so keys tie.
     positions[i] = {std::floor(u(rng) * 3000) * 0.1, std::floor(u(rng) * 500) * 0.1,
                     u(rng) < 0.5 ? 5.0 : u(rng) * 30};
     colors[i] = uint32_t(i);
+    attributes[i] = uint32_t(i) * 2654435761u;
   }
   pc::BatchedCloud out;
-  pc::append_batches(out, positions, colors, pc::SpatialOrder::Morton);
+  pc::BatchBuildStats stats;
+  pc::BatchingOptions options;
+  options.stats = &stats;
+  pc::append_batches(out, positions, colors, attributes, options);
+  EXPECT_EQ(stats.refined_cells, 0u);  // no cell holds a batch: the plain order below applies
   // The reference: keys over the bounds, a plain sort of (key, index), batches of 10240.
   Aabb box;
   for (const auto& p : positions) box.extend(p);
-  const double extent = std::max({box.size().x, box.size().y, box.size().z, 1e-9});
-  const double scale = double((1u << 21) - 1) / extent;
-  std::vector<std::pair<uint64_t, uint32_t>> keyed(n);
+  const double extent = std::max({box.size().x, box.size().y, box.size().z});
+  std::vector<std::pair<uint32_t, uint32_t>> keyed(n);
   for (size_t i = 0; i < n; ++i) {
-    glm::dvec3 c = (positions[i] - box.min) * scale;
-    keyed[i] = {pc::morton_key(uint32_t(c.x), uint32_t(c.y), uint32_t(c.z)), uint32_t(i)};
+    const glm::dvec3 c = glm::floor((positions[i] - box.min) * (1024.0 / extent));
+    const auto cell = [](double v) { return uint32_t(std::clamp(v, 0.0, 1023.0)); };
+    keyed[i] = {uint32_t(pc::morton_key(cell(c.x), cell(c.y), cell(c.z))), uint32_t(i)};
+    ASSERT_EQ(keyed[i].first,
+              pc::curve_key30(positions[i], box.min, extent, pc::SpatialOrder::Morton));
   }
   std::sort(keyed.begin(), keyed.end());
   ASSERT_EQ(out.point_count(), n);
@@ -182,11 +189,51 @@ TEST(Batches, ParallelBatchingEqualsTheSequentialSort) {
       const size_t i = batch.first + k;
       const uint32_t src = keyed[i].second;
       const auto q = pc::quantize(positions[src], batch.min, batch.size);
-      wrong += out.color[i] != src || out.coarse[i] != q.coarse || out.medium[i] != q.medium ||
-               out.fine[i] != q.fine;
+      wrong += out.color[i] != src || out.attributes[i] != attributes[src] ||
+               out.coarse[i] != q.coarse || out.medium[i] != q.medium || out.fine[i] != q.fine;
     }
   }
   EXPECT_EQ(wrong, 0u);
+}
+
+// A far outlier stretches the curve's cube so that the real points crowd into a few of its
+// cells: those cells are ordered again inside their own boxes, so the batches stay compact, and
+// the parallel build gives the same words as the one on one thread.
+TEST(Batches, OverfullCellsAreOrderedInTheirOwnBoxes) {
+  const size_t n = 1'500'000;  // over the parallel threshold
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<glm::dvec3> positions(n);
+  std::vector<uint32_t> colors(n);
+  for (size_t i = 0; i < n; ++i) {
+    positions[i] = {u(rng) * 200.0, u(rng) * 2.0, u(rng) * 200.0};  // a 200 m tile
+    colors[i] = uint32_t(i);
+  }
+  positions[n / 2] = {-1.0e6, 0.0, 0.0};  // a stray point 1000 km away
+  pc::BatchedCloud parallel, serial;
+  pc::BatchBuildStats stats;
+  pc::BatchingOptions options;
+  options.stats = &stats;
+  pc::append_batches(parallel, positions, colors, {}, options);
+  options.parallel = false;
+  options.stats = nullptr;
+  pc::append_batches(serial, positions, colors, {}, options);
+  EXPECT_GT(stats.refined_cells, 0u);
+  EXPECT_EQ(parallel.color, serial.color);
+  EXPECT_EQ(parallel.coarse, serial.coarse);
+  EXPECT_EQ(parallel.fine, serial.fine);
+  // Without refinement the tile fills one cell of the 1000 km cube: batches in index order,
+  // each spanning the whole tile (40,000 m^2). Ordered inside the cell, a batch of 10,240 of
+  // the tile's 1.5M points covers about 1/146 of it (~270 m^2); allow four times that.
+  double area = 0;
+  size_t counted = 0;
+  for (const auto& b : parallel.batches) {
+    if (b.size.x > 1000.0) continue;  // the one batch holding the outlier
+    area += b.size.x * b.size.z;
+    ++counted;
+  }
+  ASSERT_GT(counted, 0u);
+  EXPECT_LT(area / double(counted), 4.0 * 40'000.0 / (double(n) / pc::kBatchPoints));
 }
 
 TEST(Culling, ClassifiesAndChoosesPrecision) {

@@ -57,7 +57,7 @@ TEST_P(PointStore, BuffersEqualTheCpuModelAfterACameraSequence) {
 
   const uint64_t bucket = 30000;
   // Staging for the compaction info (3125 pointlets, two jobs each) and 4,000 new points.
-  const uint64_t staging = 3125 * 2 * 16 + 256 + 4000 * 16;
+  const uint64_t staging = 3125 * 2 * 16 + 256 + 4000 * pc::kStoreWords * 4;
   pc::GpuPointStore store = pc::create_point_store(*ctx, bucket, boxes, staging);
   ASSERT_LE(pc::max_fresh_points(store), 4016u);  // the info is padded to 256 bytes
   ASSERT_GE(pc::max_fresh_points(store), 3900u);
@@ -68,7 +68,7 @@ TEST_P(PointStore, BuffersEqualTheCpuModelAfterACameraSequence) {
       records.clear();
       cache.read(r.pointlet, r.first, r.count, records);
       pc::pointlet_words(cache, table[r.pointlet], boxes[r.pointlet], records,
-                         words + uint64_t(r.at) * 4);
+                         words + uint64_t(r.at) * pc::kStoreWords);
     }
   };
 
@@ -114,7 +114,8 @@ TEST_P(PointStore, BuffersEqualTheCpuModelAfterACameraSequence) {
     ASSERT_EQ(layout.count, wanted);
     const uint64_t total = std::accumulate(wanted.begin(), wanted.end(), uint64_t(0));
     ASSERT_EQ(layout.total, total);
-    std::vector<uint32_t> model(total * 4);
+    constexpr int kWords = pc::kStoreWords;
+    std::vector<uint32_t> model(total * kWords);
     uint64_t at = 0;
     std::vector<pc::PointletRecord> records;
     for (uint32_t i = 0; i < wanted.size(); ++i) {
@@ -126,21 +127,23 @@ TEST_P(PointStore, BuffersEqualTheCpuModelAfterACameraSequence) {
       for (uint32_t k = 0; k < wanted[i]; ++k, ++at) {
         const pc::QuantizedPoint q =
             pc::quantize(z_up_to_y_up(cache.position(table[i], records[k])), min, size);
-        model[at * 4 + 0] = q.coarse;
-        model[at * 4 + 1] = q.medium;
-        model[at * 4 + 2] = q.fine;
-        model[at * 4 + 3] = records[k].rgba;
+        model[at * kWords + 0] = q.coarse;
+        model[at * kWords + 1] = q.medium;
+        model[at * kWords + 2] = q.fine;
+        model[at * kWords + 3] = records[k].rgba;
+        model[at * kWords + 4] = records[k].attributes;
       }
     }
     const pc::GpuBatchedCloud& drawn = pc::drawn_points(store);
     ASSERT_EQ(drawn.point_count, total);
     const auto& seg = drawn.segments.front();
-    const std::vector<uint32_t> words[4] = {
+    const std::vector<uint32_t> words[kWords] = {
         read_words(*ctx, seg.coarse, total), read_words(*ctx, seg.medium, total),
-        read_words(*ctx, seg.fine, total), read_words(*ctx, seg.color, total)};
+        read_words(*ctx, seg.fine, total), read_words(*ctx, seg.color, total),
+        read_words(*ctx, seg.attributes, total)};
     for (uint64_t p = 0; p < total; ++p)
-      for (int w = 0; w < 4; ++w)
-        ASSERT_EQ(words[w][p], model[p * 4 + w]) << "point " << p << " word " << w;
+      for (int w = 0; w < kWords; ++w)
+        ASSERT_EQ(words[w][p], model[p * kWords + w]) << "point " << p << " word " << w;
     // The batches cover the points in order, within their pointlet's range.
     uint64_t covered = 0;
     for (const pc::Batch& b : drawn.batches) {

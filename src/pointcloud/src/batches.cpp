@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -162,160 +163,314 @@ glm::dvec3 dequantize(const QuantizedPoint& q, int bits, const glm::dvec3& min,
   return p;
 }
 
-namespace {
-
-// Below this many points one thread sorts and batches (tiles on streamer workers); above, the
-// shared pool does (whole clouds, the first frame of `render` waits for them).
-constexpr size_t kParallelBatching = size_t(1) << 21;
-
 ThreadPool& batching_pool() {
   static ThreadPool pool;
   return pool;
 }
 
-// Cells of the curve are cubes: one scale for every axis of the bounding box.
-double curve_scale(const Aabb& box) {
-  const double extent = std::max({box.size().x, box.size().y, box.size().z, 1e-9});
-  return double((1u << 21) - 1) / extent;
+uint32_t curve_key30(const glm::dvec3& p, const glm::dvec3& min, double extent,
+                     SpatialOrder order) {
+  const double scale = 1024.0 / std::max(extent, 1e-9);
+  auto cell = [&](int a) {
+    const double t = (p[a] - min[a]) * scale;
+    return t <= 0.0 ? 0u : t >= 1023.0 ? 1023u : uint32_t(t);
+  };
+  const uint32_t morton = uint32_t(morton_key(cell(0), cell(1), cell(2)));
+  return order == SpatialOrder::Hilbert ? hilbert_from_morton(morton) : morton;
 }
 
-uint64_t curve_key(const glm::dvec3& p, const glm::dvec3& min, double scale, SpatialOrder order) {
-  const glm::dvec3 c = (p - min) * scale;
-  const uint32_t x = uint32_t(c.x), y = uint32_t(c.y), z = uint32_t(c.z);
-  return order == SpatialOrder::Morton ? morton_key(x, y, z) : hilbert_key(x, y, z);
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
 }
 
-// Where batch_into writes: the batches and the per-point words, from the run's first index.
-struct BatchTarget {
-  uint64_t first_index;
-  Batch* batches;
-  uint32_t *coarse, *medium, *fine, *color;
+// Below this many points one thread sorts and batches; above, the shared pool does (whole
+// clouds: the first frame of `render` waits for them).
+constexpr size_t kParallelBatching = size_t(1) << 20;
+
+// Runs fn(slice, begin, end) over `slices` equal parts of [0, n): on the pool, or inline.
+template <typename Fn>
+void for_slices(ThreadPool* pool, size_t n, size_t slices, Fn&& fn) {
+  auto bounds = [&](size_t s) { return std::pair{s * n / slices, (s + 1) * n / slices}; };
+  if (!pool || slices == 1) {
+    for (size_t s = 0; s < slices; ++s) {
+      auto [b, e] = bounds(s);
+      fn(s, b, e);
+    }
+    return;
+  }
+  pool->parallel_for(slices, 1, [&](size_t sb, size_t se) {
+    for (size_t s = sb; s < se; ++s) {
+      auto [b, e] = bounds(s);
+      fn(s, b, e);
+    }
+  });
+}
+
+// Points given as flat arrays.
+struct FlatPoints {
+  std::span<const glm::dvec3> positions;
+  std::span<const uint32_t> colors, attributes;
+  size_t size() const { return positions.size(); }
+  glm::dvec3 position(size_t i) const { return positions[i]; }
+  void point(size_t i, glm::dvec3& p, uint32_t& rgba, uint32_t& attr) const {
+    p = positions[i];
+    rgba = colors[i];
+    attr = attributes.empty() ? kDefaultAttributes : attributes[i];
+  }
+  static constexpr uint32_t kDefaultAttributes = 1u << 16 | 1u << 24 | 1u << 28;
 };
 
-// Batch c of the sorted run: its box over its points, then each point quantized in it.
-void write_batch(std::span<const glm::dvec3> positions, std::span<const uint32_t> colors,
-                 const std::vector<uint32_t>& perm, size_t c, uint32_t batch_points,
-                 const BatchTarget& t) {
-  const size_t b = c * batch_points, e = std::min(perm.size(), b + batch_points);
-  Aabb box;
-  for (size_t i = b; i < e; ++i) box.extend(positions[perm[i]]);
-  Batch& batch = t.batches[c];
-  batch.min = box.min;
-  batch.size = box.size();
-  batch.first = t.first_index + b;
-  batch.count = uint32_t(e - b);
-  for (size_t i = b; i < e; ++i) {
-    const QuantizedPoint q = quantize(positions[perm[i]], batch.min, batch.size);
-    t.coarse[i] = q.coarse;
-    t.medium[i] = q.medium;
-    t.fine[i] = q.fine;
-    t.color[i] = colors[perm[i]];
-  }
-}
+// Points given as chunks: point i is found through a table of which chunk holds the first index
+// of each block of 2^16 indices, then a short walk (chunks are mostly far larger than a block).
+struct ChunkPoints {
+  std::span<const PointChunk> chunks;
+  std::vector<uint64_t> first;     // per chunk, and the total at the end
+  std::vector<uint32_t> at_block;  // chunk holding index block << kBlockBits
+  static constexpr int kBlockBits = 16;
 
-// The spatial sort of batch_into on every core, in the same total order (key, then index): the
-// keys' top 12 bits split the points into 4096 key ranges (histograms and scatter per slice),
-// each range is sorted on its own, and the batches are boxed and quantized in parallel.
-size_t batch_into_parallel(std::span<const glm::dvec3> positions, std::span<const uint32_t> colors,
-                           SpatialOrder order, uint32_t batch_points, uint64_t first_index,
-                           Batch* batches, uint32_t* coarse, uint32_t* medium, uint32_t* fine,
-                           uint32_t* color) {
-  ThreadPool& pool = batching_pool();
-  const size_t n = positions.size();
-  const size_t slices = size_t(pool.size()) * 4;
-  auto slice = [&](size_t s) { return std::pair{s * n / slices, (s + 1) * n / slices}; };
-  std::vector<uint32_t> perm(n);
-  if (order == SpatialOrder::None) {
-    pool.parallel_for(n, 1 << 16, [&](size_t b, size_t e) {
-      for (size_t i = b; i < e; ++i) perm[i] = uint32_t(i);
+  explicit ChunkPoints(std::span<const PointChunk> c) : chunks(c), first(c.size() + 1, 0) {
+    for (size_t k = 0; k < c.size(); ++k) first[k + 1] = first[k] + c[k].vertices.size();
+    at_block.resize((first.back() >> kBlockBits) + 1);
+    size_t k = 0;
+    for (size_t b = 0; b < at_block.size(); ++b) {
+      while (k + 1 < c.size() && first[k + 1] <= (uint64_t(b) << kBlockBits)) ++k;
+      at_block[b] = uint32_t(k);
+    }
+  }
+  size_t size() const { return first.back(); }
+  const PointChunk::Vertex& vertex(size_t i, const PointChunk*& chunk) const {
+    size_t k = at_block[i >> kBlockBits];
+    while (first[k + 1] <= i) ++k;
+    chunk = &chunks[k];
+    return chunks[k].vertices[i - first[k]];
+  }
+  glm::dvec3 position(size_t i) const {
+    const PointChunk* c;
+    const auto& v = vertex(i, c);
+    return c->origin + glm::dvec3(v.x, v.y, v.z);
+  }
+  void point(size_t i, glm::dvec3& p, uint32_t& rgba, uint32_t& attr) const {
+    const PointChunk* c;
+    const auto& v = vertex(i, c);
+    p = c->origin + glm::dvec3(v.x, v.y, v.z);
+    rgba = v.rgba;
+    attr = v.attributes;
+  }
+  // Walks [b, e) in order without the lookup per point.
+  template <typename Fn>
+  void each(size_t b, size_t e, Fn&& fn) const {
+    if (b >= e) return;
+    size_t k = at_block[b >> kBlockBits];
+    while (first[k + 1] <= b) ++k;
+    for (size_t i = b; i < e;) {
+      while (first[k + 1] <= i) ++k;
+      const PointChunk& c = chunks[k];
+      const size_t stop = std::min<size_t>(e, first[k + 1]);
+      for (; i < stop; ++i) fn(i, c.origin, c.vertices[i - first[k]]);
+    }
+  }
+};
+
+template <typename Points, typename Fn>
+void each_position(const Points& pts, size_t b, size_t e, Fn&& fn) {
+  if constexpr (std::is_same_v<Points, ChunkPoints>) {
+    pts.each(b, e, [&](size_t i, const glm::dvec3& origin, const PointChunk::Vertex& v) {
+      fn(i, origin + glm::dvec3(v.x, v.y, v.z));
     });
   } else {
-    std::vector<Aabb> boxes(slices);
-    pool.parallel_for(slices, 1, [&](size_t sb, size_t se) {
-      for (size_t s = sb; s < se; ++s) {
-        auto [b, e] = slice(s);
-        for (size_t i = b; i < e; ++i) boxes[s].extend(positions[i]);
-      }
+    for (size_t i = b; i < e; ++i) fn(i, pts.position(i));
+  }
+}
+
+double cube_extent(const Aabb& box) {
+  return std::max({box.size().x, box.size().y, box.size().z, 1e-9});
+}
+
+// Stable LSD radix sort of packed entries (key << 32 | index) by their 30-bit keys: three
+// passes of 10 bits, each a histogram per slice then a scatter per slice. Entries come in
+// index order, so the result is in (key, index) order. `tmp` is scratch of the same size.
+void radix_sort30(ThreadPool* pool, std::span<uint64_t> entries, std::span<uint64_t> tmp,
+                  size_t slices) {
+  constexpr int kDigitBits = 10;
+  constexpr size_t kBuckets = size_t(1) << kDigitBits;
+  const size_t n = entries.size();
+  std::vector<uint64_t> offsets(slices * kBuckets);
+  std::span<uint64_t> src = entries, dst = tmp;
+  for (int pass = 0; pass < 3; ++pass) {
+    const int shift = 32 + pass * kDigitBits;
+    for_slices(pool, n, slices, [&](size_t s, size_t b, size_t e) {
+      uint64_t* h = &offsets[s * kBuckets];
+      std::fill(h, h + kBuckets, 0);
+      for (size_t i = b; i < e; ++i) ++h[src[i] >> shift & (kBuckets - 1)];
     });
-    Aabb box;
-    for (const auto& b : boxes) box.extend(b);
-    const double scale = curve_scale(box);
-    constexpr int kBucketBits = 12;
-    constexpr size_t kBuckets = size_t(1) << kBucketBits;
-    std::vector<uint64_t> keys(n);
-    std::vector<uint32_t> histogram(slices * kBuckets, 0);
-    pool.parallel_for(slices, 1, [&](size_t sb, size_t se) {
-      for (size_t s = sb; s < se; ++s) {
-        auto [b, e] = slice(s);
-        uint32_t* h = &histogram[s * kBuckets];
-        for (size_t i = b; i < e; ++i) {
-          keys[i] = curve_key(positions[i], box.min, scale, order);
-          ++h[keys[i] >> (63 - kBucketBits)];
-        }
-      }
-    });
-    // Bucket-major offsets: bucket k holds slice 0's points of k, then slice 1's, ...
-    std::vector<uint64_t> start(slices * kBuckets);
-    std::vector<uint64_t> bucket_start(kBuckets + 1, 0);
     uint64_t at = 0;
-    for (size_t k = 0; k < kBuckets; ++k) {
-      bucket_start[k] = at;
+    for (size_t k = 0; k < kBuckets; ++k)
       for (size_t s = 0; s < slices; ++s) {
-        start[s * kBuckets + k] = at;
-        at += histogram[s * kBuckets + k];
+        const uint64_t c = offsets[s * kBuckets + k];
+        offsets[s * kBuckets + k] = at;
+        at += c;
+      }
+    for_slices(pool, n, slices, [&](size_t s, size_t b, size_t e) {
+      uint64_t* next = &offsets[s * kBuckets];
+      for (size_t i = b; i < e; ++i) dst[next[src[i] >> shift & (kBuckets - 1)]++] = src[i];
+    });
+    std::swap(src, dst);
+  }
+  // Three passes end in `tmp`.
+  if (src.data() != entries.data()) std::copy(src.begin(), src.end(), entries.begin());
+}
+
+// The sorted order of `pts` as packed entries (key << 32 | index).
+template <typename Points>
+UninitVector<uint64_t> curve_order(const Points& pts, SpatialOrder order, uint32_t batch_points,
+                                   ThreadPool* pool, BatchBuildStats& stats) {
+  const size_t n = pts.size();
+  const size_t slices = pool ? size_t(pool->size()) * 4 : 1;
+  UninitVector<uint64_t> entries(n);
+  if (order == SpatialOrder::None) {
+    for_slices(pool, n, slices, [&](size_t, size_t b, size_t e) {
+      for (size_t i = b; i < e; ++i) entries[i] = i;
+    });
+    return entries;
+  }
+  auto t = Clock::now();
+  std::vector<Aabb> boxes(slices);
+  for_slices(pool, n, slices, [&](size_t s, size_t b, size_t e) {
+    Aabb box;
+    each_position(pts, b, e, [&](size_t, const glm::dvec3& p) { box.extend(p); });
+    boxes[s] = box;
+  });
+  Aabb box;
+  for (const Aabb& b : boxes) box.extend(b);
+  stats.bounds_s += seconds_since(t);
+  t = Clock::now();
+  const double extent = cube_extent(box);
+  for_slices(pool, n, slices, [&](size_t, size_t b, size_t e) {
+    each_position(pts, b, e, [&](size_t i, const glm::dvec3& p) {
+      entries[i] = uint64_t(curve_key30(p, box.min, extent, order)) << 32 | i;
+    });
+  });
+  stats.keys_s += seconds_since(t);
+  t = Clock::now();
+  {
+    UninitVector<uint64_t> tmp(n);
+    radix_sort30(pool, entries, tmp, slices);
+  }
+  stats.sort_s += seconds_since(t);
+
+  // Cells holding more than a batch: their points ordered again by keys in the cell's own box,
+  // down to cells that hold at most a batch or whose points all coincide.
+  t = Clock::now();
+  struct Run {
+    size_t b, e;
+    int depth;
+  };
+  // Runs of one key longer than a batch that start in [b, e) (and end by `limit`).
+  auto over_full = [&](size_t b, size_t e, size_t limit, int depth, std::vector<Run>& out) {
+    size_t i = b;
+    while (i > 0 && i < e && (entries[i] >> 32) == (entries[i - 1] >> 32)) ++i;
+    while (i < e) {
+      size_t j = i + 1;
+      while (j < limit && (entries[j] >> 32) == (entries[i] >> 32)) ++j;
+      if (j - i > batch_points) out.push_back({i, j, depth});
+      i = j;
+    }
+  };
+  std::vector<Run> runs;
+  std::mutex runs_mutex;
+  for_slices(pool, n, slices, [&](size_t, size_t b, size_t e) {
+    std::vector<Run> found;
+    over_full(b, e, n, 0, found);
+    std::lock_guard lock(runs_mutex);
+    runs.insert(runs.end(), found.begin(), found.end());
+  });
+  while (!runs.empty()) {
+    stats.refined_cells += runs.size();
+    std::vector<Run> next;
+    auto refine = [&](size_t rb, size_t re) {
+      std::vector<uint64_t> tmp;
+      std::vector<Run> found;
+      for (size_t r = rb; r < re; ++r) {
+        const Run run = runs[r];
+        Aabb cell;
+        for (size_t i = run.b; i < run.e; ++i) cell.extend(pts.position(entries[i] & 0xffffffffu));
+        const double ext = std::max({cell.size().x, cell.size().y, cell.size().z});
+        if (!(ext > 0.0) || run.depth >= 6) continue;  // coincident points: any order
+        for (size_t i = run.b; i < run.e; ++i) {
+          const uint64_t index = entries[i] & 0xffffffffu;
+          entries[i] =
+              uint64_t(curve_key30(pts.position(index), cell.min, ext, order)) << 32 | index;
+        }
+        std::span<uint64_t> part(entries.data() + run.b, run.e - run.b);
+        // The run is in index order (stable sorts from index order), as radix_sort30 needs.
+        tmp.resize(part.size());
+        radix_sort30(nullptr, part, tmp, 1);
+        over_full(run.b, run.e, run.e, run.depth + 1, found);
+      }
+      std::lock_guard lock(runs_mutex);
+      next.insert(next.end(), found.begin(), found.end());
+    };
+    if (pool && runs.size() > 1)
+      pool->parallel_for(runs.size(), 1, refine);
+    else
+      refine(0, runs.size());
+    std::sort(next.begin(), next.end(), [](const Run& a, const Run& b) { return a.b < b.b; });
+    runs = std::move(next);
+  }
+  stats.refine_s += seconds_since(t);
+  return entries;
+}
+
+// Sorts and batches `pts`, appending to `out`.
+template <typename Points>
+void batch_points_into(BatchedCloud& out, const Points& pts, const BatchingOptions& options) {
+  STIPPLE_ASSERT(options.batch_points > 0, "batches hold points");
+  const size_t n = pts.size();
+  if (n >= (uint64_t(1) << 32)) fail("batching indexes points with 32 bits: {} points", n);
+  BatchBuildStats local;
+  BatchBuildStats& stats = options.stats ? *options.stats : local;
+  ThreadPool* pool = options.parallel && n >= kParallelBatching ? &batching_pool() : nullptr;
+  const UninitVector<uint64_t> order =
+      curve_order(pts, options.order, options.batch_points, pool, stats);
+
+  auto t = Clock::now();
+  const uint32_t bp = options.batch_points;
+  const size_t base = out.color.size(), batch_base = out.batches.size();
+  const size_t count = (n + bp - 1) / bp;
+  out.batches.resize(batch_base + count);
+  for (PointWords* w : {&out.coarse, &out.medium, &out.fine, &out.color, &out.attributes})
+    w->resize(base + n);
+  auto write = [&](size_t cb, size_t ce) {
+    std::vector<glm::dvec3> positions(bp);
+    for (size_t c = cb; c < ce; ++c) {
+      const size_t b = c * bp, e = std::min(n, b + bp);
+      Aabb box;
+      for (size_t i = b; i < e; ++i) {
+        const size_t index = order[i] & 0xffffffffu;
+        pts.point(index, positions[i - b], out.color[base + i], out.attributes[base + i]);
+        box.extend(positions[i - b]);
+      }
+      Batch& batch = out.batches[batch_base + c];
+      batch.min = box.min;
+      batch.size = box.size();
+      batch.first = base + b;
+      batch.count = uint32_t(e - b);
+      for (size_t i = b; i < e; ++i) {
+        const QuantizedPoint q = quantize(positions[i - b], batch.min, batch.size);
+        out.coarse[base + i] = q.coarse;
+        out.medium[base + i] = q.medium;
+        out.fine[base + i] = q.fine;
       }
     }
-    bucket_start[kBuckets] = at;
-    std::vector<std::pair<uint64_t, uint32_t>> keyed(n);
-    pool.parallel_for(slices, 1, [&](size_t sb, size_t se) {
-      for (size_t s = sb; s < se; ++s) {
-        auto [b, e] = slice(s);
-        uint64_t* next = &start[s * kBuckets];
-        for (size_t i = b; i < e; ++i)
-          keyed[next[keys[i] >> (63 - kBucketBits)]++] = {keys[i], uint32_t(i)};
-      }
-    });
-    pool.parallel_for(kBuckets, 16, [&](size_t kb, size_t ke) {
-      for (size_t k = kb; k < ke; ++k) {
-        std::sort(keyed.begin() + std::ptrdiff_t(bucket_start[k]),
-                  keyed.begin() + std::ptrdiff_t(bucket_start[k + 1]));
-        for (uint64_t i = bucket_start[k]; i < bucket_start[k + 1]; ++i) perm[i] = keyed[i].second;
-      }
-    });
-  }
-  const size_t count = (n + batch_points - 1) / batch_points;
-  const BatchTarget target{first_index, batches, coarse, medium, fine, color};
-  pool.parallel_for(count, 16, [&](size_t cb, size_t ce) {
-    for (size_t c = cb; c < ce; ++c) write_batch(positions, colors, perm, c, batch_points, target);
-  });
-  return count;
-}
-
-// Sorts and batches one run of points, writing batches and per-point words at the given places.
-// Returns the number of batches written (ceil(n / batch_points)).
-size_t batch_into(std::span<const glm::dvec3> positions, std::span<const uint32_t> colors,
-                  SpatialOrder order, uint32_t batch_points, uint64_t first_index, Batch* batches,
-                  uint32_t* coarse, uint32_t* medium, uint32_t* fine, uint32_t* color) {
-  const size_t n = positions.size();
-  std::vector<uint32_t> perm(n);
-  for (size_t i = 0; i < n; ++i) perm[i] = uint32_t(i);
-  if (order != SpatialOrder::None && n > 1) {
-    Aabb box;
-    for (const auto& p : positions) box.extend(p);
-    const double scale = curve_scale(box);
-    std::vector<std::pair<uint64_t, uint32_t>> keyed(n);
-    for (size_t i = 0; i < n; ++i)
-      keyed[i] = {curve_key(positions[i], box.min, scale, order), uint32_t(i)};
-    std::sort(keyed.begin(), keyed.end());
-    for (size_t i = 0; i < n; ++i) perm[i] = keyed[i].second;
-  }
-  const size_t count = (n + batch_points - 1) / batch_points;
-  const BatchTarget target{first_index, batches, coarse, medium, fine, color};
-  for (size_t c = 0; c < count; ++c) write_batch(positions, colors, perm, c, batch_points, target);
-  return count;
-}
-
-void finish_bounds(BatchedCloud& out) {
+  };
+  if (pool)
+    pool->parallel_for(count, 4, write);
+  else
+    write(0, count);
+  stats.write_s += seconds_since(t);
   out.world_bounds = Aabb{};
   for (const Batch& b : out.batches) {
     out.world_bounds.extend(b.min);
@@ -326,50 +481,31 @@ void finish_bounds(BatchedCloud& out) {
 }  // namespace
 
 void append_batches(BatchedCloud& out, std::span<const glm::dvec3> positions,
-                    std::span<const uint32_t> colors, SpatialOrder order, uint32_t batch_points) {
+                    std::span<const uint32_t> colors, std::span<const uint32_t> attributes,
+                    const BatchingOptions& options) {
   STIPPLE_ASSERT(positions.size() == colors.size(), "one colour per point");
-  STIPPLE_ASSERT(batch_points > 0, "batches hold points");
-  size_t base = out.color.size(), n = positions.size();
-  size_t batch_base = out.batches.size();
-  out.batches.resize(batch_base + (n + batch_points - 1) / batch_points);
-  out.coarse.resize(base + n);
-  out.medium.resize(base + n);
-  out.fine.resize(base + n);
-  out.color.resize(base + n);
-  (n >= kParallelBatching ? batch_into_parallel : batch_into)(
-      positions, colors, order, batch_points, base, out.batches.data() + batch_base,
-      out.coarse.data() + base, out.medium.data() + base, out.fine.data() + base,
-      out.color.data() + base);
-  finish_bounds(out);
+  STIPPLE_ASSERT(attributes.empty() || attributes.size() == positions.size(),
+                 "one attribute word per point");
+  batch_points_into(out, FlatPoints{positions, colors, attributes}, options);
 }
 
-BatchedCloud build_batches(const PointCloud& cloud, SpatialOrder order, uint32_t batch_points,
-                           const PointShading* shading) {
-  // Gathered (and shaded) chunk by chunk on the batching pool for whole clouds.
-  std::vector<size_t> first(cloud.chunks.size() + 1, 0);
-  for (size_t c = 0; c < cloud.chunks.size(); ++c)
-    first[c + 1] = first[c] + cloud.chunks[c].vertices.size();
-  std::vector<glm::dvec3> positions(first.back());
-  std::vector<uint32_t> colors(first.back());
-  const ColorMode mode =
-      shading ? resolve_color_mode(cloud.attributes, shading->mode) : ColorMode::Rgb;
-  auto gather = [&](size_t cb, size_t ce) {
-    for (size_t c = cb; c < ce; ++c) {
-      const PointChunk& chunk = cloud.chunks[c];
-      size_t i = first[c];
-      for (const auto& v : chunk.vertices) {
-        positions[i] = chunk.origin + glm::dvec3(v.x, v.y, v.z);
-        colors[i++] =
-            shading ? shade_point(*shading, mode, v, chunk.origin.y + double(v.y)) : v.rgba;
-      }
-    }
-  };
-  if (first.back() >= kParallelBatching)
-    batching_pool().parallel_for(cloud.chunks.size(), 1, gather);
-  else
-    gather(0, cloud.chunks.size());
+void append_batches(BatchedCloud& out, std::span<const glm::dvec3> positions,
+                    std::span<const uint32_t> colors, SpatialOrder order, uint32_t batch_points,
+                    std::span<const uint32_t> attributes) {
+  BatchingOptions options;
+  options.order = order;
+  options.batch_points = batch_points;
+  append_batches(out, positions, colors, attributes, options);
+}
+
+void append_chunk_batches(BatchedCloud& out, std::span<const PointChunk> chunks,
+                          const BatchingOptions& options) {
+  batch_points_into(out, ChunkPoints(chunks), options);
+}
+
+BatchedCloud build_batches(const PointCloud& cloud, const BatchingOptions& options) {
   BatchedCloud out;
-  append_batches(out, positions, colors, order, batch_points);
+  append_chunk_batches(out, cloud.chunks, options);
   return out;
 }
 
@@ -382,12 +518,9 @@ BatchedCloud generate_batched_scene(const io::SceneParams& params, SpatialOrder 
       std::clamp<uint64_t>(uint64_t(128.0 * std::sqrt(double(n))) / batch_points * batch_points,
                            uint64_t(batch_points) * 64, uint64_t(batch_points) * 800);
   uint64_t pieces = (n + piece - 1) / piece;
-  uint64_t batches_per_piece = piece / batch_points;
   BatchedCloud out;
-  out.coarse.resize(n);
-  out.medium.resize(n);
-  out.fine.resize(n);
-  out.color.resize(n);
+  for (PointWords* w : {&out.coarse, &out.medium, &out.fine, &out.color, &out.attributes})
+    w->resize(n);
   out.batches.resize((n + batch_points - 1) / batch_points);
 
   Progress bar(progress ? "generating" : "", progress ? n : 0);
@@ -396,21 +529,38 @@ BatchedCloud generate_batched_scene(const io::SceneParams& params, SpatialOrder 
   pool.parallel_for(pieces, 1, [&](size_t begin, size_t end) {
     io::PointBatch generated;
     std::vector<glm::dvec3> positions;
-    std::vector<uint32_t> colors;
+    std::vector<uint32_t> colors, attributes;
+    BatchingOptions options;
+    options.order = order;
+    options.batch_points = batch_points;
+    options.parallel = false;
     for (size_t p = begin; p < end; ++p) {
       uint64_t first = p * piece, count = std::min(piece, n - first);
       generated.clear();
       io::generate_scene(params, first, count, generated);
       positions.resize(count);
       colors.resize(count);
+      attributes.resize(count);
       for (size_t i = 0; i < count; ++i) {
         positions[i] = z_up_to_y_up(generated.positions[i]);
-        auto c = generated.rgb[i];
-        colors[i] = pack_rgba(uint8_t(c.r), uint8_t(c.g), uint8_t(c.b));
+        colors[i] = batch_rgba(generated, i, 8);
+        attributes[i] = batch_attributes(generated, i);
       }
-      batch_into(positions, colors, order, batch_points, first,
-                 out.batches.data() + p * batches_per_piece, out.coarse.data() + first,
-                 out.medium.data() + first, out.fine.data() + first, out.color.data() + first);
+      // Batched on its own, then moved into place (pieces hold whole batches).
+      BatchedCloud part;
+      append_batches(part, positions, colors, attributes, options);
+      std::copy(part.batches.begin(), part.batches.end(),
+                out.batches.begin() + std::ptrdiff_t(first / batch_points));
+      for (size_t b = 0; b < part.batches.size(); ++b)
+        out.batches[first / batch_points + b].first += first;
+      auto place = [&](const PointWords& from, PointWords& to) {
+        std::copy(from.begin(), from.end(), to.begin() + std::ptrdiff_t(first));
+      };
+      place(part.coarse, out.coarse);
+      place(part.medium, out.medium);
+      place(part.fine, out.fine);
+      place(part.color, out.color);
+      place(part.attributes, out.attributes);
       if (progress) {
         std::lock_guard lock(bar_mutex);
         bar.advance(count);
@@ -418,7 +568,11 @@ BatchedCloud generate_batched_scene(const io::SceneParams& params, SpatialOrder 
     }
   });
   if (progress) bar.finish();
-  finish_bounds(out);
+  out.world_bounds = Aabb{};
+  for (const Batch& b : out.batches) {
+    out.world_bounds.extend(b.min);
+    out.world_bounds.extend(b.min + b.size);
+  }
   return out;
 }
 

@@ -11,6 +11,7 @@
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
+#include "stipple/core/thread_pool.hpp"
 #include "stipple/renderer/shader_preprocessor.hpp"
 
 namespace stipple::pc {
@@ -42,27 +43,57 @@ static_assert(sizeof(GpuBatch) == kGpuBatchBytes);
 
 constexpr uint32_t kCounterWords = 11;  // see C_* in compute_raster_common.wgsl
 
-// Writes big arrays in slices, letting the queue drain between them, so the implementation's
-// staging memory stays bounded (a whole 4 GB write would stage 4 GB more).
+// Mirrors Shading in compute_raster_shading.wgsl.
+struct ShadingUniforms {
+  uint32_t mode, needs_attributes, pad0, pad1;
+  float ranges[4];
+  float constant_color[4];
+  float palette[32][4];
+};
+static_assert(sizeof(ShadingUniforms) == 560);
+
+ShadingUniforms shading_uniforms(const PointShading& s, const Camera& camera) {
+  ShadingUniforms u{};
+  const ColorMode mode = s.mode == ColorMode::Auto ? ColorMode::Rgb : s.mode;
+  u.mode = uint32_t(mode);
+  u.needs_attributes = mode == ColorMode::Intensity || mode == ColorMode::Classification ||
+                       mode == ColorMode::ReturnNumber;
+  // Camera-relative Y plus this offset is the height above the ramp's minimum (double here).
+  u.ranges[0] = float(camera.position.y - s.elevation_range.x);
+  u.ranges[1] = float(1.0 / std::max(s.elevation_range.y - s.elevation_range.x, 1e-9));
+  u.ranges[2] = float(s.intensity_range.x);
+  u.ranges[3] = float(1.0 / std::max(s.intensity_range.y - s.intensity_range.x, 1e-9));
+  for (int c = 0; c < 3; ++c) u.constant_color[c] = s.constant_color[c];
+  u.constant_color[3] = 1.0f;
+  const auto& palette = classification_palette();
+  for (size_t i = 0; i < palette.size(); ++i) {
+    for (int c = 0; c < 3; ++c) u.palette[i][c] = palette[i][c];
+    u.palette[i][3] = 1.0f;
+  }
+  return u;
+}
+
+// One array of a segment, copied on every core into a buffer born mapped.
 gpu::Buffer upload_words(gpu::Context& ctx, const uint32_t* data, uint64_t count,
                          std::string_view label) {
-  uint64_t bytes = std::max<uint64_t>(count * 4, 4);
-  gpu::Buffer buffer = gpu::create_buffer(
+  const uint64_t bytes = std::max<uint64_t>(count * 4, 4);
+  gpu::MappedBuffer m = gpu::create_mapped_buffer(
       ctx, bytes, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst | WGPUBufferUsage_CopySrc,
       label);
-  constexpr uint64_t kSlice = 64ull << 20;
-  uint64_t since_wait = 0;
-  for (uint64_t offset = 0; offset < count * 4; offset += kSlice) {
-    uint64_t n = std::min(kSlice, count * 4 - offset);
-    gpu::write_buffer(ctx, buffer.get(), offset, reinterpret_cast<const uint8_t*>(data) + offset,
-                      n);
-    since_wait += n;
-    if (since_wait >= (1ull << 30)) {
-      ctx.wait_idle();
-      since_wait = 0;
+  constexpr uint64_t kPiece = uint64_t(1) << 22;  // words
+  auto copy = [&](size_t b, size_t e) {
+    for (size_t k = b; k < e; ++k) {
+      const uint64_t first = k * kPiece, n = std::min(kPiece, count - first);
+      std::memcpy(static_cast<uint32_t*>(m.data) + first, data + first, n * 4);
     }
-  }
-  return buffer;
+  };
+  const size_t pieces = (count + kPiece - 1) / kPiece;
+  if (pieces > 1)
+    batching_pool().parallel_for(pieces, 1, copy);
+  else
+    copy(0, pieces);
+  wgpuBufferUnmap(m.buffer.get());
+  return std::move(m.buffer);
 }
 
 // One workgroup per batch, in rows of at most 65,535 (WebGPU's guaranteed dimension limit).
@@ -120,14 +151,18 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
     seg.medium = upload_words(ctx, cloud.medium.data() + f, points, "raster-medium");
     seg.fine = upload_words(ctx, cloud.fine.data() + f, points, "raster-fine");
     seg.color = upload_words(ctx, cloud.color.data() + f, points, "raster-color");
+    seg.attributes = upload_words(ctx, cloud.attributes.data() + f, points, "raster-attributes");
     seg.batches =
         gpu::create_buffer(ctx, uint64_t(seg.batch_count) * sizeof(GpuBatch),
                            WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "raster-batches");
     seg.params = gpu::create_buffer(
         ctx, sizeof(Params), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "raster-params");
-    out.bytes += points * 16 + uint64_t(seg.batch_count) * sizeof(GpuBatch);
+    out.bytes += points * kRasterPointBytes + uint64_t(seg.batch_count) * sizeof(GpuBatch);
     out.segments.push_back(std::move(seg));
   }
+  out.shading =
+      gpu::create_buffer(ctx, sizeof(ShadingUniforms),
+                         WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "raster-shading");
   ctx.wait_idle();
   ctx.check("uploading batched points");
   return out;
@@ -152,13 +187,18 @@ GpuBatchedCloud create_batched_storage(gpu::Context& ctx, uint64_t points, uint6
   seg.medium = gpu::create_buffer(ctx, words, usage, "store-medium");
   seg.fine = gpu::create_buffer(ctx, words, usage, "store-fine");
   seg.color = gpu::create_buffer(ctx, words, usage, "store-color");
+  seg.attributes = gpu::create_buffer(ctx, words, usage, "store-attributes");
   seg.batches =
       gpu::create_buffer(ctx, std::max<uint64_t>(batches, 1) * sizeof(GpuBatch),
                          WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "store-batches");
   seg.params = gpu::create_buffer(
       ctx, sizeof(Params), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "store-params");
-  out.bytes = words * 4 + std::max<uint64_t>(batches, 1) * sizeof(GpuBatch) + sizeof(Params);
+  out.bytes = words * 5 + std::max<uint64_t>(batches, 1) * sizeof(GpuBatch) + sizeof(Params) +
+              sizeof(ShadingUniforms);
   out.segments.push_back(std::move(seg));
+  out.shading =
+      gpu::create_buffer(ctx, sizeof(ShadingUniforms),
+                         WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "store-shading");
   return out;
 }
 
@@ -263,6 +303,8 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
     params.background[1] = options.background.g;
     params.background[2] = options.background.b;
     params.background[3] = 1.0f;
+    if (cloud.shading)
+      gpu::write_buffer(ctx, cloud.shading.get(), 0, shading_uniforms(options.shading, camera));
     thread_local std::vector<GpuBatch> table;  // every frame: keep the capacity
     for (auto& seg : cloud.segments) {
       params.segment_base = uint32_t(seg.first_point);
@@ -346,7 +388,9 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                      gpu::bind_buffer(2, seg.coarse.get()), gpu::bind_buffer(3, seg.medium.get()),
                      gpu::bind_buffer(4, seg.fine.get()), gpu::bind_buffer(5, seg.color.get()),
                      gpu::bind_buffer(6, pc.buffer(depth_name)),
-                     gpu::bind_buffer(7, pc.buffer(accum_name))}));
+                     gpu::bind_buffer(7, pc.buffer(accum_name)),
+                     gpu::bind_buffer(9, seg.attributes.get()),
+                     gpu::bind_buffer(10, cloud.shading.get())}));
               auto pass = pc.begin_compute_pass();
               for (size_t s = 0; s < cloud.segments.size(); ++s)
                 dispatch_batches(pass.get(), p.accumulate.get(), groups[s].get(),
@@ -357,24 +401,28 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
         .write(accum_name);
   } else {
     graph
-        .add_pass("raster-resolve", gpu::PassKind::Compute,
-                  [&p, &cloud, depth_name, accum_name, groups_x, groups_y](gpu::PassContext& pc) {
-                    gpu::Context& ctx = pc.gpu();
-                    auto layout = gpu::bind_group_layout_of(p.resolve);
-                    std::vector<gpu::BindGroup> groups;
-                    for (auto& seg : cloud.segments)
-                      groups.push_back(
-                          gpu::create_bind_group(ctx, layout.get(),
-                                                 {gpu::bind_buffer(0, seg.params.get()),
-                                                  gpu::bind_buffer(1, pc.buffer(depth_name)),
-                                                  gpu::bind_buffer(2, seg.color.get()),
-                                                  gpu::bind_buffer(3, pc.buffer(accum_name))}));
-                    auto pass = pc.begin_compute_pass();
-                    for (size_t s = 0; s < cloud.segments.size(); ++s)
-                      gpu::dispatch(pass.get(), p.resolve.get(), {groups[s].get()}, groups_x,
-                                    groups_y);
-                    wgpuComputePassEncoderEnd(pass.get());
-                  })
+        .add_pass(
+            "raster-resolve", gpu::PassKind::Compute,
+            [&p, &cloud, depth_name, accum_name, groups_x, groups_y](gpu::PassContext& pc) {
+              gpu::Context& ctx = pc.gpu();
+              auto layout = gpu::bind_group_layout_of(p.resolve);
+              std::vector<gpu::BindGroup> groups;
+              for (auto& seg : cloud.segments)
+                groups.push_back(gpu::create_bind_group(
+                    ctx, layout.get(),
+                    {gpu::bind_buffer(0, seg.params.get()),
+                     gpu::bind_buffer(1, pc.buffer(depth_name)),
+                     gpu::bind_buffer(2, seg.color.get()),
+                     gpu::bind_buffer(3, pc.buffer(accum_name)),
+                     gpu::bind_buffer(4, seg.batches.get()), gpu::bind_buffer(5, seg.coarse.get()),
+                     gpu::bind_buffer(6, seg.medium.get()), gpu::bind_buffer(7, seg.fine.get()),
+                     gpu::bind_buffer(9, seg.attributes.get()),
+                     gpu::bind_buffer(10, cloud.shading.get())}));
+              auto pass = pc.begin_compute_pass();
+              for (size_t s = 0; s < cloud.segments.size(); ++s)
+                gpu::dispatch(pass.get(), p.resolve.get(), {groups[s].get()}, groups_x, groups_y);
+              wgpuComputePassEncoderEnd(pass.get());
+            })
         .read(depth_name)
         .write(accum_name);
   }

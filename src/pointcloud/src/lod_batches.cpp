@@ -55,6 +55,7 @@ bool upload_lod_batches(gpu::Context& ctx, LodBatchStore& store, uint64_t key,
     gpu::write_buffer(ctx, seg.medium.get(), at, data->medium.data(), bytes);
     gpu::write_buffer(ctx, seg.fine.get(), at, data->fine.data(), bytes);
     gpu::write_buffer(ctx, seg.color.get(), at, data->color.data(), bytes);
+    gpu::write_buffer(ctx, seg.attributes.get(), at, data->attributes.data(), bytes);
   }
   store.resident_points += n;
   store.resident[key] = {first, std::move(data)};
@@ -91,6 +92,9 @@ GpuBatchedCloud& select_lod_batches(gpu::Context& ctx, LodBatchStore& store,
     }
     cloud.point_count += it->second.data->point_count();
   }
+  // The resolve finds a point's batch by binary search over first indices.
+  std::sort(cloud.batches.begin(), cloud.batches.end(),
+            [](const Batch& a, const Batch& b) { return a.first < b.first; });
   auto& seg = cloud.segments.front();
   if (cloud.batches.size() > store.batch_capacity) {
     store.batch_capacity = cloud.batches.size() * 2;

@@ -82,60 +82,6 @@ const std::array<glm::vec3, 32>& classification_palette() {
   return palette;
 }
 
-namespace {
-
-// ramp() of point_common.wgsl: dark blue, cyan, green, yellow, red.
-glm::vec3 elevation_ramp(float t_in) {
-  static constexpr glm::vec3 stops[5] = {{0.15f, 0.15f, 0.6f},
-                                         {0.1f, 0.6f, 0.8f},
-                                         {0.3f, 0.75f, 0.3f},
-                                         {0.95f, 0.85f, 0.2f},
-                                         {0.85f, 0.2f, 0.1f}};
-  const float t = std::clamp(t_in, 0.0f, 1.0f) * 4.0f;
-  const int i = std::min(int(t), 3);
-  const float f = t - float(i);
-  return stops[i] + (stops[i + 1] - stops[i]) * f;
-}
-
-// return_color() of point_common.wgsl.
-glm::vec3 return_rgb(uint32_t number, uint32_t count) {
-  if (count <= 1) return glm::vec3(240, 200, 60) / 255.0f;       // single return
-  if (number <= 1) return glm::vec3(220, 60, 50) / 255.0f;       // first of many
-  if (number >= count) return glm::vec3(40, 110, 230) / 255.0f;  // last of many
-  return glm::vec3(60, 190, 80) / 255.0f;                        // intermediate
-}
-
-uint32_t pack_unorm(const glm::vec3& c) {
-  auto q = [](float x) { return uint32_t(std::lround(std::clamp(x, 0.0f, 1.0f) * 255.0f)); };
-  return q(c.r) | q(c.g) << 8 | q(c.b) << 16 | 0xff000000u;
-}
-
-}  // namespace
-
-uint32_t shade_point(const PointShading& s, ColorMode mode, const PointChunk::Vertex& v,
-                     double world_y) {
-  switch (mode) {
-    case ColorMode::Rgb:
-      return v.rgba | 0xff000000u;
-    case ColorMode::Intensity: {
-      const double span = std::max(s.intensity_range.y - s.intensity_range.x, 1e-9);
-      return pack_unorm(
-          glm::vec3(float((double(v.attributes & 0xffffu) - s.intensity_range.x) / span)));
-    }
-    case ColorMode::Classification:
-      return pack_unorm(
-          classification_palette()[std::min<uint32_t>((v.attributes >> 16) & 0xffu, 31)]);
-    case ColorMode::ReturnNumber:
-      return pack_unorm(return_rgb((v.attributes >> 24) & 0xfu, v.attributes >> 28));
-    case ColorMode::Constant:
-      return pack_unorm(s.constant_color);
-    default: {
-      const double span = std::max(s.elevation_range.y - s.elevation_range.x, 1e-9);
-      return pack_unorm(elevation_ramp(float((world_y - s.elevation_range.x) / span)));
-    }
-  }
-}
-
 ColorMode resolve_color_mode(const CloudAttributes& cloud, ColorMode mode) {
   if (mode == ColorMode::Auto) mode = cloud.has_rgb ? ColorMode::Rgb : ColorMode::Elevation;
   if ((mode == ColorMode::Rgb && !cloud.has_rgb) ||

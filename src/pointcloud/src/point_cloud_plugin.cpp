@@ -41,7 +41,6 @@ struct RenderPointCloud {
   // The compute rasterizer's batches (built on first use), boxed for the same reason.
   std::unique_ptr<pc::GpuBatchedCloud> batched;
   uint64_t batched_generation = std::numeric_limits<uint64_t>::max();
-  std::optional<pc::PointShading> batched_shading;  // what the batches' colours were made for
 };
 
 // Render-world resource: the pipelines for the current target format.
@@ -145,19 +144,11 @@ void queue_point_clouds(Registry& render) {
     if (settings.compute) {
       // The compute rasterizer draws every batch it does not cull (no budget: it is the path
       // for billions of points).
-      // The batches carry the colour of the chosen mode: remade when it or its ramps change.
-      const pc::PointShading shading = pc::point_shading(settings.render, r.cloud->attributes);
-      const auto same = [](const pc::PointShading& a, const pc::PointShading& b) {
-        return a.mode == b.mode && a.elevation_range == b.elevation_range &&
-               a.intensity_range == b.intensity_range && a.constant_color == b.constant_color;
-      };
-      if (!r.batched || r.batched_generation != r.generation ||
-          !same(*r.batched_shading, shading)) {
-        r.batched = std::make_unique<pc::GpuBatchedCloud>(pc::upload_batched_cloud(
-            ctx,
-            pc::build_batches(*r.cloud, pc::SpatialOrder::Morton, pc::kBatchPoints, &shading)));
+      // Batched once per loaded cloud; the colour mode and its ramps are per-frame uniforms.
+      if (!r.batched || r.batched_generation != r.generation) {
+        r.batched = std::make_unique<pc::GpuBatchedCloud>(
+            pc::upload_batched_cloud(ctx, pc::build_batches(*r.cloud)));
         r.batched_generation = r.generation;
-        r.batched_shading = shading;
       }
       pc::ComputeRasterOptions options;
       options.hqs = settings.hqs;
@@ -168,6 +159,8 @@ void queue_point_clouds(Registry& render) {
       options.edl_radius = settings.render.edl_radius;
       options.point_size = compute_point_size(settings.render);
       options.storage_target = (target.usage & WGPUTextureUsage_StorageBinding) != 0;
+      options.shading = pc::point_shading(settings.render, r.cloud->attributes);
+      options.shading.mode = pc::resolve_color_mode(r.cloud->attributes, options.shading.mode);
       pc::add_compute_raster_passes(fg.graph, *cache.raster, *r.batched, camera, options,
                                     target.width, target.height);
       stats.points_drawn += r.batched->point_count;

@@ -126,14 +126,15 @@ GpuPointStore create_point_store(gpu::Context& ctx, uint64_t capacity, std::vect
   const uint64_t batches = capacity / kBatchPoints + store.pointlets + 1;
   for (auto& slab : store.slabs) slab = create_batched_storage(ctx, capacity, batches, "store");
   const uint64_t fresh_offset = fresh_offset_for(capacity, store.pointlets);
-  if (staging_bytes < fresh_offset + 16 * 1024)
-    staging_bytes = fresh_offset + 16 * 1024;  // the compaction info and at least 1,024 points
-  store.fresh_capacity = std::min<uint64_t>((staging_bytes - fresh_offset) / 16, capacity);
+  if (staging_bytes < fresh_offset + kStoreWords * 4 * 1024)
+    staging_bytes = fresh_offset + kStoreWords * 4 * 1024;  // the info and at least 1,024 points
+  constexpr uint64_t kPointBytes = kStoreWords * 4;
+  store.fresh_capacity = std::min<uint64_t>((staging_bytes - fresh_offset) / kPointBytes, capacity);
   store.fresh_capacity = std::max<uint64_t>(store.fresh_capacity, 1);
   store.jobs_capacity = uint64_t(std::max<uint32_t>(store.pointlets, 1)) * 2;
-  store.staging =
-      gpu::create_staging_ring(ctx, fresh_offset + store.fresh_capacity * 16, 2, "vms-staging");
-  store.fresh = gpu::create_buffer(ctx, store.fresh_capacity * 16,
+  store.staging = gpu::create_staging_ring(ctx, fresh_offset + store.fresh_capacity * kPointBytes,
+                                           2, "vms-staging");
+  store.fresh = gpu::create_buffer(ctx, store.fresh_capacity * kPointBytes,
                                    WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "vms-fresh");
   store.jobs = gpu::create_buffer(ctx, info_bytes_for(capacity, store.pointlets),
                                   WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "vms-jobs");
@@ -145,8 +146,9 @@ GpuPointStore create_point_store(gpu::Context& ctx, uint64_t capacity, std::vect
   store.colors =
       gpu::create_compute_pipeline(ctx, shader.get(), "compact_colors", nullptr, "vms-colors");
   ctx.check("creating the point store");
-  store.gpu_bytes = store.slabs[0].bytes + store.slabs[1].bytes + store.fresh_capacity * 16 +
-                    info_bytes_for(capacity, store.pointlets) + sizeof(CompactParams);
+  store.gpu_bytes = store.slabs[0].bytes + store.slabs[1].bytes +
+                    store.fresh_capacity * kPointBytes + info_bytes_for(capacity, store.pointlets) +
+                    sizeof(CompactParams);
   return store;
 }
 
@@ -167,7 +169,8 @@ void pointlet_words(const PointletCache& cache, const PointletEntry& pointlet,
     words[1] = q.medium;
     words[2] = q.fine;
     words[3] = rec.rgba;
-    words += 4;
+    words[4] = rec.attributes;
+    words += kStoreWords;
   }
 }
 
@@ -269,7 +272,8 @@ void add_point_store_pass(gpu::RenderGraph& graph, GpuPointStore& store) {
               for (auto& slab : store.slabs)
                 for (const gpu::Buffer* b :
                      {&slab.segments.front().coarse, &slab.segments.front().medium,
-                      &slab.segments.front().fine, &slab.segments.front().color})
+                      &slab.segments.front().fine, &slab.segments.front().color,
+                      &slab.segments.front().attributes})
                   wgpuCommandEncoderClearBuffer(pc.encoder(), b->get(), 0, WGPU_WHOLE_SIZE);
             }
             GpuPointStore::Pending& p = store.pending;
@@ -285,7 +289,8 @@ void add_point_store_pass(gpu::RenderGraph& graph, GpuPointStore& store) {
                 p.jobs_at * 4 + p.job_count * sizeof(CompactionJob));
             if (p.fresh_points > 0)
               wgpuCommandEncoderCopyBufferToBuffer(encoder, p.write.buffer, p.fresh_offset,
-                                                   store.fresh.get(), 0, p.fresh_points * 16);
+                                                   store.fresh.get(), 0,
+                                                   p.fresh_points * kStoreWords * 4);
             const uint64_t groups = (total + kCompactWorkgroup - 1) / kCompactWorkgroup;
             const uint32_t x = uint32_t(std::min<uint64_t>(groups, kRow));
             const uint32_t y = uint32_t((groups + x - 1) / x);
@@ -307,7 +312,8 @@ void add_point_store_pass(gpu::RenderGraph& graph, GpuPointStore& store) {
                 ctx, colors_layout.get(),
                 {gpu::bind_buffer(0, store.params.get()), gpu::bind_buffer(1, store.jobs.get()),
                  gpu::bind_buffer(2, store.fresh.get()), gpu::bind_buffer(3, from.color.get()),
-                 gpu::bind_buffer(6, to.color.get())});
+                 gpu::bind_buffer(4, from.attributes.get()), gpu::bind_buffer(6, to.color.get()),
+                 gpu::bind_buffer(7, to.attributes.get())});
             auto pass = pc.begin_compute_pass();
             gpu::dispatch(pass.get(), store.positions.get(), {positions.get()}, x, y);
             gpu::dispatch(pass.get(), store.colors.get(), {colors.get()}, x, y);

@@ -111,8 +111,7 @@ struct VirtualCloudRender {
   std::vector<uint32_t> incoming;  // a LoD result as it arrives
   uint64_t selected_after = 0;     // residency.completed when the drawn selection was built
   VirtualCloudOptions options;
-  glm::vec3 background{0.0f};
-  float edl_strength = 0.0f, edl_radius = 1.0f;  // eye-dome lighting after hole filling
+  CloudAttributes attributes;  // the cache's: which colour modes it can show, default ramps
   std::unique_ptr<GpuPointlets> pointlets;
   std::unique_ptr<PointletLodPipeline> lod;
   std::unique_ptr<ComputeRasterPipeline> raster;
@@ -152,7 +151,7 @@ FreshWriter fresh_writer(VirtualResidency& r, const std::vector<Aabb>& boxes, Th
                slot.records.size(), uint64_t(f.first) + f.count);
         pointlet_words(*r.cache, table[f.pointlet], boxes[f.pointlet],
                        std::span(slot.records).subspan(f.first, f.count),
-                       words + uint64_t(f.at) * 4);
+                       words + uint64_t(f.at) * kStoreWords);
       }
     });
   };
@@ -162,7 +161,7 @@ FreshWriter fresh_writer(VirtualResidency& r, const std::vector<Aabb>& boxes, Th
 // the GPU says what each pointlet should draw; loads are requested for what is missing and
 // unloads free what is not needed when the host budget runs short; the frame draws what is
 // loaded of it, and a new selection follows when loads complete.
-// The bucket the GPU can hold: each point costs 32 bytes (16 in each of the two frames'
+// The bucket the GPU can hold: each point costs 40 bytes (20 in each of the two frames'
 // buffers), the staging copy and the compaction info come on top; one array of the bucket must
 // fit a storage binding.
 uint64_t fit_bucket(gpu::Context& ctx, const VirtualCloudOptions& options, uint32_t pointlets,
@@ -177,8 +176,9 @@ uint64_t fit_bucket(gpu::Context& ctx, const VirtualCloudOptions& options, uint3
   }
   if (options.gpu_budget > 0) {
     const uint64_t fixed = pointlet_bytes + uint64_t(pointlets) * 2 * (16 + 32) +
-                           std::min(options.staging_bytes, bucket * 16) + (uint64_t(1) << 20);
-    const uint64_t per_point = 32 + 2 * 32 / kBatchPoints + 1;  // points and their batches
+                           std::min(options.staging_bytes, bucket * kStoreWords * 4) +
+                           (uint64_t(1) << 20);
+    const uint64_t per_point = 2 * kStoreWords * 4 + 2 * 32 / kBatchPoints + 1;  // and batches
     const uint64_t fits = options.gpu_budget > fixed ? (options.gpu_budget - fixed) / per_point : 0;
     if (fits == 0)
       fail("--gpu-memory {} MiB holds not even the pointlets' buffers", options.gpu_budget >> 20);
@@ -400,13 +400,18 @@ void queue_virtual_cloud(Registry& render) {
         std::make_unique<ComputeRasterPipeline>(create_compute_raster_pipeline(ctx, target.format));
     v.format = target.format;
   }
+  // The viewer may change the style every frame (extracted with the stats).
+  const PointRenderSettings& style = render.resource<PointDrawSettings>().render;
   ComputeRasterOptions options;
   options.hqs = v.options.hqs;
   options.fill_radius = v.options.fill_radius;
   options.occlusion_beta = v.options.occlusion_beta;
-  options.background = v.background;
-  options.edl_strength = v.edl_strength;
-  options.edl_radius = v.edl_radius;
+  options.background = style.background;
+  options.edl_strength = style.edl ? style.edl_strength : 0.0f;
+  options.edl_radius = style.edl_radius;
+  options.point_size = compute_point_size(style);
+  options.shading = point_shading(style, v.attributes);
+  options.shading.mode = resolve_color_mode(v.attributes, options.shading.mode);
   options.storage_target = (target.usage & WGPUTextureUsage_StorageBinding) != 0;
   if (v.lod_due && gpu::readback_free(*v.lod_ring)) {
     const Camera camera = to_camera(*extracted);
@@ -432,9 +437,10 @@ void queue_virtual_cloud(Registry& render) {
   stats.points_total = v.residency->cache->info().point_count;
 }
 
-void snapshot_virtual_stats(Registry& main) {
+void extract_virtual_cloud(Registry& main) {
   Registry& render = *main.resource<RenderWorldRef>();
   main.insert_resource(render.resource<VirtualCloudStats>());
+  render.insert_resource(main.resource<PointDrawSettings>());
 }
 
 }  // namespace
@@ -496,15 +502,13 @@ void VirtualPointCloudPlugin::build(Engine& engine) {
   VirtualCloudRender v;
   v.residency = residency;
   v.options = options;
-  v.background = render.background;
-  v.edl_strength = render.edl ? render.edl_strength : 0.0f;
-  v.edl_radius = render.edl_radius;
+  v.attributes = info.attributes;
   v.pool = std::make_unique<ThreadPool>(std::max(2u, std::thread::hardware_concurrency()));
   v.workers = std::make_unique<ThreadPool>(std::max(2u, std::thread::hardware_concurrency()));
   engine.render().insert_resource(std::move(v));
   engine.render().insert_resource(VirtualCloudStats{});
   engine.main().insert_resource(VirtualCloudStats{});
-  engine.add_system(MainStage::Extract, snapshot_virtual_stats, "snapshot_virtual_stats");
+  engine.add_system(MainStage::Extract, extract_virtual_cloud, "extract_virtual_cloud");
   engine.add_system(RenderStage::Queue, queue_virtual_cloud, "queue_virtual_cloud");
 }
 

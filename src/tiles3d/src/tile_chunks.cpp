@@ -11,7 +11,7 @@ uint64_t TileChunks::memory_bytes() const {
   for (const auto& c : chunks)
     bytes += sizeof(pc::PointChunk) + c.vertices.capacity() * sizeof(pc::PointChunk::Vertex);
   if (batches)
-    bytes += sizeof(pc::BatchedCloud) + batches->point_count() * 16 +
+    bytes += sizeof(pc::BatchedCloud) + batches->point_count() * pc::kRasterPointBytes +
              batches->batches.size() * sizeof(pc::Batch);
   return bytes;
 }
@@ -19,7 +19,7 @@ uint64_t TileChunks::memory_bytes() const {
 std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dmat4& tile_transform,
                                                    const glm::dmat4& world_from_tileset,
                                                    const std::vector<io::PointContent>& contents,
-                                                   const pc::PointShading* batches) {
+                                                   bool batches) {
   pc::PointCloud cloud;
   for (const auto& c : contents) append_content(cloud, c, tile_transform, world_from_tileset);
   pc::finish_cloud(cloud);  // per-chunk spacing (CLOD, adaptive sizes)
@@ -36,18 +36,11 @@ std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dma
         if (i++ % stride == 0) out->intensity_sample.push_back(uint16_t(v.attributes & 0xffffu));
   }
   if (batches) {
-    std::vector<glm::dvec3> positions;
-    std::vector<uint32_t> colors;
-    positions.reserve(out->points);
-    colors.reserve(out->points);
-    const pc::ColorMode mode = pc::resolve_color_mode(out->attributes, batches->mode);
-    for (const auto& chunk : out->chunks)
-      for (const auto& v : chunk.vertices) {
-        positions.push_back(chunk.origin + glm::dvec3(v.x, v.y, v.z));
-        colors.push_back(pc::shade_point(*batches, mode, v, chunk.origin.y + double(v.y)));
-      }
+    // On this worker, alone: the workers already run one tile each.
     auto b = std::make_shared<pc::BatchedCloud>();
-    pc::append_batches(*b, positions, colors, pc::SpatialOrder::Morton);
+    pc::BatchingOptions options;
+    options.parallel = false;
+    pc::append_chunk_batches(*b, out->chunks, options);
     out->batches = std::move(b);
   }
   return out;

@@ -317,6 +317,9 @@ void queue_tileset(Registry& render) {
     options.edl_radius = settings.render.edl_radius;
     options.point_size = pc::compute_point_size(settings.render);
     options.storage_target = (target.usage & WGPUTextureUsage_StorageBinding) != 0;
+    // The billboard path's colours: ramps over the root volume and the drawn tiles' intensities.
+    options.shading = pc::point_shading(settings.render, list->attributes);
+    options.shading.mode = pc::resolve_color_mode(list->attributes, options.shading.mode);
     pc::add_compute_raster_passes(fg.graph, *c->pipeline, drawn, to_camera(*extracted), options,
                                   target.width, target.height);
     auto& stats = render.resource<RenderStats>();
@@ -382,18 +385,11 @@ void TilesetPlugin::build(Engine& engine) {
   s.height = height;
   // Workers convert each decoded tile to world-space chunks and drop the decoded form.
   StreamerOptions options = streamer;
-  // The compute path colours the batches as they are made: the elevation ramp spans the root
-  // volume (as the billboard path's default does); intensity needs --intensity-range, else it
-  // spans 0-65535 (the billboard path takes percentiles of the tiles drawn so far).
-  pc::CloudAttributes ramps;
-  ramps.elevation_percentiles = {s.world_bounds.min.y, s.world_bounds.max.y};
-  ramps.intensity_percentiles = {0.0, 65535.0};
-  std::optional<pc::PointShading> shading;
-  if (compute) shading = pc::point_shading(render, ramps);
-  options.prepare = [world = s.world_from_tileset, shading](
+  // On the compute path the workers also make each tile's LOD batches (coloured per frame).
+  options.prepare = [world = s.world_from_tileset, batches = compute](
                         uint32_t tile, const glm::dmat4& transform,
                         std::vector<io::PointContent>& contents) {
-    auto chunks = make_tile_chunks(tile, transform, world, contents, shading ? &*shading : nullptr);
+    auto chunks = make_tile_chunks(tile, transform, world, contents, batches);
     std::vector<io::PointContent>().swap(contents);
     const uint64_t bytes = chunks->memory_bytes();
     return PreparedTile{std::move(chunks), bytes};
@@ -424,9 +420,9 @@ void TilesetPlugin::build(Engine& engine) {
   engine.render().insert_resource(std::move(g));
   if (compute) {
     TilesetComputeGpu c;
-    // Every resident tile fits: each holds at least 36 bytes a point on the host (20 in its
-    // chunks, 16 in its batches); a quarter more leaves room for the free list's gaps.
-    c.capacity = streamer.traversal.memory_budget / 36 * 5 / 4;
+    // Every resident tile fits: each holds at least 40 bytes a point on the host (20 in its
+    // chunks, 20 in its batches); a quarter more leaves room for the free list's gaps.
+    c.capacity = streamer.traversal.memory_budget / 40 * 5 / 4;
     c.raster = raster;
     engine.render().insert_resource(std::move(c));
   }

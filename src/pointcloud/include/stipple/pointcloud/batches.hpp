@@ -14,16 +14,20 @@
 
 #include <glm/vec3.hpp>
 
+#include "stipple/core/default_init.hpp"
 #include "stipple/math/aabb.hpp"
 #include "stipple/math/camera.hpp"
+#include "stipple/pointcloud/point_cloud.hpp"
+
+namespace stipple {
+class ThreadPool;
+}
 
 namespace stipple::io {
 struct SceneParams;
 }
 
 namespace stipple::pc {
-
-struct PointCloud;
 
 constexpr uint32_t kBatchPoints = 10'240;  // 128 threads x 80 points (seed 001, section 3.2)
 
@@ -45,11 +49,17 @@ struct Batch {
   uint32_t count = 0;
 };
 
+// Per-point words, filled in parallel by the batch writer (no zeroing first).
+using PointWords = UninitVector<uint32_t>;
+
 struct BatchedCloud {
   std::vector<Batch> batches;
   // One entry per point, in batch order (struct of arrays).
-  std::vector<uint32_t> coarse, medium, fine;  // 10 bits per axis each: x | y << 10 | z << 20
-  std::vector<uint32_t> color;                 // RGBA8, R in the low byte
+  PointWords coarse, medium, fine;  // 10 bits per axis each: x | y << 10 | z << 20
+  PointWords color;                 // RGBA8 from the source, R in the low byte (0: none)
+  // Intensity, class and returns packed as PointChunk::Vertex::attributes: the rasterizer
+  // shades the visible points from these words and `color` in the chosen colour mode.
+  PointWords attributes;
   Aabb world_bounds;
   uint64_t point_count() const { return color.size(); }
 };
@@ -65,24 +75,54 @@ QuantizedPoint quantize(const glm::dvec3& p, const glm::dvec3& min, const glm::d
 glm::dvec3 dequantize(const QuantizedPoint& q, int bits, const glm::dvec3& min,
                       const glm::dvec3& size);
 
-// Sorts points (world space) along the curve over `bounds` (a cube around it, so cells are
-// cubes) and appends batches of at most `batch_points` consecutive points to `out`: boxes,
-// quantized positions and colours. Used for whole clouds and for pieces generated in parallel.
+// The sort key of batching: the 30-bit Morton (or Hilbert) index of the point's cell in a grid
+// of 1024^3 cubes over the cube of edge `extent` at `min` (cells past the grid are clamped).
+// Cells that hold more than a batch are sorted again inside their own box (see append_batches).
+uint32_t curve_key30(const glm::dvec3& p, const glm::dvec3& min, double extent, SpatialOrder order);
+
+// The threads that batch large clouds and copy them to the GPU (one per core).
+ThreadPool& batching_pool();
+
+// Where the time of a batching went (seconds), for benchmarks.
+struct BatchBuildStats {
+  double bounds_s = 0, keys_s = 0, sort_s = 0, refine_s = 0, write_s = 0;
+  uint64_t refined_cells = 0;  // cells holding more than a batch, sorted again
+};
+
+struct BatchingOptions {
+  SpatialOrder order = SpatialOrder::Morton;
+  uint32_t batch_points = kBatchPoints;
+  // Large inputs are sorted and written on every core (same result, word for word); false
+  // keeps everything on the calling thread (streaming workers, tests).
+  bool parallel = true;
+  BatchBuildStats* stats = nullptr;
+};
+
+// Sorts points (world space) along the curve and appends batches of at most `batch_points`
+// consecutive points to `out`: boxes, quantized positions, colours and attribute words (empty
+// `attributes`: class 1, single return). The order is that of (key, index), with the keys of
+// points in over-full cells replaced by keys inside the cell's own box, recursively: so points
+// that crowd into a few cells of the whole box (a far outlier stretching it) still batch into
+// compact boxes.
 void append_batches(BatchedCloud& out, std::span<const glm::dvec3> positions,
                     std::span<const uint32_t> colors, SpatialOrder order,
-                    uint32_t batch_points = kBatchPoints);
+                    uint32_t batch_points = kBatchPoints,
+                    std::span<const uint32_t> attributes = {});
+void append_batches(BatchedCloud& out, std::span<const glm::dvec3> positions,
+                    std::span<const uint32_t> colors, std::span<const uint32_t> attributes,
+                    const BatchingOptions& options);
 
-struct PointShading;
+// The same from chunks (a loaded cloud, a decoded tile): positions are each chunk's origin plus
+// its float offsets, colours and attribute words its vertices'.
+void append_chunk_batches(BatchedCloud& out, std::span<const PointChunk> chunks,
+                          const BatchingOptions& options = {});
 
-// A loaded cloud, sorted and batched as a whole; colour words from `shading` (resolved for the
-// cloud's attributes), else the points' RGB.
-BatchedCloud build_batches(const PointCloud& cloud, SpatialOrder order,
-                           uint32_t batch_points = kBatchPoints,
-                           const PointShading* shading = nullptr);
+// A loaded cloud, sorted and batched as a whole.
+BatchedCloud build_batches(const PointCloud& cloud, const BatchingOptions& options = {});
 
 // The built-in scene of params.point_count points, generated in parallel pieces of consecutive
 // indices (each spatially coherent: the scene is scanned line by line), each piece sorted and
-// batched on its own and quantized while generating, so only ~16 bytes per point stay.
+// batched on its own and quantized while generating, so only ~20 bytes per point stay.
 BatchedCloud generate_batched_scene(const io::SceneParams& params, SpatialOrder order,
                                     uint32_t batch_points = kBatchPoints, bool progress = false);
 

@@ -25,12 +25,14 @@ namespace stipple::pc {
 // Batched points on the GPU. Clouds larger than one storage binding (or with more batches than
 // one dispatch allows) are split at batch boundaries into segments, each with its own buffers
 // and dispatches; point indices in the visibility buffer are global (segment base + local).
+// Within a segment the batches are in order of their first index (the resolve finds a point's
+// batch by binary search).
 // Bytes of one entry of a segment's batch table (GpuBatch in the shaders).
 constexpr uint64_t kGpuBatchBytes = 32;
 
 struct GpuBatchedCloud {
   struct Segment {
-    gpu::Buffer coarse, medium, fine, color;
+    gpu::Buffer coarse, medium, fine, color, attributes;
     gpu::Buffer batches;  // GpuBatch per batch, rewritten each frame (camera-relative offsets)
     gpu::Buffer params;   // uniforms, rewritten each frame
     uint32_t first_batch = 0, batch_count = 0;
@@ -39,6 +41,7 @@ struct GpuBatchedCloud {
   };
   std::vector<Segment> segments;
   std::vector<Batch> batches;  // CPU copy: double boxes for the per-frame offsets
+  gpu::Buffer shading;         // the colour mode's uniforms, rewritten each frame
   uint64_t point_count = 0;
   uint64_t bytes = 0;  // GPU memory of the point and batch buffers
 };
@@ -46,8 +49,13 @@ struct GpuBatchedCloud {
 struct UploadOptions {
   uint64_t max_segment_points = 0;  // 0: from the device limits (tests force small segments)
 };
+// Copies the words into buffers born mapped, on every core (a write through the queue would copy
+// them once more, on one thread).
 GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& cloud,
                                      const UploadOptions& options = {});
+// Bytes of GPU memory a point takes in the rasterizer's arrays (coarse, medium, fine, colour,
+// attributes).
+constexpr uint64_t kRasterPointBytes = 20;
 
 // Empty buffers for up to `points` points and `batches` batches in one segment (each array one
 // storage binding), written on the GPU by their owner: the virtual memory system's compaction
@@ -99,6 +107,9 @@ struct ComputeRasterOptions {
   // Point diameter in pixels: from 2 up, every drawn pixel is dilated to a disc of it, the
   // nearest disc winning each pixel (a depth test of round splats), before occlusion and fill.
   float point_size = 1.0f;
+  // Colour: the mode (resolved for the data: not Auto) and its ramps, as the billboard path's
+  // point_color applies them (elevation in world Y, the source elevation).
+  PointShading shading{ColorMode::Rgb};
   // The colour target has WGPUTextureUsage_StorageBinding: the display runs as a compute pass
   // writing it (where the pipeline has one), else as a full-screen render pass.
   bool storage_target = false;

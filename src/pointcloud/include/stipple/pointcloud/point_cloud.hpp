@@ -102,17 +102,13 @@ uint32_t pack_rgba(uint8_t r, uint8_t g, uint8_t b, uint8_t a = 255);
 // ASPRS LAS 1.4 standard classes 0-18 (then "unclassified" up to 31), RGB in 0..1.
 const std::array<glm::vec3, 32>& classification_palette();
 
-// A point's colour as the billboard shaders give it (point_color in point_common.wgsl, whose
-// ramp and return colours this mirrors), on the CPU: the compute rasterizer draws the colour
-// word of its batches, so the other colour modes are applied when the batches are made.
+// What a colour mode needs besides the points: the compute rasterizer's shading uniforms (the
+// billboard path's point_color applies the same, from its frame uniforms).
 struct PointShading {
   ColorMode mode = ColorMode::Auto;          // resolved per cloud or tile (resolve_color_mode)
   glm::dvec2 elevation_range{0.0, 1.0};      // world Y (the source elevation)
   glm::dvec2 intensity_range{0.0, 65535.0};  // grey ramp
   glm::vec3 constant_color{1.0f, 1.0f, 1.0f};
 };
-// RGBA8 (alpha 255) of vertex `v` at world elevation `world_y` in `mode` (not Auto).
-uint32_t shade_point(const PointShading& shading, ColorMode mode, const PointChunk::Vertex& v,
-                     double world_y);
 
 }  // namespace stipple::pc

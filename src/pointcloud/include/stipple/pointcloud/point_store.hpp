@@ -70,9 +70,9 @@ struct GpuPointStore {
   gpu::Buffer fresh, jobs, params;
   uint64_t fresh_capacity = 0, jobs_capacity = 0;  // points, jobs
   gpu::StagingRing staging;
-  gpu::ComputePipeline positions, colors;
-  uint64_t gpu_bytes = 0;  // every buffer above (device memory)
-  bool cleared = false;    // the buffers were written once (the first vms-compact pass)
+  gpu::ComputePipeline positions, colors;  // colors: the colour and attribute words
+  uint64_t gpu_bytes = 0;                  // every buffer above (device memory)
+  bool cleared = false;  // the buffers were written once (the first vms-compact pass)
   // Set by update_point_store, recorded by the vms-compact pass.
   struct Pending {
     bool active = false;
@@ -90,16 +90,19 @@ GpuPointStore create_point_store(gpu::Context& ctx, uint64_t capacity, std::vect
 // The most new points one update can bring.
 uint64_t max_fresh_points(const GpuPointStore& store);
 
+// Words a point takes in the store's arrays and in staging: coarse, medium, fine (its position
+// quantized in the pointlet's world box), RGBA, and the attribute word.
+inline constexpr uint32_t kStoreWords = 5;
+
 // The cache's pointlet boxes in world space (Y up).
 std::vector<Aabb> pointlet_world_boxes(const PointletCache& cache);
-// The four words a point has in the store (coarse, medium, fine: its position quantized in the
-// pointlet's world box; then RGBA), for `records` of one pointlet, written at `words`.
+// The kStoreWords words of each of `records` (one pointlet's), written at `words`.
 void pointlet_words(const PointletCache& cache, const PointletEntry& pointlet,
                     const Aabb& world_box, std::span<const PointletRecord> records,
                     uint32_t* words);
 
-// Writes the new points of `ranges` as four words each (coarse, medium, fine, RGBA) at `words`
-// (range r at words + 4 * r.at); called once per update, free to work in parallel.
+// Writes the new points of `ranges` as kStoreWords words each at `words` (range r at words +
+// kStoreWords * r.at); called once per update, free to work in parallel.
 using FreshWriter = std::function<void(std::span<const FreshRange> ranges, uint32_t* words)>;
 
 struct StoreUpdate {

@@ -109,7 +109,7 @@ struct VirtualPointCloudPlugin {
   static constexpr std::array<std::string_view, 3> dependencies{"GpuPlugin", "RenderGraphPlugin",
                                                                 "CameraPlugin"};
   VirtualCloudOptions options;
-  PointRenderSettings render;  // background and eye-dome lighting (the rasterizer draws RGB)
+  PointRenderSettings render;  // colour, point size, background, eye-dome lighting
   void build(Engine& engine);
 };
 

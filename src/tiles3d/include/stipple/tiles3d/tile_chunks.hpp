@@ -10,6 +10,7 @@
 
 #include "stipple/io/pnts.hpp"
 #include "stipple/pointcloud/batches.hpp"
+#include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
 
 namespace stipple::tiles3d {
@@ -31,11 +32,10 @@ struct TileChunks {
 };
 
 // A tile's decoded contents as chunks in the engine's world frame (on a streamer worker), and
-// with `batches` as LOD batches too (Morton order), coloured by that shading (its mode resolved
-// for the tile's attributes).
+// with `batches` as LOD batches too (Morton order; the rasterizer colours them per frame).
 std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dmat4& tile_transform,
                                                    const glm::dmat4& world_from_tileset,
                                                    const std::vector<io::PointContent>& contents,
-                                                   const pc::PointShading* batches = nullptr);
+                                                   bool batches = false);
 
 }  // namespace stipple::tiles3d
