@@ -13,6 +13,7 @@
 #include "stipple/core/log.hpp"
 #include "stipple/core/thread_pool.hpp"
 #include "stipple/renderer/shader_preprocessor.hpp"
+#include "stipple/renderer/staging.hpp"
 
 namespace stipple::pc {
 namespace {
@@ -73,29 +74,6 @@ ShadingUniforms shading_uniforms(const PointShading& s, const Camera& camera) {
   return u;
 }
 
-// One array of a segment, copied on every core into a buffer born mapped.
-gpu::Buffer upload_words(gpu::Context& ctx, const uint32_t* data, uint64_t count,
-                         std::string_view label) {
-  const uint64_t bytes = std::max<uint64_t>(count * 4, 4);
-  gpu::MappedBuffer m = gpu::create_mapped_buffer(
-      ctx, bytes, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst | WGPUBufferUsage_CopySrc,
-      label);
-  constexpr uint64_t kPiece = uint64_t(1) << 22;  // words
-  auto copy = [&](size_t b, size_t e) {
-    for (size_t k = b; k < e; ++k) {
-      const uint64_t first = k * kPiece, n = std::min(kPiece, count - first);
-      std::memcpy(static_cast<uint32_t*>(m.data) + first, data + first, n * 4);
-    }
-  };
-  const size_t pieces = (count + kPiece - 1) / kPiece;
-  if (pieces > 1)
-    batching_pool().parallel_for(pieces, 1, copy);
-  else
-    copy(0, pieces);
-  wgpuBufferUnmap(m.buffer.get());
-  return std::move(m.buffer);
-}
-
 // One workgroup per batch, in rows of at most 65,535 (WebGPU's guaranteed dimension limit).
 void dispatch_batches(WGPUComputePassEncoder pass, WGPUComputePipeline pipeline,
                       WGPUBindGroup group, uint32_t batches) {
@@ -130,6 +108,7 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
     fail("the compute rasterizer indexes points with 32 bits: {} points are too many",
          out.point_count);
 
+  std::vector<gpu::BufferUpload> uploads;
   size_t b = 0;
   while (b < cloud.batches.size()) {
     GpuBatchedCloud::Segment seg;
@@ -147,11 +126,17 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
     if (points > max_points) fail("a batch of {} points exceeds a storage binding", points);
     seg.point_count = uint32_t(points);
     const uint64_t f = seg.first_point;
-    seg.coarse = upload_words(ctx, cloud.coarse.data() + f, points, "raster-coarse");
-    seg.medium = upload_words(ctx, cloud.medium.data() + f, points, "raster-medium");
-    seg.fine = upload_words(ctx, cloud.fine.data() + f, points, "raster-fine");
-    seg.color = upload_words(ctx, cloud.color.data() + f, points, "raster-color");
-    seg.attributes = upload_words(ctx, cloud.attributes.data() + f, points, "raster-attributes");
+    const auto usage = WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst | WGPUBufferUsage_CopySrc;
+    const std::pair<gpu::Buffer*, const PointWords*> arrays[] = {
+        {&seg.coarse, &cloud.coarse},
+        {&seg.medium, &cloud.medium},
+        {&seg.fine, &cloud.fine},
+        {&seg.color, &cloud.color},
+        {&seg.attributes, &cloud.attributes}};
+    for (const auto& [buffer, words] : arrays) {
+      *buffer = gpu::create_buffer(ctx, std::max<uint64_t>(points * 4, 4), usage, "raster-points");
+      uploads.push_back({buffer->get(), 0, words->data() + f, points * 4});
+    }
     seg.batches =
         gpu::create_buffer(ctx, uint64_t(seg.batch_count) * sizeof(GpuBatch),
                            WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "raster-batches");
@@ -163,7 +148,7 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
   out.shading =
       gpu::create_buffer(ctx, sizeof(ShadingUniforms),
                          WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "raster-shading");
-  ctx.wait_idle();
+  gpu::upload_through_staging(ctx, uploads, &batching_pool());
   ctx.check("uploading batched points");
   return out;
 }

@@ -420,24 +420,6 @@ Buffer create_buffer(Context& ctx, uint64_t size, WGPUBufferUsage usage, std::st
   return buffer;
 }
 
-MappedBuffer create_mapped_buffer(Context& ctx, uint64_t size, WGPUBufferUsage usage,
-                                  std::string_view label) {
-  WGPUBufferDescriptor desc = WGPU_BUFFER_DESCRIPTOR_INIT;
-  desc.label = to_view(label);
-  desc.size = std::max<uint64_t>((size + 3) & ~uint64_t(3), 4);
-  desc.usage = usage;
-  desc.mappedAtCreation = true;
-  if (desc.size > ctx.limits.maxBufferSize)
-    fail("buffer '{}' of {} bytes exceeds the device's maxBufferSize ({})", label, desc.size,
-         ctx.limits.maxBufferSize);
-  MappedBuffer out;
-  out.buffer = Buffer(wgpuDeviceCreateBuffer(ctx.device.get(), &desc));
-  if (!out.buffer) fail("could not create buffer '{}' ({} bytes)", label, desc.size);
-  out.data = wgpuBufferGetMappedRange(out.buffer.get(), 0, desc.size);
-  if (!out.data) fail("could not map buffer '{}' ({} bytes) at creation", label, desc.size);
-  return out;
-}
-
 void write_buffer(Context& ctx, WGPUBuffer buffer, uint64_t offset, const void* data,
                   uint64_t size) {
   // writeBuffer takes multiples of 4 bytes: a ragged tail goes as one zero-padded word.

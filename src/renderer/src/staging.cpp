@@ -5,6 +5,7 @@
 #include <string>
 
 #include "stipple/core/error.hpp"
+#include "stipple/core/thread_pool.hpp"
 
 namespace stipple::gpu {
 
@@ -107,6 +108,45 @@ void staging_submitted(StagingRing& ring) {
       slot.state->phase = Phase::Submitted;
       request_map(slot, ring.slot_bytes);
     }
+}
+
+void upload_through_staging(Context& ctx, std::span<const BufferUpload> uploads, ThreadPool* pool,
+                            uint64_t slot_bytes, uint32_t slots) {
+  uint64_t total = 0;
+  for (const BufferUpload& u : uploads) total += u.size;
+  if (total == 0) return;
+  slot_bytes = std::min<uint64_t>(std::max<uint64_t>(slot_bytes & ~uint64_t(3), 4),
+                                  (total + 3) & ~uint64_t(3));
+  StagingRing ring = create_staging_ring(ctx, slot_bytes, slots, "upload-staging");
+  for (const BufferUpload& u : uploads) {
+    for (uint64_t at = 0; at < u.size; at += slot_bytes) {
+      const uint64_t n = std::min(slot_bytes, u.size - at);
+      StagingWrite w = begin_staging_write(ctx, ring);
+      const auto* src = static_cast<const uint8_t*>(u.data) + at;
+      constexpr uint64_t kPiece = uint64_t(1) << 22;
+      const size_t pieces = size_t((n + kPiece - 1) / kPiece);
+      auto copy = [&](size_t b, size_t e) {
+        for (size_t k = b; k < e; ++k) {
+          const uint64_t o = k * kPiece;
+          std::memcpy(w.data + o, src + o, std::min(kPiece, n - o));
+        }
+      };
+      if (pool && pieces > 1)
+        pool->parallel_for(pieces, 1, copy);
+      else
+        copy(0, pieces);
+      end_staging_write(ring, w);
+      WGPUCommandEncoderDescriptor desc = WGPU_COMMAND_ENCODER_DESCRIPTOR_INIT;
+      CommandEncoder encoder(wgpuDeviceCreateCommandEncoder(ctx.device.get(), &desc));
+      wgpuCommandEncoderCopyBufferToBuffer(encoder.get(), w.buffer, 0, u.buffer, u.offset + at,
+                                           (n + 3) & ~uint64_t(3));
+      CommandBuffer commands(wgpuCommandEncoderFinish(encoder.get(), nullptr));
+      WGPUCommandBuffer raw = commands.get();
+      wgpuQueueSubmit(ctx.queue.get(), 1, &raw);
+      staging_submitted(ring);
+    }
+  }
+  ctx.wait_idle();  // the ring's buffers go with this scope
 }
 
 void read_back(Context& ctx, ReadbackBuffer& readback, WGPUBuffer source, uint64_t offset,

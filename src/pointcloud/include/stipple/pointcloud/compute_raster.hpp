@@ -49,8 +49,8 @@ struct GpuBatchedCloud {
 struct UploadOptions {
   uint64_t max_segment_points = 0;  // 0: from the device limits (tests force small segments)
 };
-// Copies the words into buffers born mapped, on every core (a write through the queue would copy
-// them once more, on one thread).
+// Copies the words to the GPU through mapped staging slots filled on every core
+// (gpu::upload_through_staging).
 GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& cloud,
                                      const UploadOptions& options = {});
 // Bytes of GPU memory a point takes in the rasterizer's arrays (coarse, medium, fine, colour,

@@ -126,14 +126,6 @@ std::vector<std::pair<std::string, uint64_t>> limit_list(const WGPULimits& limit
 // ---- helpers ------------------------------------------------------------------------------
 Buffer create_buffer(Context& ctx, uint64_t size, WGPUBufferUsage usage, std::string_view label,
                      const void* data = nullptr);
-// A buffer born mapped (mappedAtCreation), any usage: fill `data` (from any thread), then
-// wgpuBufferUnmap. Saves the copy a queue write makes, and the fill can run on every core.
-struct MappedBuffer {
-  Buffer buffer;
-  void* data = nullptr;
-};
-MappedBuffer create_mapped_buffer(Context& ctx, uint64_t size, WGPUBufferUsage usage,
-                                  std::string_view label);
 Texture create_texture_2d(Context& ctx, uint32_t width, uint32_t height, WGPUTextureFormat format,
                           WGPUTextureUsage usage, std::string_view label);
 TextureView create_view(const Texture& texture);

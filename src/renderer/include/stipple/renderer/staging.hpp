@@ -11,9 +11,14 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "stipple/renderer/gpu.hpp"
+
+namespace stipple {
+class ThreadPool;
+}
 
 namespace stipple::gpu {
 
@@ -45,6 +50,19 @@ StagingWrite begin_staging_write(Context& ctx, StagingRing& ring);
 // command buffer holding them has been submitted; the slot is then mapped again for reuse.
 void end_staging_write(StagingRing& ring, const StagingWrite& write);
 void staging_submitted(StagingRing& ring);
+
+// Large uploads: host ranges copied into device buffers through a ring of mapped slots, the
+// copy into a slot running on `pool` (every core) while the GPU copies the previous slot out.
+// A queue write would stage everything once more, on one thread; a buffer born mapped pins its
+// whole size first (3 GB/s for 2 GB on an H200 host).
+struct BufferUpload {
+  WGPUBuffer buffer = nullptr;
+  uint64_t offset = 0;  // multiples of 4, as are the sizes
+  const void* data = nullptr;
+  uint64_t size = 0;
+};
+void upload_through_staging(Context& ctx, std::span<const BufferUpload> uploads, ThreadPool* pool,
+                            uint64_t slot_bytes = uint64_t(64) << 20, uint32_t slots = 4);
 
 // Host bytes the ring holds mapped.
 inline uint64_t staging_bytes(const StagingRing& ring) {
