@@ -1,16 +1,36 @@
-// Compute rasterizer, geometry pass with a 64-bit visibility buffer (seed 001, sections 3.2-3.3):
+// Compute rasterizer, geometry pass with a 64-bit visibility buffer (seed 001, sections 3.2-3.4):
 // one workgroup per batch culls it against the frustum, picks the precision from its size on
-// screen, and each thread projects ~80 points, keeping the nearest per pixel with a 64-bit
-// atomicMin of (depth << 32 | point index). Needs ShaderInt64AtomicMinMax (wgpu-native).
+// screen, and its threads project the batch's points, keeping the nearest per pixel with a
+// 64-bit atomicMin of (depth << 32 | point index). Needs ShaderInt64AtomicMinMax (wgpu-native).
+// Variants as pipeline constants: PREFETCH (compute_raster_batch.wgsl), PLAIN_EARLY and SPLAT
+// (compute_raster_write.wgsl).
 #include "compute_raster_batch.wgsl"
 #include "compute_raster_counted.wgsl"
 
 @group(0) @binding(5) var<storage, read_write> visibility: array<atomic<u64>>;
-// The same buffer as 32-bit words: only min/max are allowed on 64-bit atomics, so the early
-// depth test loads the depth (high) word through this view.
+// The same buffer as 32-bit words for the early depth test: only min/max are allowed on 64-bit
+// atomics, so the depth (high) word is read through a 32-bit view, atomic or plain.
 @group(0) @binding(6) var<storage, read_write> visibility_words: array<atomic<u32>>;
+@group(0) @binding(8) var<storage, read_write> visibility_plain: array<u32>;
 
-@compute @workgroup_size(128)
+fn depth_word(pixel: u32) -> u32 {
+  if (PLAIN_EARLY) {
+    return visibility_plain[pixel * 2u + 1u];
+  }
+  return atomicLoad(&visibility_words[pixel * 2u + 1u]);
+}
+
+fn write_pixel(pixel: u32, depth: u32, index: u32) {
+  // Early depth test: most occluded points never reach the atomic.
+  if (depth > depth_word(pixel)) {
+    return;
+  }
+  atomicMin(&visibility[pixel], (u64(depth) << 32u) | u64(params.segment_base + index));
+}
+
+#include "compute_raster_write.wgsl"
+
+@compute @workgroup_size(WORKGROUP)
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
         @builtin(local_invocation_index) lid: u32) {
   let batch = batch_index(group, groups);
@@ -18,18 +38,5 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups
   if (bits == 0u) {
     return;
   }
-  let b = batches[batch];
-  for (var i = lid; i < b.count; i += WORKGROUP) {
-    let index = b.first + i;
-    let pr = project(params, load_position(b, bits, index));
-    if (!pr.valid) {
-      continue;
-    }
-    let depth = bitcast<u32>(pr.depth);  // positive floats order like their bits
-    // Early depth test: most occluded points never reach the atomic.
-    if (depth > atomicLoad(&visibility_words[pr.pixel * 2u + 1u])) {
-      continue;
-    }
-    atomicMin(&visibility[pr.pixel], (u64(depth) << 32u) | u64(params.segment_base + index));
-  }
+  draw_batch_points(batches[batch], bits, lid);
 }

@@ -1,13 +1,19 @@
 // What the compute rasterizer's geometry passes share: the frame's parameters, the batches and
-// the split positions (bindings 0-4), the batch's precision for the workgroup, and the load of
-// a point at that precision (seed 001, section 3.3: only the needed buffers are read).
+// the split positions (bindings 0-4), the batch's precision for the workgroup, and the loop over
+// a batch's points at that precision (seed 001, section 3.3: only the needed words are read).
+// The including shader defines draw_point(position, index) and count_batch(...).
 #include "compute_raster_common.wgsl"
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> batches: array<GpuBatch>;
-@group(0) @binding(2) var<storage, read> coarse: array<u32>;
-@group(0) @binding(3) var<storage, read> medium: array<u32>;
-@group(0) @binding(4) var<storage, read> fine: array<u32>;
+// Four points' words per element (the arrays are padded to 16 bytes).
+@group(0) @binding(2) var<storage, read> coarse: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read> medium: array<vec4<u32>>;
+@group(0) @binding(4) var<storage, read> fine: array<vec4<u32>>;
+
+// PREFETCH (seed 001, section 3.4): each thread loads four consecutive points with one 128-bit
+// load per precision word and draws them, instead of one point per iteration.
+override PREFETCH: bool = true;
 
 var<workgroup> batch_bits: u32;
 
@@ -36,14 +42,47 @@ fn batch_prologue(group: u32, lid: u32) -> u32 {
 
 // Point `index` of batch `b` relative to the camera, from 10, 20 or 30 bits per axis.
 fn load_position(b: GpuBatch, bits: u32, index: u32) -> vec3<f32> {
-  let c = coarse[index];
+  let v = index >> 2u;
+  let k = index & 3u;
+  let c = coarse[v][k];
   var m = 0u;
   var f = 0u;
   if (bits >= 20u) {
-    m = medium[index];
+    m = medium[v][k];
   }
   if (bits >= 30u) {
-    f = fine[index];
+    f = fine[v][k];
   }
   return b.offset + box_fraction(bits, c, m, f) * b.size;
+}
+
+// Calls draw_point for every point of batch `b` this thread handles.
+fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
+  if (!PREFETCH) {
+    for (var i = lid; i < b.count; i += WORKGROUP) {
+      let index = b.first + i;
+      draw_point(load_position(b, bits, index), index);
+    }
+    return;
+  }
+  // The aligned 16-byte words that cover the batch (the first and last may hold other
+  // batches' points: skipped).
+  let end = b.first + b.count;
+  for (var v = b.first / 4u + lid; v * 4u < end; v += WORKGROUP) {
+    let c4 = coarse[v];
+    var m4 = vec4<u32>(0u);
+    var f4 = vec4<u32>(0u);
+    if (bits >= 20u) {
+      m4 = medium[v];
+    }
+    if (bits >= 30u) {
+      f4 = fine[v];
+    }
+    for (var k = 0u; k < 4u; k++) {
+      let index = v * 4u + k;
+      if (index >= b.first && index < end) {
+        draw_point(b.offset + box_fraction(bits, c4[k], m4[k], f4[k]) * b.size, index);
+      }
+    }
+  }
 }

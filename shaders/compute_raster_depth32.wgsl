@@ -1,12 +1,28 @@
 // Compute rasterizer fallback without 64-bit atomics (seed 003, section 4.2): the depth pass
 // keeps the nearest depth per pixel with a 32-bit atomicMin; colours follow in the
-// accumulation pass. Same batch culling and precision choice as compute_raster64.wgsl.
+// accumulation pass. Same batch culling, precision choice and variants as
+// compute_raster64.wgsl but PLAIN_EARLY.
 #include "compute_raster_batch.wgsl"
 #include "compute_raster_counted.wgsl"
 
 @group(0) @binding(5) var<storage, read_write> depth_buffer: array<atomic<u32>>;
 
-@compute @workgroup_size(128)
+// Always an atomic load here: the plain view of PLAIN_EARLY aliases a writable binding, which
+// Dawn (and so browsers), where this pass runs, refuses.
+fn depth_word(pixel: u32) -> u32 {
+  return atomicLoad(&depth_buffer[pixel]);
+}
+
+fn write_pixel(pixel: u32, depth: u32, index: u32) {
+  if (depth >= depth_word(pixel)) {
+    return;
+  }
+  atomicMin(&depth_buffer[pixel], depth);
+}
+
+#include "compute_raster_write.wgsl"
+
+@compute @workgroup_size(WORKGROUP)
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
         @builtin(local_invocation_index) lid: u32) {
   let batch = batch_index(group, groups);
@@ -14,17 +30,5 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups
   if (bits == 0u) {
     return;
   }
-  let b = batches[batch];
-  for (var i = lid; i < b.count; i += WORKGROUP) {
-    let index = b.first + i;
-    let pr = project(params, load_position(b, bits, index));
-    if (!pr.valid) {
-      continue;
-    }
-    let depth = bitcast<u32>(pr.depth);
-    if (depth >= atomicLoad(&depth_buffer[pr.pixel])) {
-      continue;
-    }
-    atomicMin(&depth_buffer[pr.pixel], depth);
-  }
+  draw_batch_points(batches[batch], bits, lid);
 }

@@ -14,9 +14,9 @@
 @group(0) @binding(3) var<storage, read_write> accum: array<u32>;
 
 @group(0) @binding(4) var<storage, read> batches: array<GpuBatch>;
-@group(0) @binding(5) var<storage, read> coarse: array<u32>;
-@group(0) @binding(6) var<storage, read> medium: array<u32>;
-@group(0) @binding(7) var<storage, read> fine: array<u32>;
+@group(0) @binding(5) var<storage, read> coarse: array<vec4<u32>>;  // four points a word
+@group(0) @binding(6) var<storage, read> medium: array<vec4<u32>>;
+@group(0) @binding(7) var<storage, read> fine: array<vec4<u32>>;
 
 // Camera-relative position of point `index` of this segment (30 bits per axis).
 fn point_position(index: u32) -> vec3<f32> {
@@ -31,7 +31,9 @@ fn point_position(index: u32) -> vec3<f32> {
     }
   }
   let b = batches[lo];
-  return b.offset + box_fraction(30u, coarse[index], medium[index], fine[index]) * b.size;
+  let v = index >> 2u;
+  let k = index & 3u;
+  return b.offset + box_fraction(30u, coarse[v][k], medium[v][k], fine[v][k]) * b.size;
 }
 
 @compute @workgroup_size(16, 16)

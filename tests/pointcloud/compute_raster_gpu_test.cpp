@@ -40,11 +40,12 @@ struct Rendered {
 Rendered render_compute(gpu::Context& ctx, const pc::BatchedCloud& cloud, const Camera& camera,
                         pc::ComputeRasterOptions options, uint32_t w, uint32_t h,
                         bool force_fallback = false, uint64_t max_segment_points = 0,
-                        pc::DisplayPass display = pc::DisplayPass::Auto) {
+                        pc::DisplayPass display = pc::DisplayPass::Auto,
+                        const pc::RasterKernel& kernel = {}) {
   auto gpu_cloud = pc::upload_batched_cloud(ctx, cloud, {max_segment_points});
   auto target = gpu::create_offscreen_target(ctx, w, h);
   auto pipeline =
-      pc::create_compute_raster_pipeline(ctx, target.color_format, force_fallback, display);
+      pc::create_compute_raster_pipeline(ctx, target.color_format, force_fallback, display, kernel);
   options.background = {0, 0, 0};
   options.storage_target = true;
   gpu::RenderGraph graph;
@@ -396,6 +397,116 @@ TEST_P(ComputeRaster, SegmentsAndHqs) {
             test::coverage_stats(one.image, kBlack, 0).covered);
   expect_similar(one.image, blended.image, 0.001, 4.0, "hqs");
   EXPECT_GT(test::differing_fraction(one.image, blended.image, 0), 0.01);
+}
+
+// The kernel's variants (workgroup size, four points a thread, the early test's load) change how
+// the work is spread, not the result: the nearest point of each pixel (64-bit) or the sums at
+// the nearest depth (fallback, HQS) are the same. Tolerance: 0.1 % of the pixels may differ
+// (a point whose depth rounds differently in another code path can win a tie); measured 0.
+TEST_P(ComputeRaster, KernelVariantsDrawTheSameImage) {
+  STIPPLE_REQUIRE_DATA(path, "las/autzen_trim.las");
+  auto ctx = context();
+  const uint32_t w = 480, h = 270;
+  const auto [cloud, camera, batched] = load_framed(path, w, h);
+  for (bool hqs : {false, true}) {
+    pc::ComputeRasterOptions options;
+    options.hqs = hqs;
+    const auto reference = render_compute(*ctx, batched, camera, options, w, h);
+    ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.05);
+    std::vector<std::pair<std::string, pc::RasterKernel>> kernels;
+    pc::RasterKernel k;
+    k.prefetch = k.plain_early = false;
+    kernels.push_back({"scalar, atomic early test", k});
+    k.plain_early = true;
+    kernels.push_back({"scalar, plain early test", k});
+    k = {};
+    k.plain_early = false;
+    kernels.push_back({"prefetch, atomic early test", k});
+    for (uint32_t size : {64u, 256u}) {
+      k = {};
+      k.workgroup = size;
+      kernels.push_back({"workgroup " + std::to_string(size), k});
+    }
+    for (const auto& [name, kernel] : kernels) {
+      const auto r = render_compute(*ctx, batched, camera, options, w, h, false, 0,
+                                    pc::DisplayPass::Auto, kernel);
+      const double differ = test::differing_fraction(reference.image, r.image, 0);
+      std::printf("%s%s: %.4f%% of the pixels differ\n", name.c_str(), hqs ? " (HQS)" : "",
+                  100 * differ);
+      EXPECT_LE(differ, 0.001) << name << (hqs ? " HQS" : "");
+      EXPECT_EQ(r.counters.points_rendered, reference.counters.points_rendered) << name;
+    }
+  }
+}
+
+// Packed HQS (two atomics a point, overflow words past 255 points in a pixel) sums exactly what
+// four atomics a point sum: 1,000 points of different colours in one pixel, at one depth, over a
+// plane of one point a pixel. The pixel shows their mean; the images are equal (tolerance 0).
+TEST_P(ComputeRaster, PackedHqsSumsPastTheOverflowExactly) {
+  auto ctx = context();
+  std::vector<glm::dvec3> positions;
+  std::vector<uint32_t> colors;
+  const uint32_t w = 64, h = 64;
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 64; ++x) {  // a plane at z = -100, filling the view
+      positions.push_back({(x - 31.5) * 2.5, (y - 31.5) * 2.5, -100.0});
+      colors.push_back(pc::pack_rgba(40, 40, 40));
+    }
+  double r = 0, g = 0, b = 0;
+  for (int i = 0; i < 1000; ++i) {  // a cluster far smaller than a pixel, in front of the plane
+    positions.push_back({0.01 + 1e-5 * (i % 10), 0.01 + 1e-5 * (i / 10 % 10), -50.0});
+    const uint8_t cr = uint8_t(i * 7 % 256), cg = uint8_t(255 - i % 200), cb = uint8_t(i % 3 * 100);
+    colors.push_back(pc::pack_rgba(cr, cg, cb));
+    r += cr;
+    g += cg;
+    b += cb;
+  }
+  pc::BatchedCloud batched;
+  pc::append_batches(batched, positions, colors, pc::SpatialOrder::Morton, 512);
+  Camera camera;
+  camera.fov_y = glm::radians(90.0);
+  camera.look_at({0, 0, 0}, {0, 0, -1});
+  pc::ComputeRasterOptions options;
+  options.hqs = true;
+  pc::RasterKernel four;
+  four.packed_hqs = false;
+  const auto packed = render_compute(*ctx, batched, camera, options, w, h);
+  const auto plain =
+      render_compute(*ctx, batched, camera, options, w, h, false, 0, pc::DisplayPass::Auto, four);
+  EXPECT_EQ(test::differing_fraction(packed.image, plain.image, 0), 0.0);
+  // The cluster's pixel: the mean of its 1,000 colours (within rounding to 8 bits).
+  const uint32_t px = w / 2, py = h / 2 - 1;  // +y is up on screen: the pixel above the centre
+  bool found = false;
+  for (uint32_t y = py - 1; y <= py + 2 && !found; ++y)
+    for (uint32_t x = px - 1; x <= px + 1 && !found; ++x) {
+      const uint8_t* p = &packed.image.rgba[(size_t(y) * w + x) * 4];
+      if (std::abs(p[0] - r / 1000) <= 1 && std::abs(p[1] - g / 1000) <= 1 &&
+          std::abs(p[2] - b / 1000) <= 1)
+        found = true;
+    }
+  EXPECT_TRUE(found) << "no pixel near the centre shows the mean colour (" << r / 1000 << ", "
+                     << g / 1000 << ", " << b / 1000 << ")";
+}
+
+// Points larger than a pixel drawn as discs in the geometry pass give what dilating the
+// visibility buffer gives: each pixel takes the nearest point whose disc covers it (tolerance
+// 0.1 % of the pixels, for depth ties; measured 0).
+TEST_P(ComputeRaster, SplattedDiscsEqualDilation) {
+  STIPPLE_REQUIRE_DATA(path, "las/autzen_trim.las");
+  auto ctx = context();
+  const uint32_t w = 480, h = 270;
+  const auto [cloud, camera, batched] = load_framed(path, w, h);
+  for (float size : {3.0f, 5.0f}) {
+    pc::ComputeRasterOptions dilate, splat;
+    dilate.point_size = splat.point_size = size;
+    splat.splat_points = true;
+    dilate.edl_strength = splat.edl_strength = 60.0f;
+    const auto a = render_compute(*ctx, batched, camera, dilate, w, h);
+    const auto b = render_compute(*ctx, batched, camera, splat, w, h);
+    const double differ = test::differing_fraction(a.image, b.image, 0);
+    std::printf("%.0f px: splat vs dilation, %.4f%% of the pixels differ\n", size, 100 * differ);
+    EXPECT_LE(differ, 0.001) << size;
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, ComputeRaster, ::testing::Values("dawn", "wgpu"),

@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench_bandwidth.hpp"
 #include "stipple/app/commands.hpp"
 #include "stipple/core/atomic_file.hpp"
 #include "stipple/core/error.hpp"
@@ -39,47 +40,11 @@ struct RasterArgs {
   std::string backend;
   std::string order = "morton";
   std::string json;
-  uint32_t copy_mb = 1024;
+  uint32_t copy_mb = 2048;
+  std::vector<std::string> variants;  // empty: all
   bool billboard = true;
   uint32_t seed = 1;
 };
-
-// A buffer-to-buffer copy between two empty compute passes whose timestamps bracket it.
-double copy_bandwidth_gbs(gpu::Context& ctx, uint64_t bytes) {
-  bytes = std::min<uint64_t>(bytes, ctx.limits.maxBufferSize) & ~uint64_t(255);
-  auto src = gpu::create_buffer(ctx, bytes, WGPUBufferUsage_CopySrc, "copy-src");
-  auto dst = gpu::create_buffer(ctx, bytes, WGPUBufferUsage_CopyDst, "copy-dst");
-  gpu::PassTimer timer = gpu::create_pass_timer(ctx, 1);
-  if (!timer.enabled) return 0.0;
-  std::vector<double> ms;
-  for (int rep = 0; rep < 6; ++rep) {
-    WGPUCommandEncoderDescriptor enc_desc = WGPU_COMMAND_ENCODER_DESCRIPTOR_INIT;
-    gpu::CommandEncoder encoder(wgpuDeviceCreateCommandEncoder(ctx.device.get(), &enc_desc));
-    WGPUPassTimestampWrites storage;
-    for (int half = 0; half < 2; ++half) {
-      if (half == 1)
-        wgpuCommandEncoderCopyBufferToBuffer(encoder.get(), src.get(), 0, dst.get(), 0, bytes);
-      WGPUPassTimestampWrites writes = *gpu::pass_timestamps(timer, 0, storage);
-      // The first pass writes the begin stamp, the second the end stamp: the copy between.
-      if (half == 0) writes.endOfPassWriteIndex = WGPU_QUERY_SET_INDEX_UNDEFINED;
-      if (half == 1) writes.beginningOfPassWriteIndex = WGPU_QUERY_SET_INDEX_UNDEFINED;
-      WGPUComputePassDescriptor desc = WGPU_COMPUTE_PASS_DESCRIPTOR_INIT;
-      desc.timestampWrites = &writes;
-      gpu::ComputePassEncoder pass(wgpuCommandEncoderBeginComputePass(encoder.get(), &desc));
-      wgpuComputePassEncoderEnd(pass.get());
-    }
-    gpu::resolve_pass_timer(timer, encoder.get());
-    WGPUCommandBufferDescriptor cb_desc = WGPU_COMMAND_BUFFER_DESCRIPTOR_INIT;
-    gpu::CommandBuffer commands(wgpuCommandEncoderFinish(encoder.get(), &cb_desc));
-    WGPUCommandBuffer raw = commands.get();
-    wgpuQueueSubmit(ctx.queue.get(), 1, &raw);
-    auto t = gpu::read_pass_times(ctx, timer);
-    if (rep > 0 && !t.empty()) ms.push_back(t[0]);  // the first run warms up
-  }
-  ctx.check("copy bandwidth");
-  double m = median(ms);
-  return m > 0 ? double(bytes) / (m * 1e-3) * 1e-9 : 0.0;
-}
 
 // Billboard vertices decoded from the same quantized points, one chunk per ~1M points.
 pc::GpuPointCloud upload_billboards(gpu::Context& ctx, const pc::BatchedCloud& cloud,
@@ -152,8 +117,12 @@ void run_raster_bench(const RasterArgs& args) {
   std::printf("%s on %s (%s): %s\n", ctx->description.backend.c_str(),
               ctx->description.device.c_str(), ctx->description.graphics_api.c_str(),
               has64 ? "64-bit visibility buffer" : "no 64-bit atomics: 32-bit two-pass fallback");
+  // The bound: what a shader reaches reading memory (bench bandwidth); the copy for reference.
+  const ReadBandwidth read = read_bandwidth(*ctx, uint64_t(args.copy_mb) << 20);
+  const double read_gbs = read.gb_per_s;
   double copy_gbs = copy_bandwidth_gbs(*ctx, uint64_t(args.copy_mb) << 20);
-  std::printf("buffer copy: %.1f GB/s copied (%.1f GB/s read + write)\n", copy_gbs, 2 * copy_gbs);
+  std::printf("read kernel: %.1f GB/s (the bound below); buffer copy: %.1f GB/s copied\n", read_gbs,
+              copy_gbs);
 
   nlohmann::json out;
   out["backend"] = ctx->description.backend;
@@ -163,6 +132,7 @@ void run_raster_bench(const RasterArgs& args) {
   out["frames"] = args.frames;
   out["visibility64"] = has64;
   out["copy_gb_per_s"] = copy_gbs;
+  out["read_gb_per_s"] = read_gbs;
   out["runs"] = nlohmann::json::array();
 
   const WGPUTextureFormat format = WGPUTextureFormat_RGBA8Unorm;
@@ -175,7 +145,7 @@ void run_raster_bench(const RasterArgs& args) {
 
   std::printf("\n%-6s %-9s %-17s %9s %9s %8s %15s %13s %19s %6s %7s %5s\n", "Mpts", "view",
               "variant", "frame ms", "geom ms", "Gpts/s", "batches pr/rend", "pts rendered",
-              "batches 10/20/30b", "B/pt", "GB/s", "%copy");
+              "batches 10/20/30b", "B/pt", "GB/s", "%bound");
   for (uint64_t n : args.points) {
     io::SceneParams scene;
     scene.point_count = n;
@@ -195,29 +165,68 @@ void run_raster_bench(const RasterArgs& args) {
     pc::GpuPointCloud billboards;
     if (args.billboard) billboards = upload_billboards(*ctx, cloud, pool);
 
-    auto raster64 = pc::create_compute_raster_pipeline(*ctx, format);
-    pc::ComputeRasterPipeline fallback;
-    if (has64) fallback = pc::create_compute_raster_pipeline(*ctx, format, true);
     auto point_pipelines = pc::create_point_pipelines(*ctx, format);
 
+    // Kernel variants (issue: the rasterizer at the bandwidth bound), each its own pipeline;
+    // "compute-precision" is the default kernel, the others change one choice of it.
     struct Variant {
       std::string name;
-      pc::ComputeRasterPipeline* pipeline;  // null: billboards
+      pc::RasterKernel kernel;
+      bool fallback = false;
       pc::ComputeRasterOptions options;
+      bool billboard = false;
     };
     std::vector<Variant> variants;
-    pc::ComputeRasterOptions basic, adaptive, hqs;
-    basic.force_bits = 30;  // every coordinate bit loaded, as without adaptive precision
-    hqs.hqs = true;
-    for (auto* o : {&basic, &adaptive, &hqs}) o->storage_target = true;  // compute display
-    variants.push_back({"compute-basic", &raster64, basic});
-    variants.push_back({"compute-precision", &raster64, adaptive});
-    variants.push_back({"compute-hqs", &raster64, hqs});
-    if (has64) variants.push_back({"compute-fallback32", &fallback, adaptive});
-    if (args.billboard) variants.push_back({"billboard-1px", nullptr, {}});
+    auto add = [&](std::string name, auto&& change) {
+      Variant v;
+      v.name = std::move(name);
+      v.options.storage_target = true;  // compute display
+      change(v);
+      if (!args.variants.empty() &&
+          std::find(args.variants.begin(), args.variants.end(), v.name) == args.variants.end())
+        return;
+      if (v.fallback && !has64) return;  // the plain pipeline is the fallback already
+      variants.push_back(std::move(v));
+    };
+    add("compute-basic", [](Variant& v) { v.options.force_bits = 30; });
+    add("compute-precision", [](Variant&) {});
+    add("scalar-atomic", [](Variant& v) { v.kernel.prefetch = v.kernel.plain_early = false; });
+    add("scalar-plain", [](Variant& v) { v.kernel.prefetch = false; });
+    add("prefetch-atomic", [](Variant& v) { v.kernel.plain_early = false; });
+    add("wg64", [](Variant& v) { v.kernel.workgroup = 64; });
+    add("wg256", [](Variant& v) { v.kernel.workgroup = 256; });
+    add("wg512", [](Variant& v) { v.kernel.workgroup = 512; });
+    add("compute-hqs", [](Variant& v) { v.options.hqs = true; });
+    add("hqs-unpacked", [](Variant& v) {
+      v.options.hqs = true;
+      v.kernel.packed_hqs = false;
+    });
+    add("compute-fallback32", [](Variant& v) { v.fallback = true; });
+    add("fallback32-scalar", [](Variant& v) {
+      v.fallback = true;
+      v.kernel.prefetch = v.kernel.plain_early = false;
+    });
+    for (float size : {3.0f, 5.0f}) {
+      const std::string px = std::to_string(int(size)) + "px";
+      add("dilate-" + px, [size](Variant& v) { v.options.point_size = size; });
+      add("splat-" + px, [size](Variant& v) {
+        v.options.point_size = size;
+        v.options.splat_points = true;
+      });
+    }
+    if (args.billboard) add("billboard-1px", [](Variant& v) { v.billboard = true; });
+    std::vector<std::unique_ptr<pc::ComputeRasterPipeline>> pipelines;
+    for (const Variant& v : variants)
+      pipelines.push_back(
+          v.billboard
+              ? nullptr
+              : std::make_unique<pc::ComputeRasterPipeline>(pc::create_compute_raster_pipeline(
+                    *ctx, format, v.fallback, pc::DisplayPass::Auto, v.kernel)));
 
     for (const View& v : bench_views(cloud.world_bounds, double(args.width) / args.height)) {
-      for (const Variant& variant : variants) {
+      for (size_t vi = 0; vi < variants.size(); ++vi) {
+        const Variant& variant = variants[vi];
+        pc::ComputeRasterPipeline* pipeline = pipelines[vi].get();
         gpu::TransientPool transients;
         gpu::PassTimer timer;
         std::vector<double> frame_ms, geom_ms;
@@ -232,9 +241,9 @@ void run_raster_bench(const RasterArgs& args) {
           gpu::RenderGraph graph;
           graph.import_texture("color", color.get(), view.get(),
                                {args.width, args.height, format, usage}, gpu::Access::Writable);
-          if (variant.pipeline)
-            pc::add_compute_raster_passes(graph, *variant.pipeline, raster_cloud, v.camera,
-                                          variant.options, args.width, args.height);
+          if (pipeline)
+            pc::add_compute_raster_passes(graph, *pipeline, raster_cloud, v.camera, variant.options,
+                                          args.width, args.height);
           else
             pc::add_point_cloud_passes(graph, point_pipelines, billboards, v.camera, style,
                                        args.width, args.height);
@@ -261,14 +270,14 @@ void run_raster_bench(const RasterArgs& args) {
         run["generate_s"] = gen_s;
         char batches[32] = "-", rendered[32] = "-", bits[40] = "-", bpp[16] = "-", gbs[16] = "-",
              pct[16] = "-";
-        if (variant.pipeline) {
-          pc::RasterCounters c = pc::read_raster_counters(*ctx, *variant.pipeline);
+        if (pipeline) {
+          pc::RasterCounters c = pc::read_raster_counters(*ctx, *pipeline);
           // Bytes of point data the passes load: coordinate words by precision in the geometry
           // pass; the accumulation pass (HQS, fallback) loads them again plus a colour each.
           // The resolve reads one colour per pixel (negligible).
           double coords = 4.0 * double(c.points_by_bits[0]) + 8.0 * double(c.points_by_bits[1]) +
                           12.0 * double(c.points_by_bits[2]);
-          bool second = variant.options.hqs || !variant.pipeline->visibility64;
+          bool second = variant.options.hqs || !pipeline->visibility64;
           double loaded = coords + (second ? coords + 4.0 * double(c.points_rendered) : 0.0);
           double per_point = c.points_rendered ? loaded / double(c.points_rendered) : 0.0;
           double rate = ms > 0 ? loaded / (ms * 1e-3) * 1e-9 : 0.0;
@@ -278,7 +287,7 @@ void run_raster_bench(const RasterArgs& args) {
                         c.batches_by_bits[2]);
           std::snprintf(bpp, sizeof bpp, "%.1f", per_point);
           std::snprintf(gbs, sizeof gbs, "%.1f", rate);
-          if (copy_gbs > 0) std::snprintf(pct, sizeof pct, "%.0f", 100.0 * rate / (2 * copy_gbs));
+          if (read_gbs > 0) std::snprintf(pct, sizeof pct, "%.0f", 100.0 * rate / read_gbs);
           run["batches_processed"] = c.batches_processed;
           run["batches_rendered"] = c.batches_rendered;
           run["batches_culled"] = c.batches_culled;
@@ -288,12 +297,13 @@ void run_raster_bench(const RasterArgs& args) {
           run["points_by_bits"] = {c.points_by_bits[0], c.points_by_bits[1], c.points_by_bits[2]};
           run["bytes_per_point_loaded"] = per_point;
           run["loaded_gb_per_s"] = rate;
-          run["visibility64"] = variant.pipeline->visibility64;
+          run["visibility64"] = pipeline->visibility64;
+          run["percent_of_read_bound"] = read_gbs > 0 ? 100.0 * rate / read_gbs : 0.0;
         } else {
           double rate = ms > 0 ? 16.0 * double(n) / (ms * 1e-3) * 1e-9 : 0.0;
           std::snprintf(bpp, sizeof bpp, "16.0");
           std::snprintf(gbs, sizeof gbs, "%.1f", rate);
-          if (copy_gbs > 0) std::snprintf(pct, sizeof pct, "%.0f", 100.0 * rate / (2 * copy_gbs));
+          if (read_gbs > 0) std::snprintf(pct, sizeof pct, "%.0f", 100.0 * rate / read_gbs);
           run["bytes_per_point_loaded"] = 16.0;
           run["loaded_gb_per_s"] = rate;
         }
@@ -309,7 +319,7 @@ void run_raster_bench(const RasterArgs& args) {
   std::printf(
       "\nframe ms: all passes of a frame (clear, geometry, resolve/accumulate, display), "
       "median of %u; Gpts/s: all N points per frame time; GB/s: point data loaded per "
-      "second; %%copy: against the copy's read + write traffic\n",
+      "second; %%bound: of the read kernel's bandwidth\n",
       args.frames);
   if (!args.json.empty()) {
     write_file_atomically(args.json, out.dump(2) + "\n");
@@ -335,8 +345,15 @@ void add_bench_raster_command(CLI::App& bench) {
   cmd->add_option("--order", args->order, "Point order inside batches: morton, hilbert, none")
       ->check(CLI::IsMember({"morton", "hilbert", "none"}))
       ->capture_default_str();
-  cmd->add_option("--copy-mb", args->copy_mb, "Size of the bandwidth copy in MiB")
+  cmd->add_option("--copy-mb", args->copy_mb,
+                  "Size of the bandwidth measurements (read kernel, copy) in MiB")
       ->capture_default_str();
+  cmd->add_option("--variants", args->variants,
+                  "Only these variants (compute-basic, compute-precision, scalar-atomic, "
+                  "scalar-plain, prefetch-atomic, wg64, wg256, wg512, compute-hqs, hqs-unpacked, "
+                  "compute-fallback32, fallback32-scalar, dilate-3px, splat-3px, dilate-5px, "
+                  "splat-5px, billboard-1px)")
+      ->delimiter(',');
   cmd->add_flag("!--no-billboard", args->billboard, "Skip the billboard variant (saves 16 B/pt)");
   cmd->add_option("--seed", args->seed, "Scene seed")->capture_default_str();
   cmd->add_option("--json", args->json, "Write the results as JSON");

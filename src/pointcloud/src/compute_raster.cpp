@@ -30,8 +30,10 @@ struct Params {
   uint32_t segment_points;
   float edl_strength, edl_radius;
   float background[4];
+  float splat_radius, splat_radius2;
+  uint32_t pad0, pad1;
 };
-static_assert(sizeof(Params) == 128);
+static_assert(sizeof(Params) == 144);
 
 // Mirrors GpuBatch.
 struct GpuBatch {
@@ -83,12 +85,21 @@ void dispatch_batches(WGPUComputePassEncoder pass, WGPUComputePipeline pipeline,
   gpu::dispatch(pass, pipeline, {group}, x, y);
 }
 
-gpu::ComputePipeline make_compute(gpu::Context& ctx, const char* file) {
+gpu::ComputePipeline make_compute(gpu::Context& ctx, const char* file,
+                                  std::span<const gpu::PipelineConstant> constants = {}) {
   gpu::ShaderModule shader = gpu::create_shader_from_file(ctx, file);
   gpu::ComputePipeline pipeline =
-      gpu::create_compute_pipeline(ctx, shader.get(), "main", nullptr, file);
+      gpu::create_compute_pipeline(ctx, shader.get(), "main", nullptr, file, constants);
   ctx.check(file);
   return pipeline;
+}
+
+// The pipeline constants of the batch passes for `kernel`.
+std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, bool splat) {
+  return {{"WORKGROUP", double(kernel.workgroup)},
+          {"PREFETCH", kernel.prefetch ? 1.0 : 0.0},
+          {"PLAIN_EARLY", kernel.plain_early ? 1.0 : 0.0},
+          {"SPLAT", splat ? 1.0 : 0.0}};
 }
 
 }  // namespace
@@ -134,7 +145,7 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
         {&seg.color, &cloud.color},
         {&seg.attributes, &cloud.attributes}};
     for (const auto& [buffer, words] : arrays) {
-      *buffer = gpu::create_buffer(ctx, std::max<uint64_t>(points * 4, 4), usage, "raster-points");
+      *buffer = gpu::create_buffer(ctx, raster_array_bytes(points), usage, "raster-points");
       uploads.push_back({buffer->get(), 0, words->data() + f, points * 4});
     }
     seg.batches =
@@ -162,10 +173,10 @@ GpuBatchedCloud create_batched_storage(gpu::Context& ctx, uint64_t points, uint6
                                        std::string_view label) {
   const uint64_t max_bytes = std::min<uint64_t>(
       {ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize, 1ull << 31});
-  if (points * 4 > max_bytes)
+  if (raster_array_bytes(points) > max_bytes)
     fail("{}: {} points exceed one storage binding ({} bytes)", label, points, max_bytes);
   const auto usage = WGPUBufferUsage_Storage | WGPUBufferUsage_CopySrc | WGPUBufferUsage_CopyDst;
-  const uint64_t words = std::max<uint64_t>(points, 1) * 4;
+  const uint64_t words = raster_array_bytes(points);
   GpuBatchedCloud out;
   GpuBatchedCloud::Segment seg;
   seg.coarse = gpu::create_buffer(ctx, words, usage, "store-coarse");
@@ -196,18 +207,29 @@ bool has_visibility64(const gpu::Context& ctx) {
 
 ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
                                                      WGPUTextureFormat color_format,
-                                                     bool force_fallback, DisplayPass display) {
+                                                     bool force_fallback, DisplayPass display,
+                                                     const RasterKernel& kernel) {
   ComputeRasterPipeline p;
   p.visibility64 = !force_fallback && has_visibility64(ctx);
   p.color_format = color_format;
+  p.kernel = kernel;
   p.clear = make_compute(ctx, "compute_raster_clear.wgsl");
+  const auto plain = kernel_constants(kernel, false);
   if (p.visibility64) {
-    p.raster64 = make_compute(ctx, "compute_raster64.wgsl");
+    p.raster64 = make_compute(ctx, "compute_raster64.wgsl", plain);
+    p.raster64_splat = make_compute(ctx, "compute_raster64.wgsl", kernel_constants(kernel, true));
     p.resolve = make_compute(ctx, "compute_raster_resolve.wgsl");
   } else {
-    p.depth32 = make_compute(ctx, "compute_raster_depth32.wgsl");
+    p.depth32 = make_compute(ctx, "compute_raster_depth32.wgsl", plain);
   }
-  p.accumulate = make_compute(ctx, "compute_raster_accumulate.wgsl");
+  {
+    const std::vector<gpu::PipelineConstant> accumulate = {
+        {"WORKGROUP", double(kernel.workgroup)},
+        {"PREFETCH", kernel.prefetch ? 1.0 : 0.0},
+        {"PACKED", kernel.packed_hqs ? 1.0 : 0.0}};
+    p.accumulate = make_compute(ctx, "compute_raster_accumulate.wgsl", accumulate);
+  }
+  p.hqs_finish = make_compute(ctx, "compute_raster_hqs_finish.wgsl");
 
   gpu::ShaderModule display_module =
       gpu::create_shader_from_file(ctx, "compute_raster_display.wgsl");
@@ -264,12 +286,17 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                                const std::string& color_target) {
   const bool use64 = p.visibility64;
   const bool accumulate = options.hqs || !use64;
+  // Points larger than a pixel: discs drawn in the geometry pass where it alone decides the
+  // colour (64-bit, no HQS), else dilation of its result.
+  const bool large = options.point_size >= 2.0f;
+  const bool splat = large && options.splat_points && use64 && !options.hqs;
+  const bool packed = accumulate && p.kernel.packed_hqs;
   const uint64_t pixels = uint64_t(width) * height;
   const std::string depth_name = "raster-depth-buffer", accum_name = "raster-accum";
   const uint32_t groups_x = (width + 15) / 16, groups_y = (height + 15) / 16;
 
   // Per-frame uniforms and camera-relative batch tables (double subtraction, then float).
-  auto upload_frame = [&cloud, camera, options, width, height, use64](gpu::Context& ctx) {
+  auto upload_frame = [&cloud, camera, options, width, height, use64, splat](gpu::Context& ctx) {
     Params params{};
     glm::mat4 vp = raster_view_proj(camera, width, height);
     std::memcpy(params.view_proj, glm::value_ptr(vp), sizeof(params.view_proj));
@@ -288,6 +315,10 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
     params.background[1] = options.background.g;
     params.background[2] = options.background.b;
     params.background[3] = 1.0f;
+    if (splat) {
+      params.splat_radius = options.point_size * 0.5f;
+      params.splat_radius2 = params.splat_radius * params.splat_radius;
+    }
     if (cloud.shading)
       gpu::write_buffer(ctx, cloud.shading.get(), 0, shading_uniforms(options.shading, camera));
     thread_local std::vector<GpuBatch> table;  // every frame: keep the capacity
@@ -334,20 +365,26 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   graph
       .add_pass(
           "raster-depth", gpu::PassKind::Compute,
-          [&p, &cloud, use64, depth_name](gpu::PassContext& pc) {
+          [&p, &cloud, use64, splat, depth_name](gpu::PassContext& pc) {
             gpu::Context& ctx = pc.gpu();
-            const gpu::ComputePipeline& pipeline = use64 ? p.raster64 : p.depth32;
+            const gpu::ComputePipeline& pipeline = !use64  ? p.depth32
+                                                   : splat ? p.raster64_splat
+                                                           : p.raster64;
             auto layout = gpu::bind_group_layout_of(pipeline);
             std::vector<gpu::BindGroup> groups;
             WGPUBuffer depth = pc.buffer(depth_name);
             for (auto& seg : cloud.segments) {
-              // 64-bit: the visibility buffer also as 32-bit words (binding 6).
+              // 64-bit: the visibility buffer again as 32-bit words, atomic (binding 6) and
+              // plain (binding 8), for the early depth test (wgpu-native allows the aliasing).
               std::vector<gpu::Binding> bindings = {
                   gpu::bind_buffer(0, seg.params.get()), gpu::bind_buffer(1, seg.batches.get()),
                   gpu::bind_buffer(2, seg.coarse.get()), gpu::bind_buffer(3, seg.medium.get()),
                   gpu::bind_buffer(4, seg.fine.get()),   gpu::bind_buffer(5, depth),
                   gpu::bind_buffer(7, p.counters.get())};
-              if (use64) bindings.push_back(gpu::bind_buffer(6, depth));
+              if (use64) {
+                bindings.push_back(gpu::bind_buffer(6, depth));
+                bindings.push_back(gpu::bind_buffer(8, depth));
+              }
               groups.push_back(gpu::create_bind_group(ctx, layout.get(), bindings));
             }
             auto pass = pc.begin_compute_pass();
@@ -359,31 +396,62 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
       .write(depth_name);
 
   if (accumulate) {
-    graph
-        .add_pass(
-            "raster-accumulate", gpu::PassKind::Compute,
-            [&p, &cloud, depth_name, accum_name](gpu::PassContext& pc) {
-              gpu::Context& ctx = pc.gpu();
-              auto layout = gpu::bind_group_layout_of(p.accumulate);
-              std::vector<gpu::BindGroup> groups;
-              for (auto& seg : cloud.segments)
-                groups.push_back(gpu::create_bind_group(
-                    ctx, layout.get(),
-                    {gpu::bind_buffer(0, seg.params.get()), gpu::bind_buffer(1, seg.batches.get()),
-                     gpu::bind_buffer(2, seg.coarse.get()), gpu::bind_buffer(3, seg.medium.get()),
-                     gpu::bind_buffer(4, seg.fine.get()), gpu::bind_buffer(5, seg.color.get()),
-                     gpu::bind_buffer(6, pc.buffer(depth_name)),
-                     gpu::bind_buffer(7, pc.buffer(accum_name)),
-                     gpu::bind_buffer(9, seg.attributes.get()),
-                     gpu::bind_buffer(10, cloud.shading.get())}));
-              auto pass = pc.begin_compute_pass();
-              for (size_t s = 0; s < cloud.segments.size(); ++s)
-                dispatch_batches(pass.get(), p.accumulate.get(), groups[s].get(),
-                                 cloud.segments[s].batch_count);
-              wgpuComputePassEncoderEnd(pass.get());
-            })
-        .read(depth_name)
-        .write(accum_name);
+    // Packed HQS sums into eight words a pixel, then raster-hqs-finish writes the plain layout.
+    const std::string sums = packed ? "raster-hqs-packed" : accum_name;
+    gpu::PassBuilder accumulate_pass =
+        graph
+            .add_pass(
+                "raster-accumulate", gpu::PassKind::Compute,
+                [&p, &cloud, depth_name, sums, packed](gpu::PassContext& pc) {
+                  gpu::Context& ctx = pc.gpu();
+                  if (packed)
+                    wgpuCommandEncoderClearBuffer(pc.encoder(), pc.buffer(sums), 0,
+                                                  WGPU_WHOLE_SIZE);
+                  auto layout = gpu::bind_group_layout_of(p.accumulate);
+                  std::vector<gpu::BindGroup> groups;
+                  for (auto& seg : cloud.segments)
+                    groups.push_back(gpu::create_bind_group(
+                        ctx, layout.get(),
+                        {gpu::bind_buffer(0, seg.params.get()),
+                         gpu::bind_buffer(1, seg.batches.get()),
+                         gpu::bind_buffer(2, seg.coarse.get()),
+                         gpu::bind_buffer(3, seg.medium.get()), gpu::bind_buffer(4, seg.fine.get()),
+                         gpu::bind_buffer(5, seg.color.get()),
+                         gpu::bind_buffer(6, pc.buffer(depth_name)),
+                         gpu::bind_buffer(7, pc.buffer(sums)),
+                         gpu::bind_buffer(9, seg.attributes.get()),
+                         gpu::bind_buffer(10, cloud.shading.get())}));
+                  auto pass = pc.begin_compute_pass();
+                  for (size_t s = 0; s < cloud.segments.size(); ++s)
+                    dispatch_batches(pass.get(), p.accumulate.get(), groups[s].get(),
+                                     cloud.segments[s].batch_count);
+                  wgpuComputePassEncoderEnd(pass.get());
+                })
+            .read(depth_name);
+    if (packed) {
+      accumulate_pass.create_buffer(
+          sums, {pixels * 32, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst});
+      graph
+          .add_pass(
+              "raster-hqs-finish", gpu::PassKind::Compute,
+              [&p, &cloud, sums, accum_name, groups_x, groups_y](gpu::PassContext& pc) {
+                gpu::Context& ctx = pc.gpu();
+                if (cloud.segments.empty()) return;
+                auto layout = gpu::bind_group_layout_of(p.hqs_finish);
+                auto group =
+                    gpu::create_bind_group(ctx, layout.get(),
+                                           {gpu::bind_buffer(0, cloud.segments[0].params.get()),
+                                            gpu::bind_buffer(1, pc.buffer(sums)),
+                                            gpu::bind_buffer(2, pc.buffer(accum_name))});
+                auto pass = pc.begin_compute_pass();
+                gpu::dispatch(pass.get(), p.hqs_finish.get(), {group.get()}, groups_x, groups_y);
+                wgpuComputePassEncoderEnd(pass.get());
+              })
+          .read(sums)
+          .write(accum_name);
+    } else {
+      accumulate_pass.write(accum_name);
+    }
   } else {
     graph
         .add_pass(
@@ -447,7 +515,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
         .create_buffer(out, {pixels * 16, WGPUBufferUsage_Storage});
     shown = out;
   };
-  if (options.point_size >= 2.0f) {
+  if (large && !splat) {
     const float r = options.point_size * 0.5f;
     const FillParams fp{
         width,     height, uint32_t(std::ceil(r)), use64 ? 2u : 1u, use64 ? 1u : 0u, 0.0f,

@@ -453,12 +453,20 @@ BindGroup create_bind_group(Context& ctx, WGPUBindGroupLayout layout,
 
 ComputePipeline create_compute_pipeline(Context& ctx, WGPUShaderModule module,
                                         std::string_view entry, WGPUPipelineLayout layout,
-                                        std::string_view label) {
+                                        std::string_view label,
+                                        std::span<const PipelineConstant> constants) {
   WGPUComputePipelineDescriptor desc = WGPU_COMPUTE_PIPELINE_DESCRIPTOR_INIT;
   desc.label = to_view(label);
   desc.layout = layout;
   desc.compute.module = module;
   desc.compute.entryPoint = to_view(entry);
+  std::vector<WGPUConstantEntry> entries(constants.size(), WGPU_CONSTANT_ENTRY_INIT);
+  for (size_t i = 0; i < constants.size(); ++i) {
+    entries[i].key = to_view(constants[i].name);
+    entries[i].value = constants[i].value;
+  }
+  desc.compute.constantCount = entries.size();
+  desc.compute.constants = entries.empty() ? nullptr : entries.data();
   return ComputePipeline(wgpuDeviceCreateComputePipeline(ctx.device.get(), &desc));
 }
 

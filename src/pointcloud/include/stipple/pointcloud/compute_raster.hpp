@@ -8,6 +8,7 @@
 // raster-accumulate (HQS or fallback) or raster-resolve (64-bit), and raster-display into the
 // imported colour target: a compute pass through a storage binding where the target allows it
 // (RGBA8Unorm with storage usage), else a full-screen render pass (any colour format).
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -63,6 +64,20 @@ constexpr uint64_t kRasterPointBytes = 20;
 GpuBatchedCloud create_batched_storage(gpu::Context& ctx, uint64_t points, uint64_t batches,
                                        std::string_view label);
 
+// GPU bytes of one array of `points` words: padded to 16 bytes, since the passes read four
+// points' words at a time.
+inline uint64_t raster_array_bytes(uint64_t points) {
+  return std::max<uint64_t>((points * 4 + 15) & ~uint64_t(15), 16);
+}
+
+// How the batch passes run (seed 001, sections 3.2-3.6); `bench raster` measures each choice.
+struct RasterKernel {
+  uint32_t workgroup = 128;  // threads per batch workgroup (the seed's 128)
+  bool prefetch = true;      // four points per thread and iteration from 128-bit loads (3.4)
+  bool plain_early = true;   // the early depth test as a plain load, as in Listing 1
+  bool packed_hqs = true;    // HQS: two packed 32-bit atomics a point, not four (3.6)
+};
+
 // Whether this context can run the 64-bit visibility buffer (STIPPLE_RASTER_FALLBACK=1 says no).
 bool has_visibility64(const gpu::Context& ctx);
 // Features to request for it (pass to gpu::ContextOptions::optional_features).
@@ -70,8 +85,10 @@ std::vector<WGPUFeatureName> compute_raster_features();
 
 struct ComputeRasterPipeline {
   bool visibility64 = false;
+  RasterKernel kernel;
   WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
-  gpu::ComputePipeline clear, raster64, depth32, accumulate, resolve;
+  gpu::ComputePipeline clear, raster64, depth32, accumulate, resolve, hqs_finish;
+  gpu::ComputePipeline raster64_splat;  // points drawn as discs in the geometry pass
   gpu::RenderPipeline display;
   // The display as a compute pass (RGBA8Unorm targets with storage usage); null otherwise.
   gpu::ComputePipeline display_compute;
@@ -105,8 +122,11 @@ struct ComputeRasterOptions {
   float edl_strength = 0.0f;
   float edl_radius = 1.0f;
   // Point diameter in pixels: from 2 up, every drawn pixel is dilated to a disc of it, the
-  // nearest disc winning each pixel (a depth test of round splats), before occlusion and fill.
+  // nearest disc winning each pixel (a depth test of round splats), before occlusion and fill;
+  // or with `splat_points` each point covers the disc in the geometry pass (64-bit visibility
+  // buffer without HQS; elsewhere dilation).
   float point_size = 1.0f;
+  bool splat_points = false;
   // Colour: the mode (resolved for the data: not Auto) and its ramps, as the billboard path's
   // point_color applies them (elevation in world Y, the source elevation).
   PointShading shading{ColorMode::Rgb};
@@ -124,7 +144,8 @@ enum class DisplayPass { Auto, Render, Compute };
 ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
                                                      WGPUTextureFormat color_format,
                                                      bool force_fallback = false,
-                                                     DisplayPass display = DisplayPass::Auto);
+                                                     DisplayPass display = DisplayPass::Auto,
+                                                     const RasterKernel& kernel = {});
 
 // Adds the rasterizer's passes, drawing into `color_target` (an imported writable texture of
 // width x height). The cloud and pipeline must outlive the graph's execution.

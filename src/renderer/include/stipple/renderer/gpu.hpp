@@ -170,10 +170,16 @@ inline BindGroup create_bind_group(Context& ctx, WGPUBindGroupLayout layout,
   return create_bind_group(ctx, layout, std::span(bindings.begin(), bindings.size()), label);
 }
 
-// A compute pipeline of one entry point; a null layout is derived from the shader.
+// A compute pipeline of one entry point; a null layout is derived from the shader. `constants`
+// set the shader's pipeline-overridable constants (`override` declarations) by name.
+struct PipelineConstant {
+  std::string name;
+  double value = 0.0;
+};
 ComputePipeline create_compute_pipeline(Context& ctx, WGPUShaderModule module,
                                         std::string_view entry, WGPUPipelineLayout layout,
-                                        std::string_view label);
+                                        std::string_view label,
+                                        std::span<const PipelineConstant> constants = {});
 
 // An explicit layout of buffer bindings 0, 1, ... for compute shaders (one layout shared by
 // entry points that use different subsets of the bindings), and a pipeline layout of groups.
