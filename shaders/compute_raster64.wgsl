@@ -2,8 +2,8 @@
 // one workgroup per batch culls it against the frustum, picks the precision from its size on
 // screen, and its threads project the batch's points, keeping the nearest per pixel with a
 // 64-bit atomicMin of (depth << 32 | point index). Needs ShaderInt64AtomicMinMax (wgpu-native).
-// Variants as pipeline constants: PREFETCH (compute_raster_batch.wgsl), PLAIN_EARLY and SPLAT
-// (compute_raster_write.wgsl).
+// Variants as pipeline constants: PREFETCH, CONTIGUOUS (compute_raster_batch.wgsl), PLAIN_EARLY
+// and MERGE (compute_raster_write.wgsl).
 #include "compute_raster_batch.wgsl"
 #include "compute_raster_counted.wgsl"
 
@@ -13,6 +13,16 @@
 @group(0) @binding(6) var<storage, read_write> visibility_words: array<atomic<u32>>;
 @group(0) @binding(8) var<storage, read_write> visibility_plain: array<u32>;
 
+alias Key = u64;
+
+fn point_key(depth: u32, index: u32) -> u64 {
+  return (u64(depth) << 32u) | u64(params.segment_base + index);
+}
+
+fn key_less(a: u64, b: u64) -> bool {
+  return a < b;
+}
+
 fn depth_word(pixel: u32) -> u32 {
   if (PLAIN_EARLY) {
     return visibility_plain[pixel * 2u + 1u];
@@ -20,12 +30,12 @@ fn depth_word(pixel: u32) -> u32 {
   return atomicLoad(&visibility_words[pixel * 2u + 1u]);
 }
 
-fn write_pixel(pixel: u32, depth: u32, index: u32) {
+fn write_key(pixel: u32, key: u64) {
   // Early depth test: most occluded points never reach the atomic.
-  if (depth > depth_word(pixel)) {
+  if (u32(key >> 32u) > depth_word(pixel)) {
     return;
   }
-  atomicMin(&visibility[pixel], (u64(depth) << 32u) | u64(params.segment_base + index));
+  atomicMin(&visibility[pixel], key);
 }
 
 #include "compute_raster_write.wgsl"

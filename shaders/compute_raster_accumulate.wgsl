@@ -6,10 +6,10 @@
 //
 // PACKED (seed 001, 3.6: one 64-bit add for up to 255 points, with overflow protection; here in
 // two 32-bit words): a pixel's first 255 points add red | green << 16 to one word and
-// blue | 1 << 16 to the other, two atomics instead of four. A point that finds 255 counted
-// already takes its blue and count back and adds all four channels to the pixel's overflow
-// words instead (add and subtract commute, so the packed sums end exact). raster-hqs-finish
-// then writes the plain layout (sums, count) that the later passes read.
+// blue | count << 16 to the other, two atomics instead of four. Sums that would take the count
+// past 255 are taken back and added to the pixel's overflow words instead (add and subtract
+// commute, so the packed sums end exact). raster-hqs-finish then writes the plain layout (sums,
+// count) that the later passes read.
 #include "compute_raster_batch.wgsl"
 #include "compute_raster_shading.wgsl"
 
@@ -24,36 +24,76 @@ override PACKED: bool = false;
 // The geometry passes count batches; accumulation does not.
 fn count_batch(b: GpuBatch, bits: u32, skipped: bool) {}
 
+// MERGE: a thread sums the points it finds in a row on one pixel (the pixel's nearest depth is
+// read once for them) and adds the sums with one set of atomics.
+override MERGE: bool = true;
+
+const NO_PIXEL: u32 = 0xffffffffu;
+var<private> run_pixel: u32 = NO_PIXEL;
+var<private> run_limit: f32;        // the pixel's nearest depth, widened by the tolerance
+var<private> run_sum: vec4<u32>;    // r, g, b, count
+
+fn add_sums(pixel: u32, sum: vec4<u32>) {
+  if (!PACKED) {
+    let o = pixel * 4u;
+    atomicAdd(&accum[o], sum.x);
+    atomicAdd(&accum[o + 1u], sum.y);
+    atomicAdd(&accum[o + 2u], sum.z);
+    atomicAdd(&accum[o + 3u], sum.w);
+    return;
+  }
+  // At most 255 points in the packed words: then every 16-bit sum holds.
+  let o = pixel * 8u;
+  if (sum.w > 255u) {
+    atomicAdd(&accum[o + 2u], sum.x);
+    atomicAdd(&accum[o + 3u], sum.y);
+    atomicAdd(&accum[o + 4u], sum.z);
+    atomicAdd(&accum[o + 5u], sum.w);
+    return;
+  }
+  let blue_count = sum.z | (sum.w << 16u);
+  let before = atomicAdd(&accum[o + 1u], blue_count);
+  if ((before >> 16u) + sum.w <= 255u) {
+    atomicAdd(&accum[o], sum.x | (sum.y << 16u));
+    return;
+  }
+  atomicSub(&accum[o + 1u], blue_count);
+  atomicAdd(&accum[o + 2u], sum.x);
+  atomicAdd(&accum[o + 3u], sum.y);
+  atomicAdd(&accum[o + 4u], sum.z);
+  atomicAdd(&accum[o + 5u], sum.w);
+}
+
+fn end_run() {
+  if (run_pixel != NO_PIXEL && run_sum.w > 0u) {
+    add_sums(run_pixel, run_sum);
+  }
+  run_pixel = NO_PIXEL;
+}
+
+fn limit_of(pixel: u32) -> f32 {
+  let nearest = bitcast<f32>(depth_buffer[pixel * params.depth_stride + params.depth_word]);
+  return nearest * (1.0 + params.depth_tolerance);
+}
+
 fn draw_point(position: vec3<f32>, index: u32) {
   let pr = project(params, position);
   if (!pr.valid) {
     return;
   }
-  let nearest = bitcast<f32>(depth_buffer[pr.pixel * params.depth_stride + params.depth_word]);
-  if (pr.depth > nearest * (1.0 + params.depth_tolerance)) {
+  if (!MERGE || pr.pixel != run_pixel) {
+    end_run();
+    run_pixel = pr.pixel;
+    run_limit = limit_of(pr.pixel);
+    run_sum = vec4<u32>(0u);
+  }
+  if (pr.depth > run_limit) {
     return;
   }
-  let c = channels(shade(colors[index], attributes_of(index), position.y));
-  if (!PACKED) {
-    let o = pr.pixel * 4u;
-    atomicAdd(&accum[o], c.x);
-    atomicAdd(&accum[o + 1u], c.y);
-    atomicAdd(&accum[o + 2u], c.z);
-    atomicAdd(&accum[o + 3u], 1u);
-    return;
+  run_sum += vec4<u32>(channels(shade(colors[index], attributes_of(index), position.y)), 1u);
+  if (!MERGE) {
+    end_run();
   }
-  let o = pr.pixel * 8u;
-  let blue_count = c.z | (1u << 16u);
-  let before = atomicAdd(&accum[o + 1u], blue_count);
-  if ((before >> 16u) < 255u) {
-    atomicAdd(&accum[o], c.x | (c.y << 16u));
-    return;
-  }
-  atomicSub(&accum[o + 1u], blue_count);
-  atomicAdd(&accum[o + 2u], c.x);
-  atomicAdd(&accum[o + 3u], c.y);
-  atomicAdd(&accum[o + 4u], c.z);
-  atomicAdd(&accum[o + 5u], 1u);
 }
 
 @compute @workgroup_size(WORKGROUP)

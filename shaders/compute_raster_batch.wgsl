@@ -1,7 +1,8 @@
 // What the compute rasterizer's geometry passes share: the frame's parameters, the batches and
 // the split positions (bindings 0-4), the batch's precision for the workgroup, and the loop over
 // a batch's points at that precision (seed 001, section 3.3: only the needed words are read).
-// The including shader defines draw_point(position, index) and count_batch(...).
+// The including shader defines draw_point(position, index), end_run() (called after a thread's
+// last point: see compute_raster_write.wgsl) and count_batch(...).
 #include "compute_raster_common.wgsl"
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -13,7 +14,12 @@
 
 // PREFETCH (seed 001, section 3.4): each thread loads four consecutive points with one 128-bit
 // load per precision word and draws them, instead of one point per iteration.
+// CONTIGUOUS: each thread takes one contiguous range of the batch (its share of the 16-byte
+// words) instead of every WORKGROUP-th word: consecutive points of a spatially sorted batch
+// fall on the same pixel at overview distances, and a thread merges them (MERGE) before
+// touching memory.
 override PREFETCH: bool = true;
+override CONTIGUOUS: bool = false;
 
 var<workgroup> batch_bits: u32;
 
@@ -63,12 +69,24 @@ fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
       let index = b.first + i;
       draw_point(load_position(b, bits, index), index);
     }
+    end_run();
     return;
   }
   // The aligned 16-byte words that cover the batch (the first and last may hold other
   // batches' points: skipped).
   let end = b.first + b.count;
-  for (var v = b.first / 4u + lid; v * 4u < end; v += WORKGROUP) {
+  let first_word = b.first / 4u;
+  let words = (end + 3u) / 4u - first_word;
+  var v = first_word + lid;
+  var stop = first_word + words;
+  var step = WORKGROUP;
+  if (CONTIGUOUS) {
+    let share = (words + WORKGROUP - 1u) / WORKGROUP;
+    v = first_word + min(lid * share, words);
+    stop = first_word + min((lid + 1u) * share, words);
+    step = 1u;
+  }
+  for (; v < stop; v += step) {
     let c4 = coarse[v];
     var m4 = vec4<u32>(0u);
     var f4 = vec4<u32>(0u);
@@ -85,4 +103,5 @@ fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
       }
     }
   }
+  end_run();
 }

@@ -17,10 +17,6 @@ struct Params {
   edl_strength: f32,       // eye-dome lighting in the display pass; 0: off
   edl_radius: f32,         // its neighbour distance in pixels
   background: vec4<f32>,
-  splat_radius: f32,       // geometry pass: each point covers a disc of this radius (0: a pixel)
-  splat_radius2: f32,      // its square: offsets with dx^2 + dy^2 <= radius2
-  pad0: u32,
-  pad1: u32,
 }
 
 // Per frame: offset = batch min - camera position (double on the CPU, then float).

@@ -7,13 +7,23 @@
 
 @group(0) @binding(5) var<storage, read_write> depth_buffer: array<atomic<u32>>;
 
+alias Key = u32;
+
+fn point_key(depth: u32, index: u32) -> u32 {
+  return depth;
+}
+
+fn key_less(a: u32, b: u32) -> bool {
+  return a < b;
+}
+
 // Always an atomic load here: the plain view of PLAIN_EARLY aliases a writable binding, which
 // Dawn (and so browsers), where this pass runs, refuses.
 fn depth_word(pixel: u32) -> u32 {
   return atomicLoad(&depth_buffer[pixel]);
 }
 
-fn write_pixel(pixel: u32, depth: u32, index: u32) {
+fn write_key(pixel: u32, depth: u32) {
   if (depth >= depth_word(pixel)) {
     return;
   }

@@ -1,39 +1,44 @@
-// draw_point of the geometry passes: a point's depth into the pixel it projects to, or with
-// SPLAT into every pixel of a disc of params.splat_radius around it (points larger than one
-// pixel drawn in the geometry pass, the alternative to dilating the visibility buffer after
-// it). The including shader defines write_pixel(pixel, depth bits, index) and, before this
-// file, the depth_word it reads.
+// draw_point of the geometry passes: a point's key (depth, and for the 64-bit visibility buffer
+// its index) into the pixel it projects to. The including shader defines `alias Key`,
+// point_key(depth bits, index), key_less(a, b), depth_word(pixel) and write_key(pixel, key),
+// which does the early depth test and the atomic.
 //
 // PLAIN_EARLY: the early depth test reads the depth word with a plain load of an aliased,
 // non-atomic view of the buffer, as seed 001's Listing 1 does, instead of an atomic load.
+// MERGE: a thread keeps the nearest key of the pixel its last points fell on and writes it once
+// the pixel changes (or its points end): at overview distances hundreds of points share a
+// pixel, and consecutive points of a sorted batch mostly do.
 override PLAIN_EARLY: bool = true;
-override SPLAT: bool = false;
+override MERGE: bool = true;
+
+const NO_PIXEL: u32 = 0xffffffffu;
+var<private> run_pixel: u32 = NO_PIXEL;
+var<private> run_key: Key;
+
+fn end_run() {
+  if (run_pixel != NO_PIXEL) {
+    write_key(run_pixel, run_key);
+    run_pixel = NO_PIXEL;
+  }
+}
 
 fn draw_point(position: vec3<f32>, index: u32) {
-  if (!SPLAT) {
-    let pr = project(params, position);
-    if (pr.valid) {
-      write_pixel(pr.pixel, bitcast<u32>(pr.depth), index);  // positive floats order as bits
+  let pr = project(params, position);
+  if (!pr.valid) {
+    return;
+  }
+  let key = point_key(bitcast<u32>(pr.depth), index);  // positive floats order as their bits
+  if (!MERGE) {
+    write_key(pr.pixel, key);
+    return;
+  }
+  if (pr.pixel == run_pixel) {
+    if (key_less(key, run_key)) {
+      run_key = key;
     }
     return;
   }
-  let c = params.view_proj * vec4<f32>(position, 1.0);
-  if (c.w <= 0.0 || c.z > c.w) {
-    return;
-  }
-  let s = vec2<f32>(c.x / c.w * 0.5 + 0.5, 0.5 - c.y / c.w * 0.5) *
-          vec2<f32>(f32(params.width), f32(params.height));
-  let r = i32(ceil(params.splat_radius));
-  let centre = vec2<i32>(floor(s));
-  let depth = bitcast<u32>(c.w);
-  for (var dy = -r; dy <= r; dy++) {
-    for (var dx = -r; dx <= r; dx++) {
-      let q = centre + vec2<i32>(dx, dy);
-      if (f32(dx * dx + dy * dy) > params.splat_radius2 || q.x < 0 || q.y < 0 ||
-          q.x >= i32(params.width) || q.y >= i32(params.height)) {
-        continue;
-      }
-      write_pixel(u32(q.y) * params.width + u32(q.x), depth, index);
-    }
-  }
+  end_run();
+  run_pixel = pr.pixel;
+  run_key = key;
 }

@@ -399,8 +399,9 @@ TEST_P(ComputeRaster, SegmentsAndHqs) {
   EXPECT_GT(test::differing_fraction(one.image, blended.image, 0), 0.01);
 }
 
-// The kernel's variants (workgroup size, four points a thread, the early test's load) change how
-// the work is spread, not the result: the nearest point of each pixel (64-bit) or the sums at
+// The kernel's variants (workgroup size, four points a thread, contiguous runs, merging a
+// thread's points on one pixel, the early test's load, packed HQS) change how the work is
+// spread, not the result: the nearest point of each pixel (64-bit) or the sums at
 // the nearest depth (fallback, HQS) are the same. Tolerance: 0.1 % of the pixels may differ
 // (a point whose depth rounds differently in another code path can win a tie); measured 0.
 TEST_P(ComputeRaster, KernelVariantsDrawTheSameImage) {
@@ -415,13 +416,19 @@ TEST_P(ComputeRaster, KernelVariantsDrawTheSameImage) {
     ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.05);
     std::vector<std::pair<std::string, pc::RasterKernel>> kernels;
     pc::RasterKernel k;
-    k.prefetch = k.plain_early = false;
-    kernels.push_back({"scalar, atomic early test", k});
+    k.prefetch = k.plain_early = k.merge = false;
+    kernels.push_back({"scalar, atomic early test, no merging", k});
     k.plain_early = true;
-    kernels.push_back({"scalar, plain early test", k});
+    kernels.push_back({"scalar, plain early test, no merging", k});
     k = {};
-    k.plain_early = false;
-    kernels.push_back({"prefetch, atomic early test", k});
+    k.merge = false;
+    kernels.push_back({"prefetch, no merging", k});
+    k = {};
+    k.contiguous = true;
+    kernels.push_back({"contiguous runs", k});
+    k = {};
+    k.packed_hqs = false;
+    kernels.push_back({"unpacked HQS", k});
     for (uint32_t size : {64u, 256u}) {
       k = {};
       k.workgroup = size;
@@ -486,27 +493,6 @@ TEST_P(ComputeRaster, PackedHqsSumsPastTheOverflowExactly) {
     }
   EXPECT_TRUE(found) << "no pixel near the centre shows the mean colour (" << r / 1000 << ", "
                      << g / 1000 << ", " << b / 1000 << ")";
-}
-
-// Points larger than a pixel drawn as discs in the geometry pass give what dilating the
-// visibility buffer gives: each pixel takes the nearest point whose disc covers it (tolerance
-// 0.1 % of the pixels, for depth ties; measured 0).
-TEST_P(ComputeRaster, SplattedDiscsEqualDilation) {
-  STIPPLE_REQUIRE_DATA(path, "las/autzen_trim.las");
-  auto ctx = context();
-  const uint32_t w = 480, h = 270;
-  const auto [cloud, camera, batched] = load_framed(path, w, h);
-  for (float size : {3.0f, 5.0f}) {
-    pc::ComputeRasterOptions dilate, splat;
-    dilate.point_size = splat.point_size = size;
-    splat.splat_points = true;
-    dilate.edl_strength = splat.edl_strength = 60.0f;
-    const auto a = render_compute(*ctx, batched, camera, dilate, w, h);
-    const auto b = render_compute(*ctx, batched, camera, splat, w, h);
-    const double differ = test::differing_fraction(a.image, b.image, 0);
-    std::printf("%.0f px: splat vs dilation, %.4f%% of the pixels differ\n", size, 100 * differ);
-    EXPECT_LE(differ, 0.001) << size;
-  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, ComputeRaster, ::testing::Values("dawn", "wgpu"),

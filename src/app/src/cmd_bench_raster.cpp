@@ -190,30 +190,34 @@ void run_raster_bench(const RasterArgs& args) {
     };
     add("compute-basic", [](Variant& v) { v.options.force_bits = 30; });
     add("compute-precision", [](Variant&) {});
-    add("scalar-atomic", [](Variant& v) { v.kernel.prefetch = v.kernel.plain_early = false; });
-    add("scalar-plain", [](Variant& v) { v.kernel.prefetch = false; });
-    add("prefetch-atomic", [](Variant& v) { v.kernel.plain_early = false; });
-    add("wg64", [](Variant& v) { v.kernel.workgroup = 64; });
+    add("no-merge", [](Variant& v) { v.kernel.merge = false; });
+    add("contiguous", [](Variant& v) { v.kernel.contiguous = true; });
+    add("scalar", [](Variant& v) { v.kernel.prefetch = false; });
+    add("atomic-early", [](Variant& v) { v.kernel.plain_early = false; });
     add("wg256", [](Variant& v) { v.kernel.workgroup = 256; });
-    add("wg512", [](Variant& v) { v.kernel.workgroup = 512; });
     add("compute-hqs", [](Variant& v) { v.options.hqs = true; });
+    add("hqs-contiguous", [](Variant& v) {
+      v.options.hqs = true;
+      v.kernel.contiguous = true;
+    });
     add("hqs-unpacked", [](Variant& v) {
       v.options.hqs = true;
       v.kernel.packed_hqs = false;
     });
-    add("compute-fallback32", [](Variant& v) { v.fallback = true; });
-    add("fallback32-scalar", [](Variant& v) {
-      v.fallback = true;
-      v.kernel.prefetch = v.kernel.plain_early = false;
+    add("hqs-no-merge", [](Variant& v) {
+      v.options.hqs = true;
+      v.kernel.merge = false;
     });
-    for (float size : {3.0f, 5.0f}) {
-      const std::string px = std::to_string(int(size)) + "px";
-      add("dilate-" + px, [size](Variant& v) { v.options.point_size = size; });
-      add("splat-" + px, [size](Variant& v) {
-        v.options.point_size = size;
-        v.options.splat_points = true;
-      });
-    }
+    add("compute-fallback32", [](Variant& v) { v.fallback = true; });
+    add("fallback32-contiguous", [](Variant& v) {
+      v.fallback = true;
+      v.kernel.contiguous = true;
+    });
+    add("fallback32-no-merge", [](Variant& v) {
+      v.fallback = true;
+      v.kernel.merge = false;
+    });
+    add("dilate-3px", [](Variant& v) { v.options.point_size = 3.0f; });
     if (args.billboard) add("billboard-1px", [](Variant& v) { v.billboard = true; });
     std::vector<std::unique_ptr<pc::ComputeRasterPipeline>> pipelines;
     for (const Variant& v : variants)
@@ -349,10 +353,10 @@ void add_bench_raster_command(CLI::App& bench) {
                   "Size of the bandwidth measurements (read kernel, copy) in MiB")
       ->capture_default_str();
   cmd->add_option("--variants", args->variants,
-                  "Only these variants (compute-basic, compute-precision, scalar-atomic, "
-                  "scalar-plain, prefetch-atomic, wg64, wg256, wg512, compute-hqs, hqs-unpacked, "
-                  "compute-fallback32, fallback32-scalar, dilate-3px, splat-3px, dilate-5px, "
-                  "splat-5px, billboard-1px)")
+                  "Only these variants (compute-basic, compute-precision, no-merge, contiguous, "
+                  "scalar, atomic-early, wg256, compute-hqs, hqs-contiguous, hqs-unpacked, "
+                  "hqs-no-merge, compute-fallback32, fallback32-contiguous, fallback32-no-merge, "
+                  "dilate-3px, billboard-1px)")
       ->delimiter(',');
   cmd->add_flag("!--no-billboard", args->billboard, "Skip the billboard variant (saves 16 B/pt)");
   cmd->add_option("--seed", args->seed, "Scene seed")->capture_default_str();

@@ -30,10 +30,8 @@ struct Params {
   uint32_t segment_points;
   float edl_strength, edl_radius;
   float background[4];
-  float splat_radius, splat_radius2;
-  uint32_t pad0, pad1;
 };
-static_assert(sizeof(Params) == 144);
+static_assert(sizeof(Params) == 128);
 
 // Mirrors GpuBatch.
 struct GpuBatch {
@@ -94,12 +92,18 @@ gpu::ComputePipeline make_compute(gpu::Context& ctx, const char* file,
   return pipeline;
 }
 
-// The pipeline constants of the batch passes for `kernel`.
-std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, bool splat) {
-  return {{"WORKGROUP", double(kernel.workgroup)},
-          {"PREFETCH", kernel.prefetch ? 1.0 : 0.0},
-          {"PLAIN_EARLY", kernel.plain_early ? 1.0 : 0.0},
-          {"SPLAT", splat ? 1.0 : 0.0}};
+// The pipeline constants of the batch passes for `kernel` (the geometry passes also take the
+// early test's load; the accumulation pass the packing).
+std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, bool geometry) {
+  std::vector<gpu::PipelineConstant> c = {{"WORKGROUP", double(kernel.workgroup)},
+                                          {"PREFETCH", kernel.prefetch ? 1.0 : 0.0},
+                                          {"CONTIGUOUS", kernel.contiguous ? 1.0 : 0.0},
+                                          {"MERGE", kernel.merge ? 1.0 : 0.0}};
+  if (geometry)
+    c.push_back({"PLAIN_EARLY", kernel.plain_early ? 1.0 : 0.0});
+  else
+    c.push_back({"PACKED", kernel.packed_hqs ? 1.0 : 0.0});
+  return c;
 }
 
 }  // namespace
@@ -214,21 +218,15 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   p.color_format = color_format;
   p.kernel = kernel;
   p.clear = make_compute(ctx, "compute_raster_clear.wgsl");
-  const auto plain = kernel_constants(kernel, false);
+  const auto geometry = kernel_constants(kernel, true);
   if (p.visibility64) {
-    p.raster64 = make_compute(ctx, "compute_raster64.wgsl", plain);
-    p.raster64_splat = make_compute(ctx, "compute_raster64.wgsl", kernel_constants(kernel, true));
+    p.raster64 = make_compute(ctx, "compute_raster64.wgsl", geometry);
     p.resolve = make_compute(ctx, "compute_raster_resolve.wgsl");
   } else {
-    p.depth32 = make_compute(ctx, "compute_raster_depth32.wgsl", plain);
+    p.depth32 = make_compute(ctx, "compute_raster_depth32.wgsl", geometry);
   }
-  {
-    const std::vector<gpu::PipelineConstant> accumulate = {
-        {"WORKGROUP", double(kernel.workgroup)},
-        {"PREFETCH", kernel.prefetch ? 1.0 : 0.0},
-        {"PACKED", kernel.packed_hqs ? 1.0 : 0.0}};
-    p.accumulate = make_compute(ctx, "compute_raster_accumulate.wgsl", accumulate);
-  }
+  p.accumulate =
+      make_compute(ctx, "compute_raster_accumulate.wgsl", kernel_constants(kernel, false));
   p.hqs_finish = make_compute(ctx, "compute_raster_hqs_finish.wgsl");
 
   gpu::ShaderModule display_module =
@@ -286,17 +284,14 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                                const std::string& color_target) {
   const bool use64 = p.visibility64;
   const bool accumulate = options.hqs || !use64;
-  // Points larger than a pixel: discs drawn in the geometry pass where it alone decides the
-  // colour (64-bit, no HQS), else dilation of its result.
-  const bool large = options.point_size >= 2.0f;
-  const bool splat = large && options.splat_points && use64 && !options.hqs;
+  const bool large = options.point_size >= 2.0f;  // dilated after the geometry pass
   const bool packed = accumulate && p.kernel.packed_hqs;
   const uint64_t pixels = uint64_t(width) * height;
   const std::string depth_name = "raster-depth-buffer", accum_name = "raster-accum";
   const uint32_t groups_x = (width + 15) / 16, groups_y = (height + 15) / 16;
 
   // Per-frame uniforms and camera-relative batch tables (double subtraction, then float).
-  auto upload_frame = [&cloud, camera, options, width, height, use64, splat](gpu::Context& ctx) {
+  auto upload_frame = [&cloud, camera, options, width, height, use64](gpu::Context& ctx) {
     Params params{};
     glm::mat4 vp = raster_view_proj(camera, width, height);
     std::memcpy(params.view_proj, glm::value_ptr(vp), sizeof(params.view_proj));
@@ -315,10 +310,6 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
     params.background[1] = options.background.g;
     params.background[2] = options.background.b;
     params.background[3] = 1.0f;
-    if (splat) {
-      params.splat_radius = options.point_size * 0.5f;
-      params.splat_radius2 = params.splat_radius * params.splat_radius;
-    }
     if (cloud.shading)
       gpu::write_buffer(ctx, cloud.shading.get(), 0, shading_uniforms(options.shading, camera));
     thread_local std::vector<GpuBatch> table;  // every frame: keep the capacity
@@ -365,11 +356,9 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   graph
       .add_pass(
           "raster-depth", gpu::PassKind::Compute,
-          [&p, &cloud, use64, splat, depth_name](gpu::PassContext& pc) {
+          [&p, &cloud, use64, depth_name](gpu::PassContext& pc) {
             gpu::Context& ctx = pc.gpu();
-            const gpu::ComputePipeline& pipeline = !use64  ? p.depth32
-                                                   : splat ? p.raster64_splat
-                                                           : p.raster64;
+            const gpu::ComputePipeline& pipeline = use64 ? p.raster64 : p.depth32;
             auto layout = gpu::bind_group_layout_of(pipeline);
             std::vector<gpu::BindGroup> groups;
             WGPUBuffer depth = pc.buffer(depth_name);
@@ -515,7 +504,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
         .create_buffer(out, {pixels * 16, WGPUBufferUsage_Storage});
     shown = out;
   };
-  if (large && !splat) {
+  if (large) {
     const float r = options.point_size * 0.5f;
     const FillParams fp{
         width,     height, uint32_t(std::ceil(r)), use64 ? 2u : 1u, use64 ? 1u : 0u, 0.0f,

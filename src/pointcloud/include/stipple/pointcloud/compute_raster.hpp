@@ -74,6 +74,8 @@ inline uint64_t raster_array_bytes(uint64_t points) {
 struct RasterKernel {
   uint32_t workgroup = 128;  // threads per batch workgroup (the seed's 128)
   bool prefetch = true;      // four points per thread and iteration from 128-bit loads (3.4)
+  bool contiguous = false;   // each thread one contiguous range of its batch, not a stride
+  bool merge = true;         // a thread's points in a row on one pixel: one write for them
   bool plain_early = true;   // the early depth test as a plain load, as in Listing 1
   bool packed_hqs = true;    // HQS: two packed 32-bit atomics a point, not four (3.6)
 };
@@ -88,7 +90,6 @@ struct ComputeRasterPipeline {
   RasterKernel kernel;
   WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
   gpu::ComputePipeline clear, raster64, depth32, accumulate, resolve, hqs_finish;
-  gpu::ComputePipeline raster64_splat;  // points drawn as discs in the geometry pass
   gpu::RenderPipeline display;
   // The display as a compute pass (RGBA8Unorm targets with storage usage); null otherwise.
   gpu::ComputePipeline display_compute;
@@ -122,11 +123,10 @@ struct ComputeRasterOptions {
   float edl_strength = 0.0f;
   float edl_radius = 1.0f;
   // Point diameter in pixels: from 2 up, every drawn pixel is dilated to a disc of it, the
-  // nearest disc winning each pixel (a depth test of round splats), before occlusion and fill;
-  // or with `splat_points` each point covers the disc in the geometry pass (64-bit visibility
-  // buffer without HQS; elsewhere dilation).
+  // nearest disc winning each pixel (a depth test of round splats), before occlusion and fill.
+  // (Drawing the discs in the geometry pass gives the same image; measured 9 to 17 times
+  // slower on an H200 at 3 and 5 px: bench/RESULTS.md.)
   float point_size = 1.0f;
-  bool splat_points = false;
   // Colour: the mode (resolved for the data: not Auto) and its ramps, as the billboard path's
   // point_color applies them (elevation in world Y, the source elevation).
   PointShading shading{ColorMode::Rgb};
