@@ -76,8 +76,8 @@ fn limit_of(pixel: u32) -> f32 {
   return nearest * (1.0 + params.depth_tolerance);
 }
 
-fn draw_point(position: vec3<f32>, index: u32) {
-  let pr = project(params, position);
+fn draw_point(cells: vec3<f32>, index: u32) {
+  let pr = project_point(cells);
   if (!pr.valid) {
     return;
   }
@@ -90,9 +90,17 @@ fn draw_point(position: vec3<f32>, index: u32) {
   if (pr.depth > run_limit) {
     return;
   }
-  run_sum += vec4<u32>(channels(shade(colors[index], attributes_of(index), position.y)), 1u);
+  run_sum += vec4<u32>(channels(shade(colors[index], attributes_of(index), point_position(cells).y)), 1u);
   if (!MERGE) {
     end_run();
+  }
+}
+
+fn draw_four(cells: array<vec3<f32>, 4>, first: u32, mask: u32) {
+  for (var k = 0u; k < 4u; k++) {
+    if ((mask & (1u << k)) != 0u) {
+      draw_point(cells[k], first + k);
+    }
   }
 }
 

@@ -1,8 +1,10 @@
 // What the compute rasterizer's geometry passes share: the frame's parameters, the batches and
 // the split positions (bindings 0-4), the batch's precision for the workgroup, and the loop over
 // a batch's points at that precision (seed 001, section 3.3: only the needed words are read).
-// The including shader defines draw_point(position, index), end_run() (called after a thread's
-// last point: see compute_raster_write.wgsl) and count_batch(...).
+// The including shader defines draw_point(cells, index) (the point in cells of its batch box,
+// which project_point() takes to its pixel), draw_four(cells, first index, mask) (four
+// consecutive points, those of `mask`), end_run() (called after a thread's last point: see
+// compute_raster_write.wgsl) and count_batch(...).
 #include "compute_raster_common.wgsl"
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -21,7 +23,14 @@
 override PREFETCH: bool = true;
 override CONTIGUOUS: bool = false;
 
+
 var<workgroup> batch_bits: u32;
+var<workgroup> batch_matrix: mat4x4<f32>;
+// The workgroup's batch_screen_matrix(), each thread's copy (set by batch_prologue), and the
+// batch's box in cells (set by draw_batch_points) for point_position().
+var<private> to_screen: mat4x4<f32>;
+var<private> cells_origin: vec3<f32>;
+var<private> cell_size: vec3<f32>;
 
 // Batches are dispatched as rows of workgroups (more than one dimension's limit of batches).
 fn batch_index(group: vec3<u32>, groups: vec3<u32>) -> u32 {
@@ -41,13 +50,17 @@ fn batch_prologue(group: u32, lid: u32) -> u32 {
     var skipped = false;
     let bits = classify(params, b, &skipped);
     batch_bits = bits;
+    batch_matrix = batch_screen_matrix(params, b, bits);
     count_batch(b, bits, skipped);
   }
-  return workgroupUniformLoad(&batch_bits);
+  // The uniform load is also the barrier after which the matrix is visible.
+  let bits = workgroupUniformLoad(&batch_bits);
+  to_screen = batch_matrix;
+  return bits;
 }
 
-// Point `index` of batch `b` relative to the camera, from 10, 20 or 30 bits per axis.
-fn load_position(b: GpuBatch, bits: u32, index: u32) -> vec3<f32> {
+// Point `index` of a batch in cells of its box (cell_position), from 10, 20 or 30 bits per axis.
+fn load_cells(bits: u32, index: u32) -> vec3<f32> {
   let v = index >> 2u;
   let k = index & 3u;
   let c = coarse[v][k];
@@ -59,15 +72,32 @@ fn load_position(b: GpuBatch, bits: u32, index: u32) -> vec3<f32> {
   if (bits >= 30u) {
     f = fine[v][k];
   }
-  return b.offset + box_fraction(bits, c, m, f) * b.size;
+  return cell_position(bits, c, m, f);
+}
+
+// draw_point's projection: `q` (cells of the workgroup's batch) to its pixel and depth.
+fn project_point(q: vec3<f32>) -> Projected {
+  return project_cell(params, to_screen, q);
+}
+
+// `q` (cells of the workgroup's batch) relative to the camera, for shading by elevation.
+fn point_position(q: vec3<f32>) -> vec3<f32> {
+  return cells_origin + q * cell_size;
 }
 
 // Calls draw_point for every point of batch `b` this thread handles.
 fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
+  cell_size = b.size * (1.0 / 1024.0);
+  cells_origin = b.offset;
+  if (bits == 10u) {
+    cells_origin += 0.5 * cell_size;
+  } else if (bits == 20u) {
+    cells_origin += (0.5 / 1024.0) * cell_size;
+  }
   if (!PREFETCH) {
     for (var i = lid; i < b.count; i += WORKGROUP) {
       let index = b.first + i;
-      draw_point(load_position(b, bits, index), index);
+      draw_point(load_cells(bits, index), index);
     }
     end_run();
     return;
@@ -87,21 +117,25 @@ fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
     step = 1u;
   }
   for (; v < stop; v += step) {
-    let c4 = coarse[v];
-    var m4 = vec4<u32>(0u);
-    var f4 = vec4<u32>(0u);
+    let c = coarse[v];
+    var m = vec4<u32>(0u);
+    var f = vec4<u32>(0u);
     if (bits >= 20u) {
-      m4 = medium[v];
+      m = medium[v];
     }
     if (bits >= 30u) {
-      f4 = fine[v];
+      f = fine[v];
     }
+    var cells: array<vec3<f32>, 4>;
+    var mask = 0u;
     for (var k = 0u; k < 4u; k++) {
       let index = v * 4u + k;
+      cells[k] = cell_position(bits, c[k], m[k], f[k]);
       if (index >= b.first && index < end) {
-        draw_point(b.offset + box_fraction(bits, c4[k], m4[k], f4[k]) * b.size, index);
+        mask |= 1u << k;
       }
     }
+    draw_four(cells, v * 4u, mask);
   }
   end_run();
 }

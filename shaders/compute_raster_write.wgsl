@@ -22,8 +22,8 @@ fn end_run() {
   }
 }
 
-fn draw_point(position: vec3<f32>, index: u32) {
-  let pr = project(params, position);
+fn draw_point(cells: vec3<f32>, index: u32) {
+  let pr = project_point(cells);
   if (!pr.valid) {
     return;
   }
@@ -41,4 +41,12 @@ fn draw_point(position: vec3<f32>, index: u32) {
   end_run();
   run_pixel = pr.pixel;
   run_key = key;
+}
+
+fn draw_four(cells: array<vec3<f32>, 4>, first: u32, mask: u32) {
+  for (var k = 0u; k < 4u; k++) {
+    if ((mask & (1u << k)) != 0u) {
+      draw_point(cells[k], first + k);
+    }
+  }
 }

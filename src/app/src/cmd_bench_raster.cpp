@@ -190,15 +190,15 @@ void run_raster_bench(const RasterArgs& args) {
     };
     add("compute-basic", [](Variant& v) { v.options.force_bits = 30; });
     add("compute-precision", [](Variant&) {});
-    add("no-merge", [](Variant& v) { v.kernel.merge = false; });
-    add("contiguous", [](Variant& v) { v.kernel.contiguous = true; });
-    add("scalar", [](Variant& v) { v.kernel.prefetch = false; });
+    add("merge", [](Variant& v) { v.kernel.merge = true; });
+    add("contiguous", [](Variant& v) { v.kernel.prefetch = v.kernel.contiguous = true; });
+    add("prefetch", [](Variant& v) { v.kernel.prefetch = true; });
     add("atomic-early", [](Variant& v) { v.kernel.plain_early = false; });
     add("wg256", [](Variant& v) { v.kernel.workgroup = 256; });
     add("compute-hqs", [](Variant& v) { v.options.hqs = true; });
-    add("hqs-contiguous", [](Variant& v) {
+    add("hqs-strided", [](Variant& v) {
       v.options.hqs = true;
-      v.kernel.contiguous = true;
+      v.kernel.hqs_contiguous = false;
     });
     add("hqs-unpacked", [](Variant& v) {
       v.options.hqs = true;
@@ -206,16 +206,12 @@ void run_raster_bench(const RasterArgs& args) {
     });
     add("hqs-no-merge", [](Variant& v) {
       v.options.hqs = true;
-      v.kernel.merge = false;
+      v.kernel.hqs_merge = false;
     });
     add("compute-fallback32", [](Variant& v) { v.fallback = true; });
-    add("fallback32-contiguous", [](Variant& v) {
+    add("fallback32-merge", [](Variant& v) {
       v.fallback = true;
-      v.kernel.contiguous = true;
-    });
-    add("fallback32-no-merge", [](Variant& v) {
-      v.fallback = true;
-      v.kernel.merge = false;
+      v.kernel.merge = true;
     });
     add("dilate-3px", [](Variant& v) { v.options.point_size = 3.0f; });
     if (args.billboard) add("billboard-1px", [](Variant& v) { v.billboard = true; });
@@ -353,9 +349,10 @@ void add_bench_raster_command(CLI::App& bench) {
                   "Size of the bandwidth measurements (read kernel, copy) in MiB")
       ->capture_default_str();
   cmd->add_option("--variants", args->variants,
-                  "Only these variants (compute-basic, compute-precision, no-merge, contiguous, "
-                  "scalar, atomic-early, wg256, compute-hqs, hqs-contiguous, hqs-unpacked, "
-                  "hqs-no-merge, compute-fallback32, fallback32-contiguous, fallback32-no-merge, "
+                  "Only these variants (compute-basic, compute-precision, merge, contiguous, "
+                  "prefetch, atomic-early, wg256, compute-hqs, "
+                  "hqs-strided, hqs-unpacked, "
+                  "hqs-no-merge, compute-fallback32, fallback32-merge, "
                   "dilate-3px, billboard-1px)")
       ->delimiter(',');
   cmd->add_flag("!--no-billboard", args->billboard, "Skip the billboard variant (saves 16 B/pt)");

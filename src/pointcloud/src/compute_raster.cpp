@@ -95,10 +95,11 @@ gpu::ComputePipeline make_compute(gpu::Context& ctx, const char* file,
 // The pipeline constants of the batch passes for `kernel` (the geometry passes also take the
 // early test's load; the accumulation pass the packing).
 std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, bool geometry) {
-  std::vector<gpu::PipelineConstant> c = {{"WORKGROUP", double(kernel.workgroup)},
-                                          {"PREFETCH", kernel.prefetch ? 1.0 : 0.0},
-                                          {"CONTIGUOUS", kernel.contiguous ? 1.0 : 0.0},
-                                          {"MERGE", kernel.merge ? 1.0 : 0.0}};
+  std::vector<gpu::PipelineConstant> c = {
+      {"WORKGROUP", double(kernel.workgroup)},
+      {"PREFETCH", (geometry ? kernel.prefetch : kernel.hqs_prefetch) ? 1.0 : 0.0},
+      {"CONTIGUOUS", (geometry ? kernel.contiguous : kernel.hqs_contiguous) ? 1.0 : 0.0},
+      {"MERGE", (geometry ? kernel.merge : kernel.hqs_merge) ? 1.0 : 0.0}};
   if (geometry)
     c.push_back({"PLAIN_EARLY", kernel.plain_early ? 1.0 : 0.0});
   else

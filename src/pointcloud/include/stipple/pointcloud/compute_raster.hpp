@@ -73,11 +73,19 @@ inline uint64_t raster_array_bytes(uint64_t points) {
 // How the batch passes run (seed 001, sections 3.2-3.6); `bench raster` measures each choice.
 struct RasterKernel {
   uint32_t workgroup = 128;  // threads per batch workgroup (the seed's 128)
-  bool prefetch = true;      // four points per thread and iteration from 128-bit loads (3.4)
-  bool contiguous = false;   // each thread one contiguous range of its batch, not a stride
-  bool merge = true;         // a thread's points in a row on one pixel: one write for them
-  bool plain_early = true;   // the early depth test as a plain load, as in Listing 1
-  bool packed_hqs = true;    // HQS: two packed 32-bit atomics a point, not four (3.6)
+  // Four points per thread and iteration from 128-bit loads (3.4): off, since one point a
+  // thread was as fast or faster on every H200 instance measured (bench/RESULTS.md).
+  bool prefetch = false;
+  bool contiguous = false;  // with prefetch: each thread one range of its batch, not a stride
+  bool merge = false;       // a thread's points in a row on one pixel: one write for them
+  bool plain_early = true;  // the early depth test as a plain load, as in Listing 1
+  bool packed_hqs = true;   // HQS: two packed 32-bit atomics a point, not four (3.6)
+  // The HQS accumulation's own choices: there merging and contiguous ranges pay (the sums of a
+  // run go out in one atomic each), while in the depth passes they cost more than they save
+  // (H200, 1G points: bench/RESULTS.md).
+  bool hqs_prefetch = true;
+  bool hqs_contiguous = true;
+  bool hqs_merge = true;
 };
 
 // Whether this context can run the 64-bit visibility buffer (STIPPLE_RASTER_FALLBACK=1 says no).
