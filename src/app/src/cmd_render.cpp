@@ -69,6 +69,9 @@ void run_render(const RenderArgs& args) {
   scene_options.renderer =
       resolve_renderer(scene_options, *engine.render().resource<GpuContext>(), &renderer_reason);
   bool compute = scene_options.renderer == Renderer::Compute || virtualized;
+  // Blending's form on the compute rasterizer is HQS: a tileset auto-drawn there keeps it.
+  if (args.scene.renderer == Renderer::Auto && compute && is_tileset_scene(scene_options))
+    scene_options.hqs = scene_options.hqs || scene_options.render.splat == pc::SplatMode::Blend;
   RenderGraphPlugin graph;
   graph.keep_history = true;
   graph.dump_graph = args.dump_graph;

@@ -48,6 +48,9 @@ void run_view(const ViewArgs& args) {
   SceneOptions options = args.scene;
   std::string reason;
   options.renderer = resolve_renderer(options, *engine.render().resource<GpuContext>(), &reason);
+  // Blending's form on the compute rasterizer is HQS: a tileset auto-drawn there keeps it.
+  if (args.scene.renderer == Renderer::Auto && tileset && options.renderer == Renderer::Compute)
+    options.hqs = options.hqs || options.render.splat == pc::SplatMode::Blend;
   std::printf("renderer: %s (%s)\n", renderer_name(options.renderer), reason.c_str());
   options.chunk_points = 1 << 16;  // a finer point budget
   add_scene_plugin(engine, options);

@@ -14,6 +14,7 @@
 #include "stipple/io/copc.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
+#include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/virtual_cloud.hpp"
 #include "stipple/renderer/gpu.hpp"
@@ -83,19 +84,29 @@ Renderer resolve_renderer(const SceneOptions& options, const gpu::Context& ctx,
     return say(Renderer::Compute, "auto: the virtualized path draws with it");
   // Points known up front: LAS/LAZ headers, a COPC header, the built-in scene; a 3D Tiles
   // tileset's size is not.
+  constexpr uint64_t kComputeFrom = 10'000'000;
   uint64_t points = 0;
   if (options.inputs.empty()) {
     points = options.scene_points;
   } else if (is_tileset_scene(options)) {
-    if (!io::is_copc_input(options.inputs[0]))
-      return say(Renderer::Billboard, "auto: a tileset's size is not known up front");
+    if (!io::is_copc_input(options.inputs[0])) {
+      // A tileset's size is not known up front (the tiles are read as the view refines): what
+      // can be drawn at once is what the memory budget holds.
+      points = (options.memory_mb << 20) / pc::kRasterPointBytes;
+      if (points >= kComputeFrom)
+        return say(Renderer::Compute,
+                   fmt::format("auto: up to {} points streamed in --memory-mb {}, on {}", points,
+                               options.memory_mb, ctx.description.adapter_type));
+      return say(Renderer::Billboard,
+                 fmt::format("auto: up to {} points streamed in --memory-mb {}, under {}", points,
+                             options.memory_mb, kComputeFrom));
+    }
     // The header and VLRs only: the plugin opens the hierarchy (and reads the root node).
     const io::Fetcher fetcher = [](const std::string& uri) { return io::fetch(uri); };
     points = io::open_copc(options.inputs[0], fetcher)->header.point_count;
   } else {
     for (const auto& in : options.inputs) points += io::read_las_header(in).point_count;
   }
-  constexpr uint64_t kComputeFrom = 10'000'000;
   if (points >= kComputeFrom)
     return say(Renderer::Compute,
                fmt::format("auto: {} points on {}", points, ctx.description.adapter_type));
