@@ -554,3 +554,61 @@ TEST(Tiler, GlbMetadataCarriesIntensityAndGpsTime) {
     worst = std::max(worst, std::abs(got_gps[i] - want_gps[i]));
   EXPECT_LE(worst, tol);
 }
+
+// glTF defines COLOR_0 as linear: the glb output holds the LAS sRGB colours through the sRGB
+// transfer function (a client that encodes them for display again then shows the source
+// colours), in 16 bits so that every 8-bit value comes back exactly. Read raw, without
+// stipple's reader, and decoded here with the transfer function written out.
+TEST(Tiler, GlbColor0IsLinear) {
+  fs::path las = generated_las(100000, "gen100k.las");
+  tiler::TileOptions o;
+  o.inputs = {las.string()};
+  o.output = (temp_dir() / "gen_linear_color").string();
+  o.crs = "EPSG:32633";
+  o.max_node_points = 20000;
+  tiler::build_tileset(o);
+  io::LasReader reader(las);
+  io::PointBatch src;
+  while (reader.read(src, 1 << 16) > 0) {
+  }
+  ASSERT_FALSE(src.rgb.empty());
+  const int shift = reader.header().rgb_bits == 8 ? 0 : 8;
+  std::vector<uint32_t> want, got;
+  double linear_sum = 0, srgb_sum = 0;
+  for (const auto& c : src.rgb)
+    want.push_back(uint32_t(c.x >> shift) | uint32_t(c.y >> shift) << 8 |
+                   uint32_t(c.z >> shift) << 16);
+  auto encode = [](double l) {
+    double e = l <= 0.0031308 ? l * 12.92 : 1.055 * std::pow(l, 1 / 2.4) - 0.055;
+    return uint32_t(std::lround(e * 255));
+  };
+  for (const auto& f : fs::directory_iterator(fs::path(o.output) / "tiles")) {
+    std::vector<uint8_t> b = slurp(f.path());
+    uint32_t jlen = at<uint32_t>(b, 12);
+    json g = json::parse(std::string(b.begin() + 20, b.begin() + 20 + jlen));
+    const size_t bin = 20 + jlen + 8;
+    const json& a = g["accessors"][int(g["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"])];
+    ASSERT_EQ(a["componentType"], 5123);
+    ASSERT_EQ(a["type"], "VEC3");
+    ASSERT_TRUE(a.value("normalized", false));
+    const json& v = g["bufferViews"][int(a["bufferView"])];
+    const size_t stride = v.value("byteStride", 6);
+    const size_t base = bin + size_t(v.value("byteOffset", 0)) + size_t(a.value("byteOffset", 0));
+    for (size_t i = 0; i < size_t(a["count"]); ++i) {
+      uint32_t rgb = 0;
+      for (int k = 0; k < 3; ++k) {
+        const double l = at<uint16_t>(b, base + i * stride + 2 * k) / 65535.0;
+        rgb |= encode(l) << (8 * k);
+        linear_sum += l;
+      }
+      got.push_back(rgb);
+    }
+  }
+  for (uint32_t c : want) srgb_sum += ((c & 255) + (c >> 8 & 255) + (c >> 16 & 255)) / 255.0;
+  std::sort(want.begin(), want.end());
+  std::sort(got.begin(), got.end());
+  EXPECT_EQ(got, want);
+  // Stored linear, not encoded: the mean is well below the sRGB mean for mid-tone colours.
+  EXPECT_LT(linear_sum, srgb_sum * 0.8);
+}
+

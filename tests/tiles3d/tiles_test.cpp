@@ -268,6 +268,47 @@ TEST(Glb, InterleavedPointsWithNodeTransformsAndRtc) {
   EXPECT_EQ(c.rgba[1], rgba(0, 255, 0, 128));
 }
 
+// glTF defines COLOR_0 as linear; stipple draws sRGB-encoded colours (as LAS and pnts give
+// them), so a glb from any writer is converted with the sRGB transfer function: linear 0.5 is
+// sRGB 187.5, the darkest 8-bit linear step 1/255 is sRGB 12.7. Alpha stays linear.
+TEST(Glb, Color0IsLinear) {
+  const std::vector<float> positions(15, 0.0f);
+  const std::vector<uint8_t> linear8 = {0, 1, 10, 128, 255};       // normalized UNSIGNED_BYTE VEC3
+  const std::vector<float> linear_f = {0.5f, 0.214f, 1.0f, 0.5f};  // FLOAT VEC4, one point
+  Bytes bin;
+  append(bin, positions);
+  const size_t at8 = bin.size();
+  for (uint8_t v : linear8) bin.insert(bin.end(), {v, v, v, 0});
+  const size_t atf = bin.size();
+  append(bin, linear_f);
+  json j = {{"asset", {{"version", "2.0"}}},
+            {"buffers", {{{"byteLength", bin.size()}}}},
+            {"bufferViews",
+             {{{"buffer", 0}, {"byteLength", 60}},
+              {{"buffer", 0}, {"byteOffset", at8}, {"byteLength", 20}, {"byteStride", 4}},
+              {{"buffer", 0}, {"byteOffset", atf}, {"byteLength", 16}}}},
+            {"accessors",
+             {{{"bufferView", 0}, {"componentType", 5126}, {"count", 5}, {"type", "VEC3"}},
+              {{"bufferView", 1},
+               {"componentType", 5121},
+               {"normalized", true},
+               {"count", 5},
+               {"type", "VEC3"}},
+              {{"bufferView", 0}, {"componentType", 5126}, {"count", 1}, {"type", "VEC3"}},
+              {{"bufferView", 2}, {"componentType", 5126}, {"count", 1}, {"type", "VEC4"}}}},
+            {"meshes",
+             {{{"primitives",
+                {{{"mode", 0}, {"attributes", {{"POSITION", 0}, {"COLOR_0", 1}}}},
+                 {{"mode", 0}, {"attributes", {{"POSITION", 2}, {"COLOR_0", 3}}}}}}}}},
+            {"nodes", {{{"mesh", 0}}}}};
+  io::PointContent c = io::decode_glb_points(make_glb(j, bin), "linear.glb");
+  ASSERT_EQ(c.point_count, 6u);
+  const uint8_t want[5] = {0, 13, 56, 188, 255};
+  for (int i = 0; i < 5; ++i)
+    EXPECT_EQ(c.rgba[size_t(i)], rgba(want[i], want[i], want[i])) << "point " << i;
+  EXPECT_EQ(c.rgba[5], rgba(188, 127, 255, 128));
+}
+
 TEST(Glb, QuantizedPositionsAndMeshoptCompression) {
   // KHR_mesh_quantization: SHORT positions dequantized by the node's scale; USHORT colours.
   std::vector<int16_t> q = {100, -200, 300, 0, 0, 0, 32767, 1, -32768, 0, 0, 0};  // stride 8
@@ -324,7 +365,8 @@ TEST(Glb, QuantizedPositionsAndMeshoptCompression) {
   EXPECT_NEAR(world(1).y, -327.67, 1e-4);
   EXPECT_EQ(c.rgba[0], rgba(255, 0, 0));
   EXPECT_EQ(c.rgba[1], rgba(0, 0, 255));
-  EXPECT_EQ(c.rgba[2], rgba(128, 128, 128));
+  // 32768/65535 is linear 0.5: sRGB 187.5 (COLOR_0 is linear, see Glb.Color0IsLinear).
+  EXPECT_EQ(c.rgba[2], rgba(188, 188, 188));
   // An unsupported required extension is refused by name.
   json k = j;
   k["extensionsRequired"].push_back("KHR_draco_mesh_compression");

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "stipple/core/error.hpp"
+#include "stipple/math/color.hpp"
 
 namespace stipple::io {
 namespace {
@@ -512,11 +513,14 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
       auto to_byte = [](double x) {
         return uint32_t(std::lround(std::clamp(x, 0.0, 1.0) * 255.0));
       };
+      // glTF's COLOR_0 is linear; stipple's colours are sRGB-encoded (as LAS and pnts RGB), so
+      // RGB goes through the sRGB transfer function. Alpha is linear in both.
+      auto to_srgb = [](double x) { return uint32_t(color::linear_to_srgb8(x)); };
       per_point(
           "COLOR_0", rgba,
           [&](const double* v, int k) {
             if (k != 3 && k != 4) fail("{}: COLOR_0 is not VEC3 or VEC4", name);
-            return to_byte(v[0]) | (to_byte(v[1]) << 8) | (to_byte(v[2]) << 16) |
+            return to_srgb(v[0]) | (to_srgb(v[1]) << 8) | (to_srgb(v[2]) << 16) |
                    ((k == 4 ? to_byte(v[3]) : 255u) << 24);
           },
           any_color);

@@ -6,6 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "stipple/math/color.hpp"
+
 namespace stipple::tiler {
 
 Box bounds_of(std::span<const TilePoint> points) {
@@ -107,10 +109,15 @@ std::vector<uint8_t> write_glb(std::span<const TilePoint> points, const ContentO
     node["translation"] = {cy.x, cy.y, cy.z};
   }
   if (options.rgb) {
-    int v = b.view(n, 3, 4, [&](size_t i, uint8_t* d) {
-      d[0] = points[i].r, d[1] = points[i].g, d[2] = points[i].b;
+    // glTF's COLOR_0 is linear: the sRGB bytes of LAS go through the transfer function, into
+    // 16 bits, which keep every 8-bit sRGB value distinct (8 linear bits merge the dark ones).
+    int v = b.view(n, 6, 8, [&](size_t i, uint8_t* d) {
+      const uint16_t c[3] = {color::srgb8_to_linear16(points[i].r),
+                             color::srgb8_to_linear16(points[i].g),
+                             color::srgb8_to_linear16(points[i].b)};
+      std::memcpy(d, c, 6);
     });
-    attributes["COLOR_0"] = b.accessor(v, kUnsignedByte, n, "VEC3", true);
+    attributes["COLOR_0"] = b.accessor(v, kUnsignedShort, n, "VEC3", true);
   }
   int vi = b.view(n, 2, 4, [&](size_t i, uint8_t* d) { std::memcpy(d, &points[i].intensity, 2); });
   attributes["_INTENSITY"] = b.accessor(vi, kUnsignedShort, n, "SCALAR");

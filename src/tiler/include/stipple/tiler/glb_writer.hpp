@@ -8,7 +8,8 @@
 // Positions are relative to the tile: quantized UNSIGNED_SHORT (KHR_mesh_quantization) with
 // the node's scale/translation when 65535 steps over the tile's extent are at least as fine as
 // the input precision, else FLOAT relative to the tile centre (node translation).
-// Attributes: COLOR_0 (normalized UNSIGNED_BYTE VEC3), _INTENSITY (UNSIGNED_SHORT),
+// Attributes: COLOR_0 (normalized UNSIGNED_SHORT VEC3, linear as glTF defines it: the LAS sRGB
+// bytes through the sRGB transfer function), _INTENSITY (UNSIGNED_SHORT),
 // _CLASSIFICATION, _RETURN_NUMBER (UNSIGNED_BYTE), _GPS_TIME (FLOAT, seconds after the value in
 // the primitive's extras.gpsTimeOffset, so float keeps sub-millisecond resolution within a tile).
 // Sub-4-byte attributes get byteStride 4, as glTF requires for vertex attributes.
