@@ -22,7 +22,7 @@ apt_pkgs=(build-essential cmake ninja-build ccache pkg-config git curl ca-certif
   libglm-dev libglfw3-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libcurl4-openssl-dev libpng-dev libproj-dev proj-data libdraco-dev libmeshoptimizer-dev
   libgtest-dev libgmock-dev libbenchmark-dev libimgui-dev xvfb xauth
-  libvulkan1 vulkan-tools clang-14 libclang-rt-14-dev clang-format nginx-light)
+  libvulkan1 vulkan-tools clang-14 libclang-rt-14-dev clang-format nginx-light chromium)
 # npm (for Dawn's package and the glTF validator) and venv (for py3dtiles) come from Debian
 # only where the machine has none of its own: a Node.js or Python installed another way stays.
 command -v npm >/dev/null || apt_pkgs+=(npm)
@@ -84,13 +84,24 @@ if [[ ! -f "$deps/dawn/lib/libwebgpu_wrapper.so" ]]; then
   rm -rf "$tmp"
 fi
 # ---- validators and peers for tests/benchmarks (into .deps/, never linked) ----------------
-# Khronos glTF-Validator for the tiler's glb content (tests skip without it). The Cesium
+# Peers for the interop tests (tests/web; each skips without its package), never linked:
+# Khronos glTF-Validator; CesiumJS, driven in Debian's chromium through puppeteer-core (no
+# browser download); loaders.gl; Cesium's 3d-tiles-tools (its optional native sqlite module is
+# not built: --ignore-scripts; the tests use none of it); potree-core with three.js. The Cesium
 # 3d-tiles-validator is not published on the npm registry we reach.
-if [[ ! -d "$deps/node/node_modules/gltf-validator" ]] && command -v npm >/dev/null; then
-  log "installing gltf-validator (npm) into .deps/node"
-  mkdir -p "$deps/node"
-  (cd "$deps/node" && npm install --silent --no-audit --no-fund --prefix . gltf-validator@2.0.0-dev.3.10 >/dev/null) ||
-    log "gltf-validator not installed; its test will skip"
+node_pkgs=(gltf-validator@2.0.0-dev.3.10 cesium@1.145.0 puppeteer-core@24.43.1
+  @loaders.gl/core@4.5.4 @loaders.gl/3d-tiles@4.5.4 3d-tiles-tools@0.5.4 potree-core@2.0.15)
+if command -v npm >/dev/null; then
+  missing=()
+  for p in "${node_pkgs[@]}"; do
+    [[ -f "$deps/node/node_modules/${p%@*}/package.json" ]] || missing+=("$p")
+  done
+  if [[ ${#missing[@]} -gt 0 ]]; then
+    log "installing ${missing[*]} (npm) into .deps/node"
+    mkdir -p "$deps/node"
+    (cd "$deps/node" && npm install --silent --no-audit --no-fund --ignore-scripts --prefix . \
+      "${missing[@]}" >/dev/null 2>&1) || log "npm packages not installed; the interop tests will skip"
+  fi
 fi
 # py3dtiles for bench/tiler.sh; laspy and lazrs for tests/tools/write_copc.py (COPC test files).
 if [[ ! -x "$deps/py3dtiles/bin/py3dtiles" ]]; then

@@ -23,6 +23,7 @@
 #include "stipple/core/error.hpp"
 #include "stipple/io/glb_points.hpp"
 #include "stipple/io/las.hpp"
+#include "stipple/io/pnts.hpp"
 #include "stipple/io/procedural.hpp"
 #include "stipple/tiler/geo_frame.hpp"
 #include "stipple/tiler/tiler.hpp"
@@ -612,3 +613,40 @@ TEST(Tiler, GlbColor0IsLinear) {
   EXPECT_LT(linear_sum, srgb_sum * 0.8);
 }
 
+// pnts GPS time is FLOAT seconds after the tile's earliest time (extras.offsets.GPS_TIME): glTF
+// has no float64, so converters to 3D Tiles 1.1 (3d-tiles-tools) refuse DOUBLE. The decoder
+// adds the offset back: every source time within float32's resolution over the data's span.
+TEST(Tiler, PntsGpsTimeIsFloatPlusOffset) {
+  fs::path las = generated_las(100000, "gen100k.las");
+  tiler::TileOptions o;
+  o.inputs = {las.string()};
+  o.output = (temp_dir() / "gen_pnts_gps").string();
+  o.crs = "EPSG:32633";
+  o.format = tiler::Format::Pnts;
+  o.max_node_points = 20000;
+  tiler::build_tileset(o);
+  io::LasReader reader(las);
+  io::PointBatch src;
+  while (reader.read(src, 1 << 16) > 0) {
+  }
+  std::vector<double> want = src.gps_time, got;
+  for (const auto& f : fs::directory_iterator(fs::path(o.output) / "tiles")) {
+    std::vector<uint8_t> bytes = slurp(f.path());
+    const uint32_t ft = at<uint32_t>(bytes, 12), ftb = at<uint32_t>(bytes, 16),
+                   bt = at<uint32_t>(bytes, 20);
+    json table =
+        json::parse(std::string(bytes.begin() + 28 + ft + ftb, bytes.begin() + 28 + ft + ftb + bt));
+    EXPECT_EQ(table["GPS_TIME"]["componentType"], "FLOAT") << f.path();
+    EXPECT_TRUE(table["extras"]["offsets"]["GPS_TIME"].is_number()) << f.path();
+    io::PointContent c = io::decode_pnts(bytes, f.path().string());
+    const auto& v = c.attributes.at("GPS_TIME").values;
+    got.insert(got.end(), v.begin(), v.end());
+  }
+  std::sort(want.begin(), want.end());
+  std::sort(got.begin(), got.end());
+  ASSERT_EQ(got.size(), want.size());
+  const double tol = std::max(1e-6, (want.back() - want.front()) * std::ldexp(1.0, -23));
+  double worst = 0;
+  for (size_t i = 0; i < want.size(); ++i) worst = std::max(worst, std::abs(got[i] - want[i]));
+  EXPECT_LE(worst, tol);
+}

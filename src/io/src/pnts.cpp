@@ -206,6 +206,12 @@ void decode_batch_table(PointContent& c, const json& bt, std::span<const uint8_t
       }
     }
   }
+  // extras.offsets: a number added to a property's values (stipple's tiler stores GPS time as
+  // float seconds after the tile's earliest time; glTF metadata has the same offset).
+  const json no_offsets = json::object();
+  const json* offsets = &no_offsets;
+  if (auto ex = bt.find("extras"); ex != bt.end() && ex->is_object())
+    if (auto o = ex->find("offsets"); o != ex->end() && o->is_object()) offsets = &*o;
   for (const auto& [key, value] : bt.items()) {
     if (key == "extensions" || key == "extras") continue;
     PointAttribute attr;
@@ -253,6 +259,8 @@ void decode_batch_table(PointContent& c, const json& bt, std::span<const uint8_t
     } else {
       fail("{}: batch table property {} is neither an array nor a binary reference", name, key);
     }
+    if (auto o = offsets->find(key); o != offsets->end() && o->is_number())
+      for (double& v : attr.values) v += o->get<double>();
     // Per batch values become per point values through BATCH_ID.
     if (!c.batch_ids.empty()) {
       std::vector<double> per_point(c.point_count * attr.components);

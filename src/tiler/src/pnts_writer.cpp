@@ -62,12 +62,17 @@ std::vector<uint8_t> write_pnts(std::span<const TilePoint> points, const Content
   }
   pad(ftb, 8, 0);
 
-  // Batch table binary: the 8-byte property first, then the narrower ones, each aligned.
+  // Batch table binary: the 4-byte property first, then the narrower ones, each aligned.
   json bt = json::object();
   std::vector<uint8_t> btb;
-  if (options.gps_time) {
-    bt["GPS_TIME"] = {{"byteOffset", 0}, {"componentType", "DOUBLE"}, {"type", "SCALAR"}};
-    for (const TilePoint& p : points) append(btb, p.gps_time);
+  if (options.gps_time && n > 0) {
+    // Float seconds after the tile's earliest time, which extras.offsets holds: DOUBLE is valid
+    // 3D Tiles 1.0 but has no glTF equivalent, so converters to 1.1 refuse it.
+    double t0 = points[0].gps_time;
+    for (const TilePoint& p : points) t0 = std::min(t0, p.gps_time);
+    bt["GPS_TIME"] = {{"byteOffset", 0}, {"componentType", "FLOAT"}, {"type", "SCALAR"}};
+    bt["extras"] = {{"offsets", {{"GPS_TIME", t0}}}};
+    for (const TilePoint& p : points) append(btb, float(p.gps_time - t0));
   }
   bt["INTENSITY"] = {
       {"byteOffset", btb.size()}, {"componentType", "UNSIGNED_SHORT"}, {"type", "SCALAR"}};

@@ -1,0 +1,141 @@
+// Shared by the web interop tests: tiling with the stipple binary, nginx on loopback serving a
+// folder, and Debian's chromium driven headless through puppeteer-core (WebGL on SwiftShader).
+// Tests skip, with the reason, where a piece is missing (see skipReason).
+import { spawn, spawnSync, execFileSync } from 'node:child_process';
+import fs from 'node:fs';
+import net from 'node:net';
+import os from 'node:os';
+import path from 'node:path';
+import { createRequire } from 'node:module';
+
+export const sourceDir = path.resolve(path.dirname(new URL(import.meta.url).pathname), '../..');
+export const nodePrefix = process.env.STIPPLE_NODE_PREFIX || path.join(sourceDir, '.deps/node');
+export const stippleBinary = process.env.STIPPLE_BINARY || path.join(sourceDir, 'build/stipple');
+export const require = createRequire(path.join(nodePrefix, 'package.json'));
+
+export function has(module) {
+  return fs.existsSync(path.join(nodePrefix, 'node_modules', module, 'package.json'));
+}
+
+export function findBinary(candidates) {
+  return candidates.find((p) => fs.existsSync(p)) || null;
+}
+export const chromiumPath = findBinary(['/usr/bin/chromium', '/usr/bin/chromium-browser']);
+export const nginxPath = findBinary(['/usr/sbin/nginx', '/usr/bin/nginx']);
+
+// Why a test cannot run here, or null.
+export function skipReason({ modules = [], browser = false, server = false } = {}) {
+  if (!fs.existsSync(stippleBinary)) return `${stippleBinary} not built`;
+  for (const m of modules)
+    if (!has(m)) return `npm package ${m} not installed (scripts/setup.sh --deps installs it)`;
+  if (browser && !chromiumPath) return 'chromium not installed (Debian chromium)';
+  if (server && !nginxPath) return 'nginx not installed (Debian nginx-light)';
+  return null;
+}
+
+export function tempDir(name) {
+  return fs.mkdtempSync(path.join(os.tmpdir(), `stipple-web-${name}-`));
+}
+
+export function stipple(args) {
+  const r = spawnSync(stippleBinary, args, { encoding: 'utf8' });
+  if (r.status !== 0)
+    throw new Error(`stipple ${args.join(' ')} failed (${r.status}):\n${r.stdout}\n${r.stderr}`);
+  return r.stdout;
+}
+
+// A generated LAS file (the built-in scan: RGB, intensity, classes, returns, GPS time).
+export function generatedLas(dir, points) {
+  const las = path.join(dir, `gen${points}.las`);
+  if (!fs.existsSync(las)) stipple(['generate', '-n', String(points), '-o', las]);
+  return las;
+}
+
+export function tile(input, out, extra = []) {
+  stipple(['tile', input, '-o', out, '--force', ...extra]);
+  return out;
+}
+
+// Content files of a tileset folder (glb, pnts), relative to it.
+export function contentFiles(dir) {
+  const out = [];
+  const walk = (d) => {
+    for (const e of fs.readdirSync(d, { withFileTypes: true })) {
+      const p = path.join(d, e.name);
+      if (e.isDirectory()) walk(p);
+      else if (/\.(glb|pnts)$/.test(e.name)) out.push(path.relative(dir, p));
+    }
+  };
+  walk(dir);
+  return out.sort();
+}
+
+function freePort() {
+  return new Promise((resolve, reject) => {
+    const s = net.createServer();
+    s.listen(0, '127.0.0.1', () => {
+      const { port } = s.address();
+      s.close(() => resolve(port));
+    });
+    s.on('error', reject);
+  });
+}
+
+function canConnect(port) {
+  return new Promise((resolve) => {
+    const c = net.connect(port, '127.0.0.1', () => {
+      c.end();
+      resolve(true);
+    });
+    c.on('error', () => resolve(false));
+  });
+}
+
+// nginx serving `root` on 127.0.0.1; `stop()` ends it.
+export async function startNginx(root) {
+  const dir = tempDir('nginx');
+  const port = await freePort();
+  fs.mkdirSync(path.join(dir, 'tmp'));
+  const conf = path.join(dir, 'nginx.conf');
+  fs.writeFileSync(
+    conf,
+    `daemon off;\nworker_processes 1;\nerror_log ${dir}/error.log;\npid ${dir}/nginx.pid;\n` +
+      `user root;\nevents { worker_connections 256; }\nhttp {\n access_log off;\n` +
+      ` client_body_temp_path ${dir}/tmp;\n proxy_temp_path ${dir}/tmp;\n` +
+      ` fastcgi_temp_path ${dir}/tmp;\n uwsgi_temp_path ${dir}/tmp;\n scgi_temp_path ${dir}/tmp;\n` +
+      ` include /etc/nginx/mime.types;\n` +
+      ` types { application/octet-stream pnts glb subtree bin laz zst hrc; application/wasm wasm; }\n` +
+      ` server {\n  listen 127.0.0.1:${port};\n  root ${root};\n }\n}\n`,
+  );
+  const child = spawn(nginxPath, ['-p', dir + '/', '-c', conf], { stdio: 'ignore' });
+  for (let i = 0; i < 100 && !(await canConnect(port)); ++i)
+    await new Promise((r) => setTimeout(r, 50));
+  if (!(await canConnect(port))) {
+    child.kill();
+    throw new Error(`nginx did not start: ${fs.readFileSync(path.join(dir, 'error.log'), 'utf8')}`);
+  }
+  return {
+    url: (p) => `http://127.0.0.1:${port}/${p}`,
+    stop: () =>
+      new Promise((resolve) => {
+        child.on('exit', resolve);
+        child.kill('SIGTERM');
+      }),
+  };
+}
+
+// Headless chromium with WebGL on SwiftShader.
+export async function launchBrowser() {
+  const puppeteer = require('puppeteer-core');
+  return puppeteer.launch({
+    executablePath: chromiumPath,
+    headless: true,
+    args: [
+      '--no-sandbox',
+      '--use-angle=swiftshader',
+      '--enable-unsafe-swiftshader',
+      '--ignore-gpu-blocklist',
+      '--window-size=800,600',
+    ],
+  });
+}
