@@ -10,6 +10,7 @@
 
 #include "stipple/app/commands.hpp"
 #include "stipple/core/error.hpp"
+#include "stipple/io/content_summary.hpp"
 #include "stipple/io/copc.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
@@ -174,6 +175,27 @@ nlohmann::json tileset_json(const std::string& uri, size_t max_tiles) {
   j["depth"] = depth + 1;
   j["contents"] = contents;
   j["content_types"] = types;
+  // Totals from the tile headers (no point decoded), for the tiles read (--max-tiles caps it).
+  std::vector<std::string> uris;
+  for (size_t i = 0; i < ts.tiles.size() && i < max_tiles; ++i)
+    uris.insert(uris.end(), ts.tiles[i].contents.begin(), ts.tiles[i].contents.end());
+  j["points_complete"] = complete && ts.tiles.size() <= max_tiles;
+  const io::ContentTotals totals = io::summarize_contents(
+      uris, [&](const std::string& u) { return io::fetch(u, options.fetch); });
+  j["points"] = totals.points;
+  j["contents_by_type"] = totals.by_type;
+  j["contents_not_drawn"] = totals.not_drawn;
+  std::vector<std::string> content_warnings;
+  for (const auto& [type, n] : totals.not_drawn)
+    content_warnings.push_back(fmt::format("{} of {} contents are {}, which stipple does not draw",
+                                           n, totals.contents, io::describe_content_type(type)));
+  if (totals.other_primitives)
+    content_warnings.push_back(fmt::format(
+        "{} glTF primitives are meshes or lines, which stipple does not draw (points only)",
+        totals.other_primitives));
+  j["content_warnings"] = content_warnings;
+  j["content_errors"] = totals.errors;
+  ts.warnings.insert(ts.warnings.end(), content_warnings.begin(), content_warnings.end());
   j["external_tilesets"] = ts.external_tilesets;
   j["implicit"] = ts.implicit;
   j["subtrees"] = ts.subtrees;
@@ -281,6 +303,17 @@ void run_info(const InfoArgs& args) {
         if (!j["complete"].get<bool>())
           std::printf("  the tree was read up to %zu tiles (--max-tiles): counts are partial\n",
                       j["tiles"].get<size_t>());
+        std::printf("  points:     %llu (declared by the tile headers%s)\n",
+                    static_cast<unsigned long long>(j["points"].get<uint64_t>()),
+                    j["points_complete"].get<bool>() ? "" : " of the first --max-tiles tiles");
+        std::string by_type;
+        for (const auto& [type, n] : j["contents_by_type"].items())
+          by_type += fmt::format("{}{} {}", by_type.empty() ? "" : ", ", n.get<uint64_t>(), type);
+        std::printf("  contents:   %s\n", by_type.empty() ? "none" : by_type.c_str());
+        for (const auto& w : j["content_warnings"])
+          std::printf("  warning: %s\n", w.get<std::string>().c_str());
+        for (const auto& e : j["content_errors"])
+          std::printf("  error: %s\n", e.get<std::string>().c_str());
         std::printf(
             "  points in the default view: %llu (%u tiles)\n",
             static_cast<unsigned long long>(j["points_selected_for_default_view"].get<uint64_t>()),

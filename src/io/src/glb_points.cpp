@@ -582,6 +582,7 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
   }
   if (skipped_primitives)
     c.warnings.push_back(fmt::format("{} non-point primitives skipped", skipped_primitives));
+  if (skipped_primitives && points.empty()) c.not_drawn = "glb meshes";
   c.point_count = points.size();
   if (any_color) rgba.resize(points.size(), 0xffffffffu);
   if (any_normal) normals.resize(points.size(), glm::vec3(0, 0, 1));

@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <initializer_list>
+#include <map>
 
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
+#include "stipple/io/content_summary.hpp"
 #include "stipple/io/copc.hpp"
 #include "stipple/math/geo.hpp"
 
@@ -48,6 +50,55 @@ Aabb world_bounds(const io::Tileset& ts, const glm::dmat4& m) {
     box.extend(glm::dvec3(m * glm::dvec4(p, 1.0)));
   }
   return box;
+}
+
+namespace {
+
+void extend_by_obb(Aabb& box, const io::Obb& o, const glm::dmat4& m) {
+  for (int i = 0; i < 8; ++i) {
+    glm::dvec3 p = o.center;
+    for (int k = 0; k < 3; ++k) p += o.half_axes[k] * ((i >> k) & 1 ? 1.0 : -1.0);
+    box.extend(glm::dvec3(m * glm::dvec4(p, 1.0)));
+  }
+}
+
+}  // namespace
+
+Aabb drawable_world_bounds(const io::Tileset& ts, const glm::dmat4& m, const io::Fetcher& fetcher,
+                           std::string* warning, std::set<std::string>* kinds,
+                           size_t max_contents) {
+  const Aabb root = world_bounds(ts, m);
+  if (ts.copc) return root;  // every node is points
+  std::map<std::string, size_t> not_drawn;
+  Aabb points;
+  size_t read = 0;
+  // Tiles are stored parents first: index order is breadth first enough for a sample.
+  for (const io::Tile& t : ts.tiles) {
+    for (const std::string& uri : t.contents) {
+      if (read >= max_contents) break;
+      ++read;
+      const io::ContentSummary s = io::summarize_content(uri, fetcher);
+      if (!s.error.empty()) continue;  // its tile reports the error when it loads
+      if (s.drawable)
+        extend_by_obb(points, t.box, m);
+      else if (s.type != "json")
+        ++not_drawn[s.type];
+    }
+    if (read >= max_contents) break;
+  }
+  if (not_drawn.empty()) return root;
+  if (kinds)
+    for (const auto& [type, n] : not_drawn) kinds->insert(io::describe_content_type(type));
+  if (warning) {
+    std::string what;
+    for (const auto& [type, n] : not_drawn)
+      what += fmt::format("{}{} {}", what.empty() ? "" : ", ", n, io::describe_content_type(type));
+    *warning = fmt::format(
+        "{}: of the first {} contents, {} {} not drawn (stipple draws points only){}", ts.uri, read,
+        what, not_drawn.size() == 1 && not_drawn.begin()->second == 1 ? "is" : "are",
+        points.empty() ? "" : "; the view frames the point content");
+  }
+  return points.empty() ? root : points;
 }
 
 namespace {
@@ -120,6 +171,7 @@ RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoa
       options.streamer.fetcher ? io::load_tileset(uri, options.streamer.fetcher, ts_options)
                                : io::load_tileset(uri, ts_options));
   RenderLoadResult out;
+  StreamerOptions streamer_options = options.streamer;
   for (const auto& e : tileset->errors) out.errors.push_back({0, e});
   View view;
   view.width = options.width;
@@ -128,11 +180,19 @@ RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoa
   if (options.camera) {
     view.camera = *options.camera;
   } else {
-    view.camera = frame_box(world_bounds(*tileset, view.world_from_tileset),
-                            double(options.width) / options.height, options.azimuth,
+    const io::Fetcher fetcher = options.streamer.fetcher
+                                    ? options.streamer.fetcher
+                                    : io::Fetcher([&](const std::string& u) {
+                                        return io::fetch(u, options.streamer.fetch);
+                                      });
+    std::string warning;
+    const Aabb box = drawable_world_bounds(*tileset, view.world_from_tileset, fetcher, &warning,
+                                           &streamer_options.not_drawn_warned);
+    if (!warning.empty()) STIPPLE_WARN("{}", warning);
+    view.camera = frame_box(box, double(options.width) / options.height, options.azimuth,
                             options.elevation, options.fov);
   }
-  TileStreamer streamer(tileset, options.streamer);
+  TileStreamer streamer(tileset, streamer_options);
   const Selection* selection = nullptr;
   for (size_t i = 0; i < options.max_updates; ++i) {
     selection = &streamer.update(view);

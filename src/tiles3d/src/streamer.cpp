@@ -7,6 +7,7 @@
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
+#include "stipple/io/content_summary.hpp"
 #include "stipple/io/copc.hpp"
 #include "stipple/io/glb_points.hpp"
 
@@ -24,6 +25,13 @@ io::PointContent decode_content(const std::vector<uint8_t>& bytes, const std::st
   std::string magic;
   for (size_t i = 0; i < 4 && i < bytes.size(); ++i)
     magic += std::isprint(bytes[i]) ? char(bytes[i]) : '?';
+  // Valid 3D Tiles content that is not points: no points, and a warning (once, by the streamer).
+  if (magic == "b3dm" || magic == "i3dm" || magic == "cmpt" || magic == "vctr" || magic == "geom") {
+    io::PointContent c;
+    c.format = magic;
+    c.not_drawn = io::describe_content_type(magic);
+    return c;
+  }
   fail("{}: content type '{}' is not supported (pnts and glb point tiles are)", uri, magic);
 }
 
@@ -35,7 +43,8 @@ struct TileStreamer::Job {
   std::optional<io::Expansion> expansion;  // a read of pending children, not content
   std::string error;
   bool complete = false;  // every content fetched and decoded (even if cancelled meanwhile)
-  uint64_t points = 0;    // decoded (counted before prepare may consume the contents)
+  std::vector<std::string> not_drawn;  // what its contents hold that is not drawn
+  uint64_t points = 0;                 // decoded (counted before prepare may consume the contents)
 };
 
 struct TileStreamer::Shared {
@@ -53,6 +62,7 @@ TileStreamer::TileStreamer(std::shared_ptr<io::Tileset> tileset, StreamerOptions
   if (!fetcher_)
     fetcher_ = [fetch = options_.fetch](const std::string& uri) { return io::fetch(uri, fetch); };
   options_.tileset.fetch = options_.fetch;
+  not_drawn_ = options_.not_drawn_warned;
   grow();
 }
 
@@ -104,6 +114,10 @@ void TileStreamer::integrate() {
       continue;
     }
     jobs_[t].reset();
+    for (const auto& what : job->not_drawn)
+      if (not_drawn_.insert(what).second)
+        STIPPLE_WARN("{}: tile {} holds {}, which stipple does not draw (points only)",
+                     tileset_->uri, t, what);
     // Resident size of the result (0 for a failed load: its result and preparation are cleared).
     uint64_t bytes = job->prepared.bytes;
     for (const auto& c : job->result) bytes += c.memory_bytes();
@@ -229,6 +243,8 @@ void TileStreamer::start_jobs() {
                                      : decode_content(bytes, uri, limits, fetch));
         }
         job->complete = job->result.size() == uris.size();
+        for (const auto& c : job->result)
+          if (!c.not_drawn.empty()) job->not_drawn.push_back(c.not_drawn);
         for (const auto& c : job->result) job->points += c.point_count;
         // Prepared even when cancelled meanwhile, like the decode: the result may be kept.
         if (prepare && job->complete) job->prepared = prepare(job->tile, transform, job->result);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <limits>
 #include <optional>
+#include <set>
 #include <unordered_map>
 
 #include "stipple/core/error.hpp"
@@ -11,6 +12,7 @@
 #include "stipple/engine/engine.hpp"
 #include "stipple/engine/render_plugins.hpp"
 #include "stipple/engine/viewport.hpp"
+#include "stipple/io/fetch.hpp"
 #include "stipple/pointcloud/lod_batches.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/pointcloud/scene.hpp"
@@ -375,16 +377,25 @@ void TilesetPlugin::build(Engine& engine) {
   io::TilesetOptions ts_options = streamer.tileset;
   ts_options.fetch = streamer.fetch;
   TilesetStream s;
+  std::set<std::string> not_drawn;
   auto tileset = std::make_shared<io::Tileset>(io::load_tileset(uri, ts_options));
   s.tileset = tileset;
   for (const auto& e : s.tileset->errors) STIPPLE_WARN("{}: {}", uri, e);
   if (s.tileset->tiles.empty()) fail("{}: the tileset has no tiles", uri);
   s.world_from_tileset = world_from_tileset(*s.tileset);
-  s.world_bounds = world_bounds(*s.tileset, s.world_from_tileset);
+  {
+    // Framed on the point content where the tileset holds other content too (warned once).
+    std::string warning;
+    s.world_bounds = drawable_world_bounds(
+        *s.tileset, s.world_from_tileset,
+        [&](const std::string& u) { return io::fetch(u, streamer.fetch); }, &warning, &not_drawn);
+    if (!warning.empty()) STIPPLE_WARN("{}", warning);
+  }
   s.width = width;
   s.height = height;
   // Workers convert each decoded tile to world-space chunks and drop the decoded form.
   StreamerOptions options = streamer;
+  options.not_drawn_warned = not_drawn;
   // On the compute path the workers also make each tile's LOD batches (coloured per frame).
   options.prepare = [world = s.world_from_tileset, batches = compute](
                         uint32_t tile, const glm::dmat4& transform,

@@ -31,6 +31,9 @@ struct PointContent {
   std::map<std::string, PointAttribute> attributes;
   std::vector<std::string> warnings;  // unknown semantics and extensions, skipped properties
   std::string format;                 // "pnts", "pnts+draco", "glb"
+  // Non-empty for content that holds nothing stipple draws (meshes: b3dm, i3dm, glb triangles):
+  // what it is, for a warning. Such content decodes to no points instead of failing its tile.
+  std::string not_drawn;
 
   // Resident size, for the cache's memory budget.
   uint64_t memory_bytes() const;

@@ -2,6 +2,7 @@
 // One-shot loading of a tileset for headless rendering (`stipple render tileset.json`): frame
 // the root volume, stream until the selection for that camera is resident (reading external
 // tilesets and subtrees as the traversal reaches them), convert to chunks.
+#include <set>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,17 @@ bool is_tileset_input(const std::string& input);  // *.json or an http(s) URL
 glm::dmat4 world_from_tileset(const io::Tileset& tileset);
 // The root bounding volume as a world-space (Y-up) box.
 Aabb world_bounds(const io::Tileset& tileset, const glm::dmat4& world_from_tileset);
+
+// The box to frame: the root volume, unless some of the contents known at load (the tree read
+// so far, breadth first, up to `max_contents` headers: io::summarize_content) are not points:
+// then the union of the tiles whose content is points (a tileset whose points are a small part
+// of its volume is not framed as a dot), and `warning` says what is not drawn. The root volume
+// when no point content is found. `not_drawn_kinds` receives what the warning named
+// (io::describe_content_type), for StreamerOptions::not_drawn_warned.
+Aabb drawable_world_bounds(const io::Tileset& tileset, const glm::dmat4& world_from_tileset,
+                           const io::Fetcher& fetcher, std::string* warning,
+                           std::set<std::string>* not_drawn_kinds = nullptr,
+                           size_t max_contents = 16);
 
 struct RenderLoadOptions {
   StreamerOptions streamer;

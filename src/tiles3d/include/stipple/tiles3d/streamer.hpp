@@ -12,6 +12,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -48,6 +49,9 @@ struct StreamerOptions {
   // Fetches content, external tilesets and subtrees, from any worker thread (tests count or
   // fault requests with it); null: io::fetch with `fetch`.
   io::Fetcher fetcher;
+  // Kinds of content not drawn that were warned about already (drawable_world_bounds): the
+  // streamer warns once for each other kind it meets.
+  std::set<std::string> not_drawn_warned;
 };
 
 struct TileError {
@@ -119,6 +123,7 @@ class TileStreamer {
   uint64_t frame_ = 0;
   StreamerStats stats_;
   std::vector<TileError> new_errors_, all_errors_;
+  std::set<std::string> not_drawn_;  // content kinds warned about (once each)
   uint32_t in_flight_ = 0;
 
   void integrate();
