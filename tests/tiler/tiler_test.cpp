@@ -21,10 +21,12 @@
 #include <nlohmann/json.hpp>
 
 #include "stipple/core/error.hpp"
+#include "stipple/io/fetch.hpp"
 #include "stipple/io/glb_points.hpp"
 #include "stipple/io/las.hpp"
 #include "stipple/io/pnts.hpp"
 #include "stipple/io/procedural.hpp"
+#include "stipple/io/tileset.hpp"
 #include "stipple/tiler/geo_frame.hpp"
 #include "stipple/tiler/tiler.hpp"
 
@@ -649,4 +651,138 @@ TEST(Tiler, PntsGpsTimeIsFloatPlusOffset) {
   double worst = 0;
   for (size_t i = 0; i < want.size(); ++i) worst = std::max(worst, std::abs(got[i] - want[i]));
   EXPECT_LE(worst, tol);
+}
+
+// Every --compress option keeps every point and attribute: glb with EXT_meshopt_compression and
+// pnts with 3DTILES_draco_point_compression decode (stipple's readers, which follow the
+// extensions' specifications) to the source's intensities, classes, colours exactly and GPS
+// times within float32 resolution, in fewer bytes than the uncompressed output. Draco for glb
+// (no point primitives in KHR_draco_mesh_compression) and meshopt for pnts are refused.
+TEST(Tiler, CompressedOutputsKeepEveryPoint) {
+  fs::path las = generated_las(100000, "gen100k.las");
+  io::LasReader reader(las);
+  io::PointBatch src;
+  while (reader.read(src, 1 << 16) > 0) {
+  }
+  const int shift = reader.header().rgb_bits == 8 ? 0 : 8;
+  std::vector<uint64_t> want;  // intensity, class, colour packed per point
+  for (size_t i = 0; i < src.size(); ++i)
+    want.push_back(uint64_t(src.intensity[i]) << 48 | uint64_t(src.classification[i]) << 40 |
+                   uint64_t(src.rgb[i].x >> shift) << 16 | uint64_t(src.rgb[i].y >> shift) << 8 |
+                   uint64_t(src.rgb[i].z >> shift));
+  std::sort(want.begin(), want.end());
+  std::vector<double> want_gps = src.gps_time;
+  std::sort(want_gps.begin(), want_gps.end());
+  auto tile_bytes = [](const fs::path& dir) {
+    uint64_t n = 0;
+    for (const auto& f : fs::directory_iterator(dir / "tiles")) n += fs::file_size(f.path());
+    return n;
+  };
+  for (auto [format, compression] :
+       {std::pair{tiler::Format::Glb, "meshopt"}, std::pair{tiler::Format::Pnts, "draco"}}) {
+    tiler::TileOptions o;
+    o.inputs = {las.string()};
+    o.crs = "EPSG:32633";
+    o.format = format;
+    o.max_node_points = 20000;
+    o.output = (temp_dir() / (std::string("plain_") + compression)).string();
+    tiler::build_tileset(o);
+    const uint64_t plain = tile_bytes(o.output);
+    o.compression = compression;
+    o.output = (temp_dir() / (std::string("packed_") + compression)).string();
+    tiler::build_tileset(o);
+    const uint64_t packed = tile_bytes(o.output);
+    EXPECT_LT(packed, plain * 3 / 4) << compression;
+    std::vector<uint64_t> got;
+    std::vector<double> got_gps;
+    for (const auto& f : fs::directory_iterator(fs::path(o.output) / "tiles")) {
+      std::vector<uint8_t> bytes = slurp(f.path());
+      io::PointContent c = format == tiler::Format::Glb
+                               ? io::decode_glb_points(bytes, f.path().string())
+                               : io::decode_pnts(bytes, f.path().string());
+      EXPECT_EQ(c.format, format == tiler::Format::Glb ? "glb" : "pnts+draco");
+      auto values = [&](std::initializer_list<const char*> keys) {
+        for (const char* k : keys)
+          if (c.attributes.count(k)) return c.attributes.at(k).values;
+        ADD_FAILURE() << f.path() << " lacks " << *keys.begin();
+        return std::vector<double>(c.point_count, 0.0);
+      };
+      const auto intensity = values({"intensity", "INTENSITY"});
+      const auto cls = values({"classification", "CLASSIFICATION"});
+      const auto gps = values({"gps_time", "GPS_TIME"});
+      ASSERT_EQ(c.rgba.size(), c.point_count);
+      for (size_t i = 0; i < c.point_count; ++i) {
+        const uint32_t rgba = c.rgba[i];
+        got.push_back(uint64_t(intensity[i]) << 48 | uint64_t(cls[i]) << 40 |
+                      uint64_t(rgba & 255) << 16 | uint64_t(rgba >> 8 & 255) << 8 |
+                      uint64_t(rgba >> 16 & 255));
+      }
+      got_gps.insert(got_gps.end(), gps.begin(), gps.end());
+    }
+    std::sort(got.begin(), got.end());
+    EXPECT_EQ(got, want) << compression;
+    std::sort(got_gps.begin(), got_gps.end());
+    ASSERT_EQ(got_gps.size(), want_gps.size());
+    const double tol = std::max(1e-6, (want_gps.back() - want_gps.front()) * std::ldexp(1.0, -23));
+    double worst = 0;
+    for (size_t i = 0; i < want_gps.size(); ++i)
+      worst = std::max(worst, std::abs(got_gps[i] - want_gps[i]));
+    EXPECT_LE(worst, tol) << compression;
+  }
+  tiler::TileOptions bad;
+  bad.inputs = {las.string()};
+  bad.crs = "EPSG:32633";
+  bad.output = (temp_dir() / "refused").string();
+  bad.compression = "draco";
+  EXPECT_THROW(tiler::build_tileset(bad), Error);
+  bad.format = tiler::Format::Pnts;
+  bad.compression = "meshopt";
+  EXPECT_THROW(tiler::build_tileset(bad), Error);
+  EXPECT_FALSE(fs::exists(bad.output));
+}
+
+// --implicit: 3D Tiles 1.1 implicit octree. Read back through stipple's tileset reader (which
+// follows the implicit tiling specification: subtree files, Morton-ordered availability), the
+// tree holds one tile per content file written, at the file's level and key, with the
+// geometric error halving per level, across child subtrees (two levels a subtree).
+TEST(Tiler, ImplicitOctreeNamesEveryTile) {
+  fs::path las = generated_las(100000, "gen100k.las");
+  tiler::TileOptions o;
+  o.inputs = {las.string()};
+  o.crs = "EPSG:32633";
+  o.max_node_points = 1500;
+  o.implicit = true;
+  o.subtree_levels = 2;
+  o.output = (temp_dir() / "implicit").string();
+  tiler::TileStats stats = tiler::build_tileset(o);
+  ASSERT_GE(stats.depth, 3) << "too shallow to need child subtrees";
+  json j = json::parse(slurp(fs::path(o.output) / "tileset.json"));
+  EXPECT_EQ(j["asset"]["version"], "1.1");
+  EXPECT_EQ(j["root"]["implicitTiling"]["subdivisionScheme"], "OCTREE");
+  EXPECT_FALSE(j["root"].contains("children"));
+  std::set<std::string> files;
+  for (const auto& f : fs::directory_iterator(fs::path(o.output) / "tiles"))
+    files.insert(f.path().filename().string());
+  size_t subtrees = 0;
+  for (const auto& f : fs::directory_iterator(fs::path(o.output) / "subtrees")) {
+    (void)f;
+    ++subtrees;
+  }
+  EXPECT_GT(subtrees, 1u);
+  io::TilesetOptions options;
+  io::Tileset ts = io::load_tileset((fs::path(o.output) / "tileset.json").string(), options);
+  ASSERT_TRUE(io::expand_all(
+      ts, [](const std::string& u) { return io::fetch(u); }, options, 1000000));
+  EXPECT_TRUE(ts.errors.empty()) << ts.errors.front();
+  EXPECT_EQ(ts.subtrees, subtrees);
+  std::set<std::string> named;
+  const double root_error = ts.tiles[0].geometric_error;
+  for (const auto& t : ts.tiles)
+    for (const auto& c : t.contents) {
+      const std::string name = fs::path(c).filename().string();
+      EXPECT_TRUE(named.insert(name).second) << name << " named twice";
+      const int level = std::stoi(name.substr(0, name.find('-')));
+      EXPECT_NEAR(t.geometric_error, root_error / double(1 << level), 1e-12) << name;
+    }
+  EXPECT_EQ(named, files);
 }

@@ -32,6 +32,18 @@ void add_tile_command(CLI::App& cli) {
   cmd->add_option("--max-node-points", args->options.max_node_points, "Tile size cap")
       ->check(CLI::Range(size_t(1000), size_t(10'000'000)))
       ->capture_default_str();
+  cmd->add_option("--compress", args->options.compression,
+                  "none, meshopt (glb: EXT_meshopt_compression) or draco (pnts: "
+                  "3DTILES_draco_point_compression)")
+      ->check(CLI::IsMember({"none", "meshopt", "draco"}))
+      ->capture_default_str();
+  cmd->add_flag("--implicit", args->options.implicit,
+                "Write 3D Tiles 1.1 implicit tiling (an octree of subtree files) instead of "
+                "listing every tile in tileset.json");
+  cmd->add_option("--subtree-levels", args->options.subtree_levels,
+                  "Implicit tiling: levels in one subtree file")
+      ->check(CLI::Range(1, 16))
+      ->capture_default_str();
   cmd->add_flag("--force", args->options.force, "Replace an existing output directory");
   cmd->callback([args] {
     args->options.format = args->format == "pnts" ? tiler::Format::Pnts : tiler::Format::Glb;

@@ -249,6 +249,8 @@ void decode_batch_table(PointContent& c, const json& bt, std::span<const uint8_t
           draco && draco_props ? draco->attribute(*draco_props, key, name) : nullptr;
       if (da) {
         attr.values = draco_values<double>(da, c.point_count, attr.components, name, key);
+        if (auto o = offsets->find(key); o != offsets->end() && o->is_number())
+          for (double& v : attr.values) v += o->get<double>();
         c.attributes[key] = std::move(attr);
         continue;  // Draco attributes are per point already
       }

@@ -18,7 +18,8 @@ double linear_to_srgb(double l) {
 uint16_t srgb8_to_linear16(uint8_t encoded) {
   static const std::array<uint16_t, 256> table = [] {
     std::array<uint16_t, 256> t{};
-    for (int i = 0; i < 256; ++i) t[i] = uint16_t(std::lround(srgb_to_linear(i / 255.0) * 65535.0));
+    for (int i = 0; i < 256; ++i)
+      t[i] = uint16_t(std::lround(srgb_to_linear(i / 255.0) * 4095.0) << 4);
     return t;
   }();
   return table[encoded];

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 
+#include <meshoptimizer.h>
 #include <nlohmann/json.hpp>
 
 #include "stipple/math/color.hpp"
@@ -26,6 +27,10 @@ constexpr int kArrayBuffer = 34962;
 struct Builder {
   std::vector<uint8_t> bin;
   json views = json::array(), accessors = json::array();
+  struct Stream {
+    size_t offset, count, stride;
+  };
+  std::vector<Stream> streams;  // per view, for compression
 
   // Appends a bufferView of `count` elements of `elem` bytes each, spaced `stride` bytes apart
   // (stride 0: tightly packed); `fill(i, dst)` writes element i. Returns the view's bytes.
@@ -42,8 +47,40 @@ struct Builder {
               {"target", kArrayBuffer}};
     if (stride) v["byteStride"] = stride;
     views.push_back(v);
+    streams.push_back({offset, count, step});
     return int(views.size() - 1);
   }
+
+  // EXT_meshopt_compression: every view becomes a compressed stream in the glb's buffer (0),
+  // decoded into a fallback buffer (1) that has no data of its own.
+  void compress_meshopt() {
+    std::vector<uint8_t> packed;
+    size_t fallback = 0;
+    for (size_t i = 0; i < streams.size(); ++i) {
+      const Stream& s = streams[i];
+      std::vector<uint8_t> out(meshopt_encodeVertexBufferBound(s.count, s.stride));
+      out.resize(meshopt_encodeVertexBuffer(out.data(), out.size(), bin.data() + s.offset, s.count,
+                                            s.stride));
+      const size_t at = packed.size();
+      packed.insert(packed.end(), out.begin(), out.end());
+      packed.resize((packed.size() + 3) & ~size_t(3), 0);
+      json& v = views[i];
+      v["buffer"] = 1;
+      v["byteOffset"] = fallback;
+      v["byteStride"] = s.stride;
+      v["extensions"] = {{"EXT_meshopt_compression",
+                          {{"buffer", 0},
+                           {"byteOffset", at},
+                           {"byteLength", out.size()},
+                           {"byteStride", s.stride},
+                           {"count", s.count},
+                           {"mode", "ATTRIBUTES"}}}};
+      fallback += (s.count * s.stride + 3) & ~size_t(3);
+    }
+    bin = std::move(packed);
+    fallback_bytes = fallback;
+  }
+  size_t fallback_bytes = 0;
   int accessor(int view, int component, size_t count, const char* type, bool normalized = false) {
     json a = {{"bufferView", view}, {"componentType", component}, {"count", count}, {"type", type}};
     if (normalized) a["normalized"] = true;
@@ -51,6 +88,16 @@ struct Builder {
     return int(accessors.size() - 1);
   }
 };
+
+// 10 bits a coordinate, spread to every third bit.
+uint32_t spread3(uint32_t v) {
+  v &= 0x3ff;
+  v = (v | (v << 16)) & 0x030000ff;
+  v = (v | (v << 8)) & 0x0300f00f;
+  v = (v | (v << 4)) & 0x030c30c3;
+  v = (v | (v << 2)) & 0x09249249;
+  return v;
+}
 
 void put_u32(std::vector<uint8_t>& out, uint32_t v) {
   uint8_t b[4];
@@ -60,8 +107,41 @@ void put_u32(std::vector<uint8_t>& out, uint32_t v) {
 
 }  // namespace
 
-std::vector<uint8_t> write_glb(std::span<const TilePoint> points, const ContentOptions& options) {
-  const size_t n = points.size();
+std::vector<TilePoint> morton_ordered(std::span<const TilePoint> points) {
+  const Box box = bounds_of(points);
+  const glm::dvec3 scale = 1023.0 / glm::max(box.max - box.min, glm::dvec3(1e-9));
+  std::vector<std::pair<uint32_t, uint32_t>> keys(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    const TilePoint& p = points[i];
+    const glm::dvec3 q = (glm::dvec3(p.x, p.y, p.z) - box.min) * scale;
+    keys[i] = {spread3(uint32_t(q.x)) | spread3(uint32_t(q.y)) << 1 | spread3(uint32_t(q.z)) << 2,
+               uint32_t(i)};
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<TilePoint> out(points.size());
+  for (size_t i = 0; i < keys.size(); ++i) out[i] = points[keys[i].second];
+  return out;
+}
+
+std::vector<uint8_t> write_glb(std::span<const TilePoint> input, const ContentOptions& options) {
+  const size_t n = input.size();
+  const bool meshopt = options.compression == Compression::Meshopt;
+  // Compressed: points in acquisition order (GPS time), else in Morton order of their position,
+  // so that neighbours in the stream are neighbours along a scan line or in space and the delta
+  // coding of meshopt finds small steps (GPS order measured 11% smaller than Morton on autzen).
+  std::vector<TilePoint> sorted;
+  std::span<const TilePoint> points = input;
+  if (meshopt) {
+    if (options.gps_time) {
+      sorted.assign(input.begin(), input.end());
+      std::stable_sort(sorted.begin(), sorted.end(), [](const TilePoint& a, const TilePoint& b) {
+        return a.gps_time < b.gps_time;
+      });
+    } else {
+      sorted = morton_ordered(input);
+    }
+    points = sorted;
+  }
   Box box = bounds_of(points);
   glm::dvec3 extent = box.max - box.min;
   Builder b;
@@ -71,8 +151,10 @@ std::vector<uint8_t> write_glb(std::span<const TilePoint> points, const ContentO
   if (quantized) {
     // Y-up axes: X = x, Y = z, Z = -y. The quantized cube starts at the Y-up minimum corner.
     glm::dvec3 lo(box.min.x, box.min.z, -box.max.y);
-    glm::dvec3 step =
-        glm::max(glm::dvec3(extent.x, extent.z, extent.y) / 65535.0, glm::dvec3(1e-9));
+    // Steps of the input precision (no finer: finer steps only add bits that carry nothing,
+    // about 2 bits an axis on a 100 m tile of 1 cm data), wider where the extent needs it.
+    glm::dvec3 step = glm::max(glm::dvec3(extent.x, extent.z, extent.y) / 65535.0,
+                               glm::dvec3(std::max(options.precision, 1e-9)));
     auto q = [](double v, double s) {
       return uint16_t(std::clamp(std::lround(v / s), 0L, 65535L));
     };
@@ -164,6 +246,15 @@ std::vector<uint8_t> write_glb(std::span<const TilePoint> points, const ContentO
        {{"schema",
          {{"id", "stipple_points"}, {"classes", {{"point", {{"properties", properties}}}}}}},
         {"propertyAttributes", json::array({{{"class", "point"}, {"properties", bound}}})}}}};
+  if (meshopt) {
+    b.compress_meshopt();
+    gltf["bufferViews"] = b.views;
+    gltf["buffers"] =
+        json::array({{{"byteLength", b.bin.size()}},
+                     {{"byteLength", b.fallback_bytes},
+                      {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}}});
+    extensions.push_back("EXT_meshopt_compression");
+  }
   if (!extensions.empty()) gltf["extensionsRequired"] = extensions;
   extensions_used.insert(extensions_used.end(), extensions.begin(), extensions.end());
   gltf["extensionsUsed"] = extensions_used;

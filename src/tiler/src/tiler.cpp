@@ -46,10 +46,12 @@
 #include "stipple/core/progress.hpp"
 #include "stipple/core/thread_pool.hpp"
 #include "stipple/io/las.hpp"
+#include "stipple/io/subtree.hpp"
 #include "stipple/tiler/geo_frame.hpp"
 #include "stipple/tiler/glb_writer.hpp"
 #include "stipple/tiler/pnts_writer.hpp"
 #include "stipple/tiler/sampling.hpp"
+#include "stipple/tiler/subtree_writer.hpp"
 
 namespace stipple::tiler {
 
@@ -206,6 +208,7 @@ class Tiler {
   void write_content(const NodeKey& key, std::span<const TilePoint> pts);
   void record(const NodeKey& key, std::span<const TilePoint> pts);
   void write_tileset();
+  nlohmann::json write_implicit();
   glm::dvec3 node_min(const NodeKey& k) const {
     return cube_min_ + glm::dvec3(k.x, k.y, k.z) * node_size(k.level);
   }
@@ -268,6 +271,21 @@ void Tiler::open_inputs() {
     inputs_.push_back(std::move(in));
   }
   if (total_points_ == 0) fail("the inputs hold no points");
+  if (opt_.compression == "meshopt") {
+    if (opt_.format != Format::Glb)
+      fail("--compress meshopt is for glb output (EXT_meshopt_compression); pnts takes draco");
+    content_.compression = Compression::Meshopt;
+  } else if (opt_.compression == "draco") {
+    if (opt_.format != Format::Pnts)
+      fail(
+          "--compress draco is for pnts output (3DTILES_draco_point_compression): glTF's Draco "
+          "extension defines no point primitives; glb takes meshopt");
+    content_.compression = Compression::Draco;
+  } else if (opt_.compression != "none") {
+    fail("--compress '{}' is not none, meshopt or draco", opt_.compression);
+  }
+  if (opt_.subtree_levels < 1 || opt_.subtree_levels > 16)
+    fail("subtree levels {} is outside 1-16", opt_.subtree_levels);
   if (total_points_ >= (uint64_t(1) << 32) * 64) fail("too many points");
   content_.rgb = false, content_.gps_time = false;
   content_.precision = 1e300;
@@ -805,26 +823,99 @@ void Tiler::write_tileset() {
     if (!kids.empty()) t["children"] = std::move(kids);
     return t;
   };
-  Box root_box;
-  json root = tile(NodeKey{}, root_box);
+  json root;
+  if (opt_.implicit) {
+    root = write_implicit();
+  } else {
+    Box root_box;
+    root = tile(NodeKey{}, root_box);
+  }
   const glm::dmat3& m = frame_.enu_to_ecef;
   const glm::dvec3& o = frame_.origin_ecef;
   // Column-major ENU -> ECEF.
   root["transform"] = {m[0].x, m[0].y, m[0].z, 0, m[1].x, m[1].y, m[1].z, 0,
                        m[2].x, m[2].y, m[2].z, 0, o.x,    o.y,    o.z,    1};
-  json tileset = {
-      {"asset",
-       {{"version", opt_.format == Format::Glb ? "1.1" : "1.0"}, {"generator", "stipple tile"}}},
-      {"geometricError", 2 * root_spacing_},
-      {"root", root},
-      {"extras",
-       {{"stipple",
-         {{"points", total_points_},
-          {"rootSpacing", root_spacing_},
-          {"geometricErrorPerSpacing", 1.0},
-          {"cube", {cube_min_.x, cube_min_.y, cube_min_.z, cube_size_}}}}}}};
+  json tileset = {{"asset",
+                   {{"version", opt_.format == Format::Glb || opt_.implicit ? "1.1" : "1.0"},
+                    {"generator", "stipple tile"}}},
+                  {"geometricError", 2 * root_spacing_},
+                  {"root", root},
+                  {"extras",
+                   {{"stipple",
+                     {{"points", total_points_},
+                      {"rootSpacing", root_spacing_},
+                      {"geometricErrorPerSpacing", 1.0},
+                      {"cube", {cube_min_.x, cube_min_.y, cube_min_.z, cube_size_}}}}}}};
   std::string text = tileset.dump(1);
   write_file(dir_ / "tileset.json", text.data(), text.size());
+}
+
+// Implicit octree over the cube: availability from the nodes (every node and its ancestors are
+// tiles; those with points have content), in subtrees of S levels rooted at levels 0, S, 2S...
+// Tile (level, x, y, z) is NodeKey{level, x, y, z}: the cube's subdivision, as implicit tiling
+// subdivides the root box, with geometric error root / 2^level (the spacing halves per level).
+nlohmann::json Tiler::write_implicit() {
+  using nlohmann::json;
+  std::map<NodeKey, bool> available;  // key -> has content
+  int deepest = 0;
+  for (auto& [k, info] : nodes_) {
+    available[k] = available[k] || info.points > 0;
+    deepest = std::max(deepest, k.level);
+    for (NodeKey a = k; a.level > 0;) {
+      a = a.parent();
+      if (!available.emplace(a, false).second) break;
+    }
+  }
+  const int levels = deepest + 1, S = std::min(opt_.subtree_levels, levels);
+  struct Bits {
+    std::vector<bool> tiles, content, children;
+  };
+  std::map<NodeKey, Bits> subtrees;
+  const uint64_t tiles_per_subtree = io::subtree_tile_count(8, S);
+  auto bits_of = [&](const NodeKey& root) -> Bits& {
+    Bits& b = subtrees[root];
+    if (b.tiles.empty()) {
+      b.tiles.assign(tiles_per_subtree, false);
+      b.content.assign(tiles_per_subtree, false);
+      b.children.assign(size_t(1) << (3 * S), false);
+    }
+    return b;
+  };
+  for (auto& [k, has_content] : available) {
+    const int base = k.level / S * S, local = k.level - base;
+    const NodeKey root{base, k.x >> local, k.y >> local, k.z >> local};
+    const uint64_t morton = io::morton_index(k.x - (root.x << local), k.y - (root.y << local),
+                                             k.z - (root.z << local), 8);
+    Bits& b = bits_of(root);
+    const uint64_t index = io::availability_index(8, local, morton);
+    b.tiles[index] = true;
+    b.content[index] = has_content;
+    if (local == 0 && k.level > 0) {
+      // A subtree's root: available as a child subtree of the subtree above.
+      const NodeKey parent{base - S, k.x >> S, k.y >> S, k.z >> S};
+      bits_of(parent).children[io::morton_index(k.x - (parent.x << S), k.y - (parent.y << S),
+                                                k.z - (parent.z << S), 8)] = true;
+    }
+  }
+  fs::create_directories(dir_ / "subtrees");
+  for (auto& [root, b] : subtrees) {
+    std::vector<uint8_t> bytes = write_subtree(b.tiles, b.content, b.children);
+    write_file(
+        dir_ / "subtrees" / fmt::format("{}.{}.{}.{}.subtree", root.level, root.x, root.y, root.z),
+        bytes.data(), bytes.size());
+  }
+  const double h = cube_size_ * 0.5;
+  const glm::dvec3 c = cube_min_ + glm::dvec3(h);
+  const char* ext = opt_.format == Format::Glb ? "glb" : "pnts";
+  return {{"boundingVolume", {{"box", {c.x, c.y, c.z, h, 0, 0, 0, h, 0, 0, 0, h}}}},
+          {"geometricError", spacing(0)},
+          {"refine", "ADD"},
+          {"content", {{"uri", fmt::format("tiles/{{level}}-{{x}}-{{y}}-{{z}}.{}", ext)}}},
+          {"implicitTiling",
+           {{"subdivisionScheme", "OCTREE"},
+            {"subtreeLevels", S},
+            {"availableLevels", levels},
+            {"subtrees", {{"uri", "subtrees/{level}.{x}.{y}.{z}.subtree"}}}}}};
 }
 
 TileStats Tiler::run() {

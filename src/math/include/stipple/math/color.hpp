@@ -10,8 +10,9 @@ namespace stipple::color {
 double srgb_to_linear(double encoded);
 // Linear [0, 1] (clamped) -> encoded [0, 1].
 double linear_to_srgb(double linear);
-// An 8-bit sRGB value as linear 16-bit (normalized UNSIGNED_SHORT): exact both ways, since the
-// smallest sRGB step (1/255 near black is 1/3295 linear) is 20 steps of 1/65535.
+// An 8-bit sRGB value as linear 16-bit (normalized UNSIGNED_SHORT) with 12 significant bits (the
+// low 4 are zero, which compresses): still exact both ways, since the smallest sRGB step (1/255
+// near black is 1/3295 linear) is wider than 1/4095.
 uint16_t srgb8_to_linear16(uint8_t encoded);
 // Linear [0, 1] (clamped) -> the nearest 8-bit sRGB value, through a table of 65536 entries.
 uint8_t linear_to_srgb8(double linear);

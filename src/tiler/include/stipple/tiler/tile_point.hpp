@@ -21,8 +21,13 @@ struct TilePoint {
 };
 static_assert(sizeof(TilePoint) == 40);
 
+// How content is compressed: glb with EXT_meshopt_compression, pnts with
+// 3DTILES_draco_point_compression (glTF's Draco extension does not define point primitives).
+enum class Compression { None, Meshopt, Draco };
+
 // Which attributes a content file carries and how precisely positions must be kept.
 struct ContentOptions {
+  Compression compression = Compression::None;
   bool rgb = true;
   bool gps_time = true;
   // Finest position step of the inputs in metres (LAS scale): integer quantization is used

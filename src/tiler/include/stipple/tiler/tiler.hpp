@@ -18,6 +18,12 @@ struct TileOptions {
   unsigned threads = 0;            // 0: every core
   bool force = false;              // replace an existing output directory
   size_t max_node_points = 60000;  // tile cap: larger nodes are split / subsampled further
+  // none, meshopt (glb: EXT_meshopt_compression) or draco (pnts: 3DTILES_draco_point_compression)
+  std::string compression = "none";
+  // 3D Tiles 1.1 implicit tiling: an octree whose availability is in subtree files of
+  // `subtree_levels` levels, instead of every tile listed in tileset.json.
+  bool implicit = false;
+  int subtree_levels = 6;
 };
 
 struct TileStats {
