@@ -292,10 +292,11 @@ void run_info(const InfoArgs& args) {
       if (args.json) {
         all.push_back(j);
       } else {
-        std::printf("%s\n  3D Tiles %s: %zu tiles, depth %u, %zu contents %s\n", input.c_str(),
-                    j["version"].get<std::string>().c_str(), j["tiles"].get<size_t>(),
-                    j["depth"].get<uint32_t>(), j["contents"].get<size_t>(),
-                    j["content_types"].dump().c_str());
+        const std::string version = j["version"].get<std::string>();
+        std::printf("%s\n  %s%s: %zu tiles, depth %u, %zu contents %s\n", input.c_str(),
+                    version.rfind("1.", 0) == 0 ? "3D Tiles " : "", version.c_str(),
+                    j["tiles"].get<size_t>(), j["depth"].get<uint32_t>(),
+                    j["contents"].get<size_t>(), j["content_types"].dump().c_str());
         std::printf("  external tilesets: %u, implicit: %s, subtrees: %u, errors: %zu\n",
                     j["external_tilesets"].get<uint32_t>(),
                     j["implicit"].get<bool>() ? "yes" : "no", j["subtrees"].get<uint32_t>(),

@@ -14,6 +14,7 @@
 #include "stipple/io/copc.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
+#include "stipple/io/potree.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/virtual_cloud.hpp"
@@ -30,7 +31,11 @@ bool is_tileset_scene(const SceneOptions& options) {
 
 double max_sse_for(const SceneOptions& options) {
   if (options.max_sse > 0) return options.max_sse;
-  return is_tileset_scene(options) && io::is_copc_input(options.inputs[0]) ? 2.0 : 16.0;
+  // COPC and Potree nodes' error is their point spacing: refine down to 2 px.
+  return is_tileset_scene(options) &&
+                 (io::is_copc_input(options.inputs[0]) || io::is_potree_input(options.inputs[0]))
+             ? 2.0
+             : 16.0;
 }
 
 namespace {

@@ -91,8 +91,8 @@ ContentSummary summarize_content(const std::string& uri, const Fetcher& fetcher,
   ContentSummary s;
   s.type = "unknown";
   try {
-    if (!fragment_field(uri, "points").empty()) {  // a COPC node: its count is in its URI
-      s.type = "copc";
+    if (!fragment_field(uri, "points").empty()) {  // an octree node: its count is in its URI
+      s.type = uri_path(uri).ends_with("octree.bin") ? "potree" : "copc";
       s.points = std::stoull(fragment_field(uri, "points"));
       s.drawable = true;
       return s;

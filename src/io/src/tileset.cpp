@@ -13,6 +13,7 @@
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
 #include "stipple/io/copc.hpp"
+#include "stipple/io/potree.hpp"
 #include "stipple/io/subtree.hpp"
 #include "stipple/math/geo.hpp"
 
@@ -550,6 +551,7 @@ Tileset load_tileset(const std::string& uri, const TilesetOptions& options) {
 Tileset load_tileset(const std::string& uri, const Fetcher& fetcher,
                      const TilesetOptions& options) {
   if (is_copc_input(uri)) return load_copc_tileset(uri, fetcher, options);
+  if (is_potree_input(uri)) return load_potree_tileset(uri, fetcher, options);
   auto bytes = fetcher(uri);
   return parse_tileset(bytes, uri, fetcher, options);
 }
@@ -567,6 +569,8 @@ Expansion read_children(uint32_t tile, const PendingChildren& pending, size_t ti
                         const Fetcher& fetcher, const TilesetOptions& options) {
   if (pending.kind == PendingChildren::Kind::CopcPage)
     return read_copc_page(tile, pending, tiles_now, fetcher, options);
+  if (pending.kind == PendingChildren::Kind::PotreeChunk)
+    return read_potree_chunk(tile, pending, tiles_now, fetcher, options);
   Expansion e;
   e.tile = tile;
   Builder builder(e, fetcher, options, tiles_now, pending.chain);

@@ -57,13 +57,14 @@ struct ImplicitTiling {
 };
 
 struct CopcFile;
+struct PotreeCloud;
 
 // Children of a tile that have not been read: external tilesets (its content is tileset JSON),
 // the subtree rooted at it (implicit tiling: its own content is unknown until then too), or the
 // COPC hierarchy page of its node (which lists the node itself too, like a subtree).
 // Immutable once made, so a worker can read it while the tileset grows.
 struct PendingChildren {
-  enum class Kind : uint8_t { External, Subtree, CopcPage } kind = Kind::External;
+  enum class Kind : uint8_t { External, Subtree, CopcPage, PotreeChunk } kind = Kind::External;
   // External: the tilesets; Subtree: the subtree file; CopcPage: the page's range URI.
   std::vector<std::string> uris;
   std::vector<std::string> chain;  // External: tilesets from the root down (cycle detection)
@@ -72,6 +73,7 @@ struct PendingChildren {
   std::shared_ptr<const ImplicitTiling> implicit;  // Subtree
   uint32_t level = 0, x = 0, y = 0, z = 0;         // Subtree, CopcPage: its root tile's key
   std::shared_ptr<const CopcFile> copc;            // CopcPage
+  std::shared_ptr<const PotreeCloud> potree;       // PotreeChunk
   // Whether the tile's own content comes with the read (a subtree's or a page's root).
   bool brings_content() const { return kind != Kind::External; }
 };
@@ -115,13 +117,16 @@ struct Tileset {
   // A COPC file's octree (copc.hpp): tiles are nodes, contents their chunks' range URIs, in the
   // file's coordinates (a local frame, Z-up).
   std::shared_ptr<const CopcFile> copc;
+  // A Potree 2.0 cloud's octree (potree.hpp), the same way.
+  std::shared_ptr<const PotreeCloud> potree;
 };
 
 using Fetcher = std::function<std::vector<uint8_t>(const std::string& uri)>;
 
 // Loads a tileset from a path or URL through io::fetch: the root document, and the root subtree
 // of implicit tiling found in it; external tilesets and child subtrees are left pending. A COPC
-// file (is_copc_input) gives its octree (load_copc_tileset).
+// file (is_copc_input) gives its octree (load_copc_tileset), a Potree 2.0 metadata.json
+// (is_potree_input) its octree (load_potree_tileset).
 // A broken root is an Error; a broken subtree is recorded on its tile.
 Tileset load_tileset(const std::string& uri, const TilesetOptions& options = {});
 // The same through `fetcher` (tests count or fault requests with it).

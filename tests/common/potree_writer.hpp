@@ -1,0 +1,258 @@
+#pragma once
+// A small Potree 2.0 writer for tests, written from the format's description (PotreeConverter 2's
+// metadata.json, hierarchy.bin of 22-byte records in breadth-first chunks with proxy nodes, and
+// octree.bin, encoding DEFAULT): the readers are checked against independently built files.
+// Every attribute type Potree defines is written (int8 ... uint64, float, double).
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace stipple::test {
+
+struct PotreePoint {
+  double x, y, z;
+  uint16_t r, g, b, intensity;
+  uint8_t classification, return_number, number_of_returns;
+  double gps_time;
+  int8_t i8;
+  int16_t i16;
+  int32_t i32;
+  int64_t i64;
+  uint32_t u32;
+  uint64_t u64;
+  float f32;
+};
+
+// n points on a jittered grid in [0, 100]^2 x [0, 20] around `origin`, every field varying.
+inline std::vector<PotreePoint> potree_points(size_t n, double ox = 500000, double oy = 4000000) {
+  std::vector<PotreePoint> pts(n);
+  for (size_t i = 0; i < n; ++i) {
+    PotreePoint& p = pts[i];
+    const double u = double((i * 7919) % n) / double(n), v = double((i * 104729) % n) / double(n);
+    p.x = ox + std::round(u * 100000) / 1000;
+    p.y = oy + std::round(v * 100000) / 1000;
+    p.z = 100 + std::round(20000 * std::sin(double(i) * 0.37) * std::sin(double(i) * 0.11)) / 1000;
+    p.r = uint16_t((i * 37 % 256) * 257), p.g = uint16_t((i * 91 % 256) * 257);
+    p.b = uint16_t((i * 13 % 256) * 257), p.intensity = uint16_t(i * 131);
+    p.classification = uint8_t(i % 19), p.return_number = uint8_t(1 + i % 3);
+    p.number_of_returns = 3, p.gps_time = 300000.0 + double(i) * 1e-4;
+    p.i8 = int8_t(int(i % 256) - 128), p.i16 = int16_t(-int(i)), p.i32 = -int32_t(i) * 1000;
+    p.i64 = -int64_t(i) * 100000000000LL, p.u32 = uint32_t(i) * 3u;
+    p.u64 = uint64_t(i) * 10000000000ULL, p.f32 = float(i) * 0.25f;
+  }
+  return pts;
+}
+
+struct PotreeWriteResult {
+  size_t nodes = 0, chunks = 0;
+  int depth = 0;
+};
+
+// Writes metadata.json, hierarchy.bin and octree.bin into `dir`. A node keeps every k-th of its
+// points up to `node_cap` and passes the rest to its octants; hierarchy chunks of `step` levels.
+// `int64`: with the int64 and uint64 attributes (potree-core's decoder has no 64-bit integers).
+inline PotreeWriteResult write_potree(const std::filesystem::path& dir,
+                                      const std::vector<PotreePoint>& points, size_t node_cap = 500,
+                                      int step = 2, bool int64 = true) {
+  namespace fs = std::filesystem;
+  fs::create_directories(dir);
+  const double scale = 0.001;
+  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+  for (const auto& p : points) {
+    const double c[3] = {p.x, p.y, p.z};
+    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], c[k]), hi[k] = std::max(hi[k], c[k]);
+  }
+  const double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]}) * 1.01 + 1;
+  const double offset[3] = {lo[0], lo[1], lo[2]};
+  struct Node {
+    std::string name;
+    int level = 0;
+    double min[3];
+    std::vector<uint32_t> points;
+    std::vector<int> children = std::vector<int>(8, -1);
+    uint64_t offset = 0, bytes = 0;
+  };
+  std::vector<Node> nodes;
+  // Build breadth first.
+  nodes.push_back({"r", 0, {lo[0], lo[1], lo[2]}, {}, std::vector<int>(8, -1)});
+  std::vector<std::vector<uint32_t>> pending{{}};
+  for (uint32_t i = 0; i < points.size(); ++i) pending[0].push_back(i);
+  for (size_t at = 0; at < nodes.size(); ++at) {
+    std::vector<uint32_t> mine = std::move(pending[at]);
+    const double side = size / std::ldexp(1.0, nodes[at].level);
+    std::vector<uint32_t> keep, rest[8];
+    const size_t stride = std::max<size_t>(1, mine.size() / node_cap);
+    for (size_t k = 0; k < mine.size(); ++k) {
+      if (mine.size() <= node_cap || (k % stride == 0 && keep.size() < node_cap)) {
+        keep.push_back(mine[k]);
+        continue;
+      }
+      const PotreePoint& p = points[mine[k]];
+      const double c[3] = {p.x, p.y, p.z};
+      int child = 0;
+      for (int a = 0; a < 3; ++a)
+        if (c[a] >= nodes[at].min[a] + side / 2) child |= 1 << (2 - a);  // x: bit 2, z: bit 0
+      rest[child].push_back(mine[k]);
+    }
+    nodes[at].points = std::move(keep);
+    for (int c = 0; c < 8; ++c) {
+      if (rest[c].empty()) continue;
+      Node child;
+      child.name = nodes[at].name + char('0' + c);
+      child.level = nodes[at].level + 1;
+      for (int a = 0; a < 3; ++a)
+        child.min[a] = nodes[at].min[a] + ((c >> (2 - a)) & 1 ? side / 2 : 0);
+      nodes[at].children[c] = int(nodes.size());
+      nodes.push_back(std::move(child));
+      pending.push_back(std::move(rest[c]));
+    }
+  }
+  // octree.bin: DEFAULT encoding, records in the attribute order below.
+  std::vector<uint8_t> octree;
+  auto put = [&](const auto& v) {
+    const auto* b = reinterpret_cast<const uint8_t*>(&v);
+    octree.insert(octree.end(), b, b + sizeof(v));
+  };
+  for (Node& n : nodes) {
+    n.offset = octree.size();
+    for (uint32_t i : n.points) {
+      const PotreePoint& p = points[i];
+      put(int32_t(std::lround((p.x - offset[0]) / scale)));
+      put(int32_t(std::lround((p.y - offset[1]) / scale)));
+      put(int32_t(std::lround((p.z - offset[2]) / scale)));
+      put(p.r), put(p.g), put(p.b), put(p.intensity), put(p.classification);
+      put(p.return_number), put(p.number_of_returns), put(p.gps_time), put(p.i8), put(p.i16);
+      put(p.i32);
+      if (int64) put(p.i64);
+      put(p.u32);
+      if (int64) put(p.u64);
+      put(p.f32);
+    }
+    n.bytes = octree.size() - n.offset;
+  }
+  // hierarchy.bin: a chunk for the root and for every node at a level multiple of `step`, each
+  // its nodes breadth first down to `step` levels below its root; deeper roots are proxies.
+  std::vector<uint8_t> hierarchy;
+  PotreeWriteResult result;
+  result.nodes = nodes.size();
+  std::map<int, std::pair<uint64_t, uint64_t>> chunk_of;  // root node -> (offset, size)
+  std::function<void(int)> write_chunk = [&](int root) {
+    std::vector<int> order{root}, proxies;
+    for (size_t k = 0; k < order.size(); ++k) {
+      const Node& n = nodes[size_t(order[k])];
+      const bool proxy =
+          n.level > nodes[size_t(root)].level && n.level == nodes[size_t(root)].level + step;
+      if (proxy) {
+        proxies.push_back(order[k]);
+        continue;
+      }
+      for (int c = 0; c < 8; ++c)
+        if (n.children[c] >= 0) order.push_back(n.children[c]);
+    }
+    for (int p : proxies) write_chunk(p);  // children first: their offsets are known here
+    const uint64_t start = hierarchy.size();
+    for (int id : order) {
+      const Node& n = nodes[size_t(id)];
+      const bool proxy = std::find(proxies.begin(), proxies.end(), id) != proxies.end();
+      uint8_t mask = 0;
+      for (int c = 0; c < 8; ++c)
+        if (n.children[c] >= 0) mask |= uint8_t(1 << c);
+      const uint8_t type = proxy ? 2 : mask ? 0 : 1;
+      const uint32_t count = uint32_t(n.points.size());
+      const uint64_t off = proxy ? chunk_of[id].first : n.offset;
+      const uint64_t len = proxy ? chunk_of[id].second : n.bytes;
+      uint8_t rec[22];
+      rec[0] = type, rec[1] = mask;
+      std::memcpy(rec + 2, &count, 4);
+      std::memcpy(rec + 6, &off, 8);
+      std::memcpy(rec + 14, &len, 8);
+      hierarchy.insert(hierarchy.end(), rec, rec + 22);
+    }
+    chunk_of[root] = {start, hierarchy.size() - start};
+    ++result.chunks;
+  };
+  // The root chunk must come first in the file (firstChunkSize at offset 0): write the others
+  // into a separate buffer and place the root chunk in front.
+  write_chunk(0);
+  const auto [root_at, root_size] = chunk_of[0];
+  std::vector<uint8_t> ordered(hierarchy.begin() + std::ptrdiff_t(root_at),
+                               hierarchy.begin() + std::ptrdiff_t(root_at + root_size));
+  ordered.insert(ordered.end(), hierarchy.begin(), hierarchy.begin() + std::ptrdiff_t(root_at));
+  // Proxy offsets pointed into `hierarchy`; everything before the root chunk moved up by its size.
+  for (size_t at = 0; at < ordered.size(); at += 22) {
+    if (ordered[at] != 2) continue;
+    uint64_t off;
+    std::memcpy(&off, &ordered[at + 6], 8);
+    off += root_size;
+    std::memcpy(&ordered[at + 6], &off, 8);
+  }
+  for (const Node& n : nodes) result.depth = std::max(result.depth, n.level);
+  std::ofstream(dir / "octree.bin", std::ios::binary)
+      .write(reinterpret_cast<const char*>(octree.data()), std::streamsize(octree.size()));
+  std::ofstream(dir / "hierarchy.bin", std::ios::binary)
+      .write(reinterpret_cast<const char*>(ordered.data()), std::streamsize(ordered.size()));
+  using nlohmann::json;
+  // Every attribute with its range, as PotreeConverter writes them (Potree's reader needs them).
+  auto attr = [&](const char* name, int n, int size, const char* type, auto value) {
+    std::vector<double> mn(size_t(n), 1e300), mx(size_t(n), -1e300);
+    for (const auto& p : points)
+      for (int k = 0; k < n; ++k) {
+        const double v = double(value(p, k));
+        mn[size_t(k)] = std::min(mn[size_t(k)], v), mx[size_t(k)] = std::max(mx[size_t(k)], v);
+      }
+    return json{{"name", name},        {"description", ""}, {"size", n * size}, {"numElements", n},
+                {"elementSize", size}, {"type", type},      {"min", mn},        {"max", mx}};
+  };
+  using P = PotreePoint;
+  json pos = attr("position", 3, 4, "int32", [](const P& p, int k) {
+    return k == 0 ? p.x : k == 1 ? p.y : p.z;
+  });
+  json attributes = {
+      pos,
+      attr("rgb", 3, 2, "uint16",
+           [](const P& p, int k) { return k == 0   ? p.r
+                                          : k == 1 ? p.g
+                                                   : p.b; }),
+      attr("intensity", 1, 2, "uint16", [](const P& p, int) { return p.intensity; }),
+      attr("classification", 1, 1, "uint8", [](const P& p, int) { return p.classification; }),
+      attr("return number", 1, 1, "uint8", [](const P& p, int) { return p.return_number; }),
+      attr("number of returns", 1, 1, "uint8", [](const P& p, int) { return p.number_of_returns; }),
+      attr("gps-time", 1, 8, "double", [](const P& p, int) { return p.gps_time; }),
+      attr("extra int8", 1, 1, "int8", [](const P& p, int) { return p.i8; }),
+      attr("extra int16", 1, 2, "int16", [](const P& p, int) { return p.i16; }),
+      attr("extra int32", 1, 4, "int32", [](const P& p, int) { return p.i32; })};
+  if (int64)
+    attributes.push_back(attr("extra int64", 1, 8, "int64", [](const P& p, int) { return p.i64; }));
+  attributes.push_back(attr("extra uint32", 1, 4, "uint32", [](const P& p, int) { return p.u32; }));
+  if (int64)
+    attributes.push_back(
+        attr("extra uint64", 1, 8, "uint64", [](const P& p, int) { return p.u64; }));
+  attributes.push_back(attr("extra float", 1, 4, "float", [](const P& p, int) { return p.f32; }));
+  json meta = {
+      {"version", "2.0"},
+      {"name", "stipple-test"},
+      {"description", ""},
+      {"points", points.size()},
+      {"projection", ""},
+      {"hierarchy", {{"firstChunkSize", root_size}, {"stepSize", step}, {"depth", result.depth}}},
+      {"offset", {offset[0], offset[1], offset[2]}},
+      {"scale", {scale, scale, scale}},
+      {"spacing", size / 128},
+      {"boundingBox",
+       {{"min", {lo[0], lo[1], lo[2]}}, {"max", {lo[0] + size, lo[1] + size, lo[2] + size}}}},
+      {"encoding", "DEFAULT"},
+      {"attributes", attributes}};
+  std::ofstream(dir / "metadata.json") << meta.dump(1);
+  return result;
+}
+
+}  // namespace stipple::test
