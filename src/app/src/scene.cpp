@@ -13,6 +13,7 @@
 #include "stipple/engine/engine.hpp"
 #include "stipple/io/copc.hpp"
 #include "stipple/io/fetch.hpp"
+#include "stipple/io/ept.hpp"
 #include "stipple/io/las.hpp"
 #include "stipple/io/potree.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
@@ -31,9 +32,10 @@ bool is_tileset_scene(const SceneOptions& options) {
 
 double max_sse_for(const SceneOptions& options) {
   if (options.max_sse > 0) return options.max_sse;
-  // COPC and Potree nodes' error is their point spacing: refine down to 2 px.
+  // COPC, Potree and EPT nodes' error is their point spacing: refine down to 2 px.
   return is_tileset_scene(options) &&
-                 (io::is_copc_input(options.inputs[0]) || io::is_potree_input(options.inputs[0]))
+                 (io::is_copc_input(options.inputs[0]) || io::is_potree_input(options.inputs[0]) ||
+                  io::is_ept_input(options.inputs[0]))
              ? 2.0
              : 16.0;
 }

@@ -92,7 +92,11 @@ ContentSummary summarize_content(const std::string& uri, const Fetcher& fetcher,
   s.type = "unknown";
   try {
     if (!fragment_field(uri, "points").empty()) {  // an octree node: its count is in its URI
-      s.type = uri_path(uri).ends_with("octree.bin") ? "potree" : "copc";
+      const std::string path = uri_path(uri);
+      s.type = path.ends_with("octree.bin")                         ? "potree"
+               : path.find("/ept-data/") != std::string::npos ||
+                       path.rfind("ept-data/", 0) == 0              ? "ept"
+                                                                     : "copc";
       s.points = std::stoull(fragment_field(uri, "points"));
       s.drawable = true;
       return s;

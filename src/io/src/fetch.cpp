@@ -257,7 +257,7 @@ std::vector<uint8_t> fetch(const std::string& uri, const FetchOptions& options, 
   if (!is_url(uri)) {
     if (ranged) return read_file_range(uri, range, options, stats);
     if (stats) stats->attempts = 1;
-    return read_file(uri, options);
+    return read_file(uri.substr(0, uri.find('#')), options);  // fields after '#' are ours
   }
   if (ranged && range.size > options.max_bytes)
     fail("{}: a read of {} bytes is more than the limit of {} bytes", uri, range.size,

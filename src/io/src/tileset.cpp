@@ -13,6 +13,7 @@
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
 #include "stipple/io/copc.hpp"
+#include "stipple/io/ept.hpp"
 #include "stipple/io/potree.hpp"
 #include "stipple/io/subtree.hpp"
 #include "stipple/math/geo.hpp"
@@ -552,6 +553,7 @@ Tileset load_tileset(const std::string& uri, const Fetcher& fetcher,
                      const TilesetOptions& options) {
   if (is_copc_input(uri)) return load_copc_tileset(uri, fetcher, options);
   if (is_potree_input(uri)) return load_potree_tileset(uri, fetcher, options);
+  if (is_ept_input(uri)) return load_ept_tileset(uri, fetcher, options);
   auto bytes = fetcher(uri);
   return parse_tileset(bytes, uri, fetcher, options);
 }
@@ -571,6 +573,8 @@ Expansion read_children(uint32_t tile, const PendingChildren& pending, size_t ti
     return read_copc_page(tile, pending, tiles_now, fetcher, options);
   if (pending.kind == PendingChildren::Kind::PotreeChunk)
     return read_potree_chunk(tile, pending, tiles_now, fetcher, options);
+  if (pending.kind == PendingChildren::Kind::EptHierarchy)
+    return read_ept_hierarchy(tile, pending, tiles_now, fetcher, options);
   Expansion e;
   e.tile = tile;
   Builder builder(e, fetcher, options, tiles_now, pending.chain);

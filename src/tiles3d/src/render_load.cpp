@@ -10,6 +10,7 @@
 #include "stipple/core/log.hpp"
 #include "stipple/io/content_summary.hpp"
 #include "stipple/io/copc.hpp"
+#include "stipple/io/ept.hpp"
 #include "stipple/io/potree.hpp"
 #include "stipple/math/geo.hpp"
 
@@ -22,7 +23,7 @@ bool is_tileset_input(const std::string& input) {
 glm::dmat4 world_from_tileset(const io::Tileset& ts) {
   const glm::dmat4 y_up(1, 0, 0, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1);
   // COPC and Potree are in their files' projected coordinates, whatever their magnitude.
-  if (ts.tiles.empty() || ts.copc || ts.potree) return y_up;
+  if (ts.tiles.empty() || ts.copc || ts.potree || ts.ept) return y_up;
   glm::dvec3 c = ts.tiles[0].box.center;
   if (glm::length(c) < 1e6) return y_up;  // a local frame already
   glm::dvec3 llh = geo::ecef_to_geodetic(c);
@@ -44,10 +45,11 @@ Aabb world_bounds(const io::Tileset& ts, const glm::dmat4& m) {
     }
     return box;
   }
-  if (ts.potree) {
-    // The points' bounds (position min/max in metadata.json), not the octree's cube.
+  if (ts.potree || ts.ept) {
+    // The points' bounds (Potree: position min/max; EPT: boundsConforming), not the cube.
     for (int i = 0; i < 8; ++i) {
-      const glm::dvec3 lo = ts.potree->data_min, hi = ts.potree->data_max;
+      const glm::dvec3 lo = ts.potree ? ts.potree->data_min : ts.ept->data_min;
+      const glm::dvec3 hi = ts.potree ? ts.potree->data_max : ts.ept->data_max;
       glm::dvec3 p(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
       box.extend(glm::dvec3(m * glm::dvec4(p, 1.0)));
     }
@@ -78,7 +80,7 @@ Aabb drawable_world_bounds(const io::Tileset& ts, const glm::dmat4& m, const io:
                            std::string* warning, std::set<std::string>* kinds,
                            size_t max_contents) {
   const Aabb root = world_bounds(ts, m);
-  if (ts.copc || ts.potree) return root;  // every node is points
+  if (ts.copc || ts.potree || ts.ept) return root;  // every node is points
   std::map<std::string, size_t> not_drawn;
   Aabb points;
   size_t read = 0;

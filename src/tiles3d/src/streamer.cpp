@@ -10,6 +10,7 @@
 #include "stipple/io/content_summary.hpp"
 #include "stipple/io/copc.hpp"
 #include "stipple/io/glb_points.hpp"
+#include "stipple/io/ept.hpp"
 #include "stipple/io/potree.hpp"
 
 namespace stipple::tiles3d {
@@ -233,7 +234,8 @@ void TileStreamer::start_jobs() {
     std::vector<std::string> uris = tileset_->tiles[t].contents;
     pool_->submit([job, uris, transform = tileset_->tiles[t].transform, shared = shared_,
                    fetcher = fetcher_, fetch = options_.fetch, limits = options_.limits,
-                   prepare = options_.prepare, copc = tileset_->copc, potree = tileset_->potree] {
+                   prepare = options_.prepare, copc = tileset_->copc, potree = tileset_->potree,
+                   ept = tileset_->ept] {
       try {
         for (const auto& uri : uris) {
           if (job->cancelled) break;
@@ -242,6 +244,7 @@ void TileStreamer::start_jobs() {
           // result is kept where it fits.
           job->result.push_back(copc     ? io::decode_copc_node(*copc, bytes, uri, limits)
                                 : potree ? io::decode_potree_node(*potree, bytes, uri, limits)
+                                : ept    ? io::decode_ept_node(*ept, bytes, uri, limits)
                                          : decode_content(bytes, uri, limits, fetch));
         }
         job->complete = job->result.size() == uris.size();

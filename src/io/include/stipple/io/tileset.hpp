@@ -58,13 +58,20 @@ struct ImplicitTiling {
 
 struct CopcFile;
 struct PotreeCloud;
+struct EptCloud;
 
 // Children of a tile that have not been read: external tilesets (its content is tileset JSON),
 // the subtree rooted at it (implicit tiling: its own content is unknown until then too), or the
 // COPC hierarchy page of its node (which lists the node itself too, like a subtree).
 // Immutable once made, so a worker can read it while the tileset grows.
 struct PendingChildren {
-  enum class Kind : uint8_t { External, Subtree, CopcPage, PotreeChunk } kind = Kind::External;
+  enum class Kind : uint8_t {
+    External,
+    Subtree,
+    CopcPage,
+    PotreeChunk,
+    EptHierarchy
+  } kind = Kind::External;
   // External: the tilesets; Subtree: the subtree file; CopcPage: the page's range URI.
   std::vector<std::string> uris;
   std::vector<std::string> chain;  // External: tilesets from the root down (cycle detection)
@@ -74,6 +81,7 @@ struct PendingChildren {
   uint32_t level = 0, x = 0, y = 0, z = 0;         // Subtree, CopcPage: its root tile's key
   std::shared_ptr<const CopcFile> copc;            // CopcPage
   std::shared_ptr<const PotreeCloud> potree;       // PotreeChunk
+  std::shared_ptr<const EptCloud> ept;             // EptHierarchy
   // Whether the tile's own content comes with the read (a subtree's or a page's root).
   bool brings_content() const { return kind != Kind::External; }
 };
@@ -119,6 +127,8 @@ struct Tileset {
   std::shared_ptr<const CopcFile> copc;
   // A Potree 2.0 cloud's octree (potree.hpp), the same way.
   std::shared_ptr<const PotreeCloud> potree;
+  // An Entwine Point Tile dataset's octree (ept.hpp), the same way.
+  std::shared_ptr<const EptCloud> ept;
 };
 
 using Fetcher = std::function<std::vector<uint8_t>(const std::string& uri)>;
