@@ -12,10 +12,10 @@ if [[ -n "$seeds" && -d "$seeds" ]]; then
 else
   echo "seed corpus not found (../shared/data absent): fuzzing from an empty corpus"
 fi
-# Generated seeds (small 3D Tiles files) are copied whole.
+# Generated seeds (small 3D Tiles files; Potree and EPT files as *.seed) are copied whole.
 if [[ -n "$extra" && -d "$extra" ]]; then
   while IFS= read -r -d '' f; do
     cp "$f" "$corpus/$(basename "$f")"
-  done < <(find "$extra" -type f \( -name '*.pnts' -o -name '*.glb' -o -name '*.subtree' -o -name '*.pointlets' -o -name '*.page' \) -print0)
+  done < <(find "$extra" -type f \( -name '*.pnts' -o -name '*.glb' -o -name '*.subtree' -o -name '*.pointlets' -o -name '*.page' -o -name '*.seed' \) -print0)
 fi
 exec "$fuzzer" -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=20 -print_final_stats=1 "$corpus"

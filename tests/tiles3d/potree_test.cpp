@@ -32,7 +32,8 @@ io::Fetcher files() {
 void seed(const fs::path& dir) {
   if (const char* out = std::getenv("STIPPLE_WRITE_POTREE_SEEDS"))
     for (const char* f : {"metadata.json", "hierarchy.bin"})
-      fs::copy_file(dir / f, fs::path(out) / f, fs::copy_options::overwrite_existing);
+      fs::copy_file(dir / f, fs::path(out) / (std::string(f) + ".seed"),
+                    fs::copy_options::overwrite_existing);
 }
 
 }  // namespace
