@@ -57,32 +57,22 @@ struct PotreeWriteResult {
   int depth = 0;
 };
 
-// Writes metadata.json, hierarchy.bin and octree.bin into `dir`. A node keeps every k-th of its
-// points up to `node_cap` and passes the rest to its octants; hierarchy chunks of `step` levels.
-// `int64`: with the int64 and uint64 attributes (potree-core's decoder has no 64-bit integers).
-inline PotreeWriteResult write_potree(const std::filesystem::path& dir,
-                                      const std::vector<PotreePoint>& points, size_t node_cap = 500,
-                                      int step = 2, bool int64 = true) {
-  namespace fs = std::filesystem;
-  fs::create_directories(dir);
-  const double scale = 0.001;
-  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
-  for (const auto& p : points) {
-    const double c[3] = {p.x, p.y, p.z};
-    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], c[k]), hi[k] = std::max(hi[k], c[k]);
-  }
-  const double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]}) * 1.01 + 1;
-  const double offset[3] = {lo[0], lo[1], lo[2]};
-  struct Node {
-    std::string name;
-    int level = 0;
-    double min[3];
-    std::vector<uint32_t> points;
-    std::vector<int> children = std::vector<int>(8, -1);
-    uint64_t offset = 0, bytes = 0;
-  };
-  std::vector<Node> nodes;
-  // Build breadth first.
+// A node of the octree the writers build: its name (r, then child indices), cube corner and the
+// points it keeps.
+struct PotreeTestNode {
+  std::string name;
+  int level = 0;
+  double min[3];
+  std::vector<uint32_t> points;
+  std::vector<int> children = std::vector<int>(8, -1);
+  uint64_t offset = 0, bytes = 0;
+};
+
+// Builds the octree breadth first over the cube at `lo` of edge `size`: a node keeps every k-th
+// of its points up to `node_cap` and passes the rest to its octants (x: bit 2, z: bit 0).
+inline std::vector<PotreeTestNode> potree_octree(const std::vector<PotreePoint>& points,
+                                                 size_t node_cap, const double lo[3], double size) {
+  std::vector<PotreeTestNode> nodes;
   nodes.push_back({"r", 0, {lo[0], lo[1], lo[2]}, {}, std::vector<int>(8, -1)});
   std::vector<std::vector<uint32_t>> pending{{}};
   for (uint32_t i = 0; i < points.size(); ++i) pending[0].push_back(i);
@@ -100,13 +90,13 @@ inline PotreeWriteResult write_potree(const std::filesystem::path& dir,
       const double c[3] = {p.x, p.y, p.z};
       int child = 0;
       for (int a = 0; a < 3; ++a)
-        if (c[a] >= nodes[at].min[a] + side / 2) child |= 1 << (2 - a);  // x: bit 2, z: bit 0
+        if (c[a] >= nodes[at].min[a] + side / 2) child |= 1 << (2 - a);
       rest[child].push_back(mine[k]);
     }
     nodes[at].points = std::move(keep);
     for (int c = 0; c < 8; ++c) {
       if (rest[c].empty()) continue;
-      Node child;
+      PotreeTestNode child;
       child.name = nodes[at].name + char('0' + c);
       child.level = nodes[at].level + 1;
       for (int a = 0; a < 3; ++a)
@@ -116,14 +106,56 @@ inline PotreeWriteResult write_potree(const std::filesystem::path& dir,
       pending.push_back(std::move(rest[c]));
     }
   }
+  return nodes;
+}
+
+// 48 bits of Morton code of three 16-bit values: bit 3k + axis is bit k of that axis.
+inline uint64_t potree_morton(uint32_t x, uint32_t y, uint32_t z) {
+  uint64_t code = 0;
+  for (int k = 0; k < 16; ++k)
+    code |= uint64_t((x >> k) & 1) << (3 * k) | uint64_t((y >> k) & 1) << (3 * k + 1) |
+            uint64_t((z >> k) & 1) << (3 * k + 2);
+  return code;
+}
+
+// Writes metadata.json, hierarchy.bin and octree.bin into `dir`. A node keeps every k-th of its
+// points up to `node_cap` and passes the rest to its octants; hierarchy chunks of `step` levels.
+// `int64`: with the int64 and uint64 attributes (potree-core's decoder has no 64-bit integers).
+// `brotli`: a function compressing a node's bytes, for the BROTLI encoding (the attributes one
+// after the other, position and rgb as Morton codes); empty: DEFAULT.
+inline PotreeWriteResult write_potree(
+    const std::filesystem::path& dir, const std::vector<PotreePoint>& points, size_t node_cap = 500,
+    int step = 2, bool int64 = true,
+    const std::function<std::vector<uint8_t>(const std::vector<uint8_t>&)>& brotli = {}) {
+  namespace fs = std::filesystem;
+  fs::create_directories(dir);
+  const double scale = 0.001;
+  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+  for (const auto& p : points) {
+    const double c[3] = {p.x, p.y, p.z};
+    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], c[k]), hi[k] = std::max(hi[k], c[k]);
+  }
+  const double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]}) * 1.01 + 1;
+  const double offset[3] = {lo[0], lo[1], lo[2]};
+  using Node = PotreeTestNode;
+  std::vector<Node> nodes = potree_octree(points, node_cap, lo, size);
   // octree.bin: DEFAULT encoding, records in the attribute order below.
   std::vector<uint8_t> octree;
   auto put = [&](const auto& v) {
     const auto* b = reinterpret_cast<const uint8_t*>(&v);
     octree.insert(octree.end(), b, b + sizeof(v));
   };
+  // Attribute sizes in record order, for BROTLI's attribute-after-attribute layout.
+  std::vector<int> sizes{12, 6, 2, 1, 1, 1, 8, 1, 2, 4};
+  if (int64) sizes.push_back(8);
+  sizes.push_back(4);
+  if (int64) sizes.push_back(8);
+  sizes.push_back(4);
+  size_t record = 0;
+  for (int sz : sizes) record += size_t(sz);
   for (Node& n : nodes) {
     n.offset = octree.size();
+    const size_t start = octree.size();
     for (uint32_t i : n.points) {
       const PotreePoint& p = points[i];
       put(int32_t(std::lround((p.x - offset[0]) / scale)));
@@ -136,6 +168,35 @@ inline PotreeWriteResult write_potree(const std::filesystem::path& dir,
       put(p.u32);
       if (int64) put(p.u64);
       put(p.f32);
+    }
+    if (brotli && !n.points.empty()) {
+      const size_t count = n.points.size();
+      std::vector<uint8_t> packed;
+      size_t in_record = 0;
+      for (size_t a = 0; a < sizes.size(); ++a) {
+        for (size_t i = 0; i < count; ++i) {
+          const uint8_t* r = octree.data() + start + i * record + in_record;
+          if (a == 0 || a == 1) {
+            uint32_t v[3] = {0, 0, 0};
+            for (int k = 0; k < 3; ++k) {
+              if (a == 0) std::memcpy(&v[k], r + 4 * k, 4);
+              if (a == 1) v[k] = uint32_t(r[2 * k] | r[2 * k + 1] << 8);
+            }
+            const uint64_t lower = potree_morton(v[0] & 0xffff, v[1] & 0xffff, v[2] & 0xffff);
+            const uint64_t upper = potree_morton(v[0] >> 16, v[1] >> 16, v[2] >> 16);
+            const auto* l = reinterpret_cast<const uint8_t*>(&lower);
+            const auto* u = reinterpret_cast<const uint8_t*>(&upper);
+            if (a == 0) packed.insert(packed.end(), u, u + 8);  // upper 64 bits first
+            packed.insert(packed.end(), l, l + 8);
+          } else {
+            packed.insert(packed.end(), r, r + sizes[a]);
+          }
+        }
+        in_record += size_t(sizes[a]);
+      }
+      octree.resize(start);
+      const std::vector<uint8_t> z = brotli(packed);
+      octree.insert(octree.end(), z.begin(), z.end());
     }
     n.bytes = octree.size() - n.offset;
   }
@@ -249,7 +310,7 @@ inline PotreeWriteResult write_potree(const std::filesystem::path& dir,
       {"spacing", size / 128},
       {"boundingBox",
        {{"min", {lo[0], lo[1], lo[2]}}, {"max", {lo[0] + size, lo[1] + size, lo[2] + size}}}},
-      {"encoding", "DEFAULT"},
+      {"encoding", brotli ? "BROTLI" : "DEFAULT"},
       {"attributes", attributes}};
   std::ofstream(dir / "metadata.json") << meta.dump(1);
   return result;

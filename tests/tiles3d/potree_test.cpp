@@ -10,6 +10,8 @@
 #include <fstream>
 #include <tuple>
 
+#include <brotli/encode.h>
+
 #include "potree_writer.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/io/fetch.hpp"
@@ -36,20 +38,31 @@ void seed(const fs::path& dir) {
                     fs::copy_options::overwrite_existing);
 }
 
-}  // namespace
+// Brotli at PotreeConverter's quality (6), for BROTLI nodes.
+std::vector<uint8_t> brotli(const std::vector<uint8_t>& in) {
+  std::vector<uint8_t> out(BrotliEncoderMaxCompressedSize(in.size()));
+  size_t size = out.size();
+  if (!BrotliEncoderCompress(6, BROTLI_DEFAULT_WINDOW, BROTLI_DEFAULT_MODE, in.size(), in.data(),
+                             &size, out.data()))
+    throw std::runtime_error("brotli failed");
+  out.resize(size);
+  return out;
+}
 
-TEST(Potree2, ReadsEveryNodeAndAttribute) {
-  const fs::path dir = fresh_temp_dir("potree2");
+void reads_every_node_and_attribute(bool brotli_nodes) {
+  const fs::path dir = fresh_temp_dir(brotli_nodes ? "potree2-brotli" : "potree2");
   const auto points = potree_points(20000);
-  const PotreeWriteResult w = write_potree(dir, points, 500, 2);
+  const PotreeWriteResult w =
+      write_potree(dir, points, 500, 2, true, brotli_nodes ? brotli : nullptr);
   ASSERT_GE(w.depth, 3);
   ASSERT_GT(w.chunks, 2u);
-  seed(dir);
+  if (!brotli_nodes) seed(dir);
   const std::string meta = (dir / "metadata.json").string();
   ASSERT_TRUE(io::is_potree_input(meta));
   io::TilesetOptions options;
   io::Tileset ts = io::load_tileset(meta, files(), options);
   ASSERT_TRUE(ts.potree);
+  EXPECT_EQ(ts.potree->encoding, brotli_nodes ? "BROTLI" : "DEFAULT");
   EXPECT_GT(ts.pending, 0u);  // the first chunk's proxies, read later
   ASSERT_TRUE(io::expand_all(ts, files(), options, 1000000));
   EXPECT_TRUE(ts.errors.empty()) << ts.errors.front();
@@ -95,6 +108,18 @@ TEST(Potree2, ReadsEveryNodeAndAttribute) {
   fs::remove_all(dir);
 }
 
+}  // namespace
+
+TEST(Potree2, ReadsEveryNodeAndAttribute) {
+  reads_every_node_and_attribute(false);
+}
+
+// BROTLI: each node one Brotli stream, attribute after attribute, position and rgb as Morton
+// codes (positions above 16 bits an axis use the upper 64 bits of the code).
+TEST(Potree2, ReadsBrotliNodes) {
+  reads_every_node_and_attribute(true);
+}
+
 TEST(Potree2, StreamsEveryPointForRendering) {
   const fs::path dir = fresh_temp_dir("potree2-render");
   write_potree(dir, potree_points(12000), 400, 1);
@@ -133,7 +158,7 @@ TEST(Potree2, BrokenFilesAreClearErrors) {
     EXPECT_NE(at, std::string::npos) << from;
     return s.replace(at, std::strlen(from), to);
   };
-  expect_error(edit("\"DEFAULT\"", "\"BROTLI\""), "BROTLI");
+  expect_error(edit("\"DEFAULT\"", "\"LZ4\""), "unknown encoding 'LZ4'");
   expect_error(edit("\"version\": \"2.0\"", "\"version\": \"1.8\""), "version");
   expect_error(edit("\"firstChunkSize\": ", "\"firstChunkSize\": 1"), "firstChunkSize");
   expect_error(edit("\"int32\"", "\"float\""), "position");
@@ -150,5 +175,16 @@ TEST(Potree2, BrokenFilesAreClearErrors) {
   std::vector<uint8_t> bytes = io::fetch(uri);
   bytes.pop_back();
   EXPECT_THROW(io::decode_potree_node(*ts.potree, bytes, uri), Error);
+  // A BROTLI node cut short, and one that decompresses to more than its count makes.
+  write_potree(dir, potree_points(3000), 200, 1, true, brotli);
+  ts = io::load_tileset(meta, files());
+  const std::string node = ts.tiles[0].contents.at(0);
+  bytes = io::fetch(node);
+  EXPECT_NO_THROW(io::decode_potree_node(*ts.potree, bytes, node));
+  std::vector<uint8_t> cut(bytes.begin(), bytes.end() - 4);
+  EXPECT_THROW(io::decode_potree_node(*ts.potree, cut, node), Error);
+  std::string fewer = node;
+  fewer.replace(fewer.find("&points=") + 8, fewer.find("&key") - fewer.find("&points=") - 8, "1");
+  EXPECT_THROW(io::decode_potree_node(*ts.potree, bytes, fewer), Error);
   fs::remove_all(dir);
 }

@@ -258,8 +258,8 @@ void add_render_command(CLI::App& cli) {
                          "Render point clouds (LAS/LAZ/COPC) headless to a PNG; with no input, the "
                          "built-in procedural scene");
   cmd->add_option("inputs", args->scene.inputs,
-                  "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json, Potree 2.0 "
-                  "metadata.json or EPT ept.json path or URL")
+                  "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json, Potree "
+                  "metadata.json or cloud.js, or EPT ept.json path or URL")
       ->check([](const std::string& in) {
         return io::is_url(in) ? std::string() : CLI::ExistingFile(in);
       });

@@ -94,8 +94,8 @@ void add_view_command(CLI::App& cli) {
       "WASD, Q/E, shift, drag to look. Double click: focus. P screenshot, V vsync, F1 panel, "
       "Esc quit");
   cmd->add_option("inputs", args->scene.inputs,
-                  "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json, Potree 2.0 "
-                  "metadata.json or EPT ept.json path or URL "
+                  "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json, Potree "
+                  "metadata.json or cloud.js, or EPT ept.json path or URL "
                   "(streamed while the camera moves)")
       ->check([](const std::string& in) {
         return io::is_url(in) ? std::string() : CLI::ExistingFile(in);

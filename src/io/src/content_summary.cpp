@@ -93,10 +93,11 @@ ContentSummary summarize_content(const std::string& uri, const Fetcher& fetcher,
   try {
     if (!fragment_field(uri, "points").empty()) {  // an octree node: its count is in its URI
       const std::string path = uri_path(uri);
-      s.type = path.ends_with("octree.bin")                         ? "potree"
-               : path.find("/ept-data/") != std::string::npos ||
-                       path.rfind("ept-data/", 0) == 0              ? "ept"
-                                                                     : "copc";
+      // Potree nodes are named r0123...; EPT and COPC nodes D-X-Y-Z.
+      s.type = fragment_field(uri, "key").rfind('r', 0) == 0 ? "potree"
+               : path.find("/ept-data/") != std::string::npos || path.rfind("ept-data/", 0) == 0
+                   ? "ept"
+                   : "copc";
       s.points = std::stoull(fragment_field(uri, "points"));
       s.drawable = true;
       return s;

@@ -7,9 +7,10 @@
 #include <tuple>
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <zstd.h>
+#include <nlohmann/json.hpp>
 
+#include "batch_content.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
@@ -36,8 +37,8 @@ Tile node_tile(const EptCloud& c, const Key& k) {
   const glm::dvec3 centre = c.cube_min + size * (glm::dvec3(k.x, k.y, k.z) + 0.5);
   Tile t;
   t.volume.kind = BoundingVolume::Kind::Box;
-  t.volume.box = {centre.x, centre.y, centre.z, size.x / 2, 0, 0, 0, size.y / 2, 0, 0, 0,
-                  size.z / 2};
+  t.volume.box = {centre.x, centre.y,   centre.z, size.x / 2, 0, 0,
+                  0,        size.y / 2, 0,        0,          0, size.z / 2};
   t.box = obb_of(t.volume, t.transform);
   t.geometric_error = c.spacing / n;
   t.refine = Refine::Add;
@@ -86,41 +87,17 @@ double read_dimension(const uint8_t* p, const EptDimension& d) {
   if (d.type == "float") {
     v = d.size == 4 ? get(float{}) : get(double{});
   } else if (d.type == "signed") {
-    v = d.size == 1 ? get(int8_t{}) : d.size == 2 ? get(int16_t{}) : d.size == 4 ? get(int32_t{}) : get(int64_t{});
+    v = d.size == 1   ? get(int8_t{})
+        : d.size == 2 ? get(int16_t{})
+        : d.size == 4 ? get(int32_t{})
+                      : get(int64_t{});
   } else {
-    v = d.size == 1 ? get(uint8_t{}) : d.size == 2 ? get(uint16_t{}) : d.size == 4 ? get(uint32_t{}) : get(uint64_t{});
+    v = d.size == 1   ? get(uint8_t{})
+        : d.size == 2 ? get(uint16_t{})
+        : d.size == 4 ? get(uint32_t{})
+                      : get(uint64_t{});
   }
   return d.scaled ? v * d.scale + d.offset : v;
-}
-
-// Points of a LAZ node, as the COPC decoder gives them.
-PointContent from_batch(PointBatch& b, int rgb_bits) {
-  PointContent c;
-  c.point_count = b.size();
-  glm::dvec3 lo(INFINITY), hi(-INFINITY);
-  for (const auto& p : b.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
-  c.center = b.size() ? (lo + hi) * 0.5 : glm::dvec3(0.0);
-  for (const auto& p : b.positions) c.positions.push_back(glm::vec3(p - c.center));
-  if (!b.rgb.empty()) {
-    const int shift = rgb_bits == 8 ? 0 : 8;
-    for (const auto& v : b.rgb) {
-      auto ch = [&](uint16_t x) { return uint32_t(std::min<uint32_t>(x >> shift, 255u)); };
-      c.rgba.push_back(ch(v.x) | ch(v.y) << 8 | ch(v.z) << 16 | 0xff000000u);
-    }
-  }
-  auto scalar = [&](const char* key, const char* type, auto const& values) {
-    if (values.empty()) return;
-    PointAttribute a;
-    a.component_type = type;
-    a.values.assign(values.begin(), values.end());
-    c.attributes.emplace(key, std::move(a));
-  };
-  scalar("intensity", "UNSIGNED_SHORT", b.intensity);
-  scalar("classification", "UNSIGNED_BYTE", b.classification);
-  scalar("return_number", "UNSIGNED_BYTE", b.return_number);
-  scalar("number_of_returns", "UNSIGNED_BYTE", b.number_of_returns);
-  scalar("gps_time", "DOUBLE", b.gps_time);
-  return c;
 }
 
 }  // namespace
@@ -152,7 +129,8 @@ std::shared_ptr<const EptCloud> parse_ept_metadata(std::span<const uint8_t> byte
     c.points = j["points"].get<uint64_t>();
     c.cube_min = bounds_part(j, "bounds", 0, uri);
     c.cube_max = bounds_part(j, "bounds", 1, uri);
-    if (!(c.cube_max.x > c.cube_min.x && c.cube_max.y > c.cube_min.y && c.cube_max.z > c.cube_min.z))
+    if (!(c.cube_max.x > c.cube_min.x && c.cube_max.y > c.cube_min.y &&
+          c.cube_max.z > c.cube_min.z))
       fail("{}: bounds are empty", uri);
     c.data_min = c.cube_min, c.data_max = c.cube_max;
     if (j.contains("boundsConforming")) {
@@ -212,7 +190,8 @@ Expansion read_ept_hierarchy(uint32_t tile, const PendingChildren& pending, size
     for (const auto& [text, count] : j.items()) {
       Key k;
       if (!parse_key(text, &k)) fail("{}: '{}' is not a D-X-Y-Z key", name, text);
-      if (k.d < 0 || k.d > kMaxEptDepth) fail("{}: key {} is deeper than {}", name, text, kMaxEptDepth);
+      if (k.d < 0 || k.d > kMaxEptDepth)
+        fail("{}: key {} is deeper than {}", name, text, kMaxEptDepth);
       const int64_t cells = int64_t(1) << k.d;
       if (k.x < 0 || k.y < 0 || k.z < 0 || k.x >= cells || k.y >= cells || k.z >= cells)
         fail("{}: key {} is outside its level's {} cells an axis", name, text, cells);
@@ -312,9 +291,9 @@ PointContent decode_ept_node(const EptCloud& c, std::span<const uint8_t> bytes,
     while (b.size() < points)
       if (reader.read(b, size_t(points - b.size())) == 0) break;
     if (b.size() != points || reader.header().point_count != points)
-      fail("{}: the node holds {} points, the hierarchy says {}", uri,
-           reader.header().point_count, points);
-    PointContent out = from_batch(b, reader.header().rgb_bits);
+      fail("{}: the node holds {} points, the hierarchy says {}", uri, reader.header().point_count,
+           points);
+    PointContent out = content_from_batch(b, reader.header().rgb_bits);
     out.format = "ept";
     return out;
   }
@@ -379,10 +358,10 @@ PointContent decode_ept_node(const EptCloud& c, std::span<const uint8_t> bytes,
     }
   }
   static const std::map<std::string, std::string> keys = {
-      {"Intensity", "intensity"},          {"Classification", "classification"},
-      {"ReturnNumber", "return_number"},   {"NumberOfReturns", "number_of_returns"},
-      {"GpsTime", "gps_time"},             {"PointSourceId", "point_source_id"},
-      {"UserData", "user_data"},           {"ScanAngleRank", "scan_angle"}};
+      {"Intensity", "intensity"},        {"Classification", "classification"},
+      {"ReturnNumber", "return_number"}, {"NumberOfReturns", "number_of_returns"},
+      {"GpsTime", "gps_time"},           {"PointSourceId", "point_source_id"},
+      {"UserData", "user_data"},         {"ScanAngleRank", "scan_angle"}};
   for (const auto& d : c.schema) {
     if (d.name == "X" || d.name == "Y" || d.name == "Z" || d.name == "Red" || d.name == "Green" ||
         d.name == "Blue")
@@ -396,6 +375,35 @@ PointContent decode_ept_node(const EptCloud& c, std::span<const uint8_t> bytes,
     out.attributes[key == keys.end() ? d.name : key->second] = std::move(a);
   }
   return out;
+}
+
+PointContent content_from_batch(PointBatch& b, int rgb_bits) {
+  PointContent c;
+  c.point_count = b.size();
+  glm::dvec3 lo(INFINITY), hi(-INFINITY);
+  for (const auto& p : b.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+  c.center = b.size() ? (lo + hi) * 0.5 : glm::dvec3(0.0);
+  for (const auto& p : b.positions) c.positions.push_back(glm::vec3(p - c.center));
+  if (!b.rgb.empty()) {
+    const int shift = rgb_bits == 8 ? 0 : 8;
+    for (const auto& v : b.rgb) {
+      auto ch = [&](uint16_t x) { return uint32_t(std::min<uint32_t>(x >> shift, 255u)); };
+      c.rgba.push_back(ch(v.x) | ch(v.y) << 8 | ch(v.z) << 16 | 0xff000000u);
+    }
+  }
+  auto scalar = [&](const char* key, const char* type, auto const& values) {
+    if (values.empty()) return;
+    PointAttribute a;
+    a.component_type = type;
+    a.values.assign(values.begin(), values.end());
+    c.attributes.emplace(key, std::move(a));
+  };
+  scalar("intensity", "UNSIGNED_SHORT", b.intensity);
+  scalar("classification", "UNSIGNED_BYTE", b.classification);
+  scalar("return_number", "UNSIGNED_BYTE", b.return_number);
+  scalar("number_of_returns", "UNSIGNED_BYTE", b.number_of_returns);
+  scalar("gps_time", "DOUBLE", b.gps_time);
+  return c;
 }
 
 }  // namespace stipple::io

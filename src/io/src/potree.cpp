@@ -6,9 +6,11 @@
 #include <filesystem>
 #include <map>
 
+#include <brotli/decode.h>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "potree_detail.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/io/fetch.hpp"
 
@@ -16,40 +18,9 @@ namespace stipple::io {
 namespace {
 
 using json = nlohmann::json;
+using namespace potree_detail;
 
 constexpr size_t kRecord = 22;  // hierarchy.bin record
-
-int type_size(const std::string& t) {
-  if (t == "int8" || t == "uint8") return 1;
-  if (t == "int16" || t == "uint16") return 2;
-  if (t == "int32" || t == "uint32" || t == "float") return 4;
-  if (t == "int64" || t == "uint64" || t == "double") return 8;
-  return 0;
-}
-
-double read_value(const uint8_t* p, const std::string& t) {
-  auto get = [p](auto v) {
-    std::memcpy(&v, p, sizeof(v));
-    return double(v);
-  };
-  if (t == "int8") return get(int8_t{});
-  if (t == "uint8") return get(uint8_t{});
-  if (t == "int16") return get(int16_t{});
-  if (t == "uint16") return get(uint16_t{});
-  if (t == "int32") return get(int32_t{});
-  if (t == "uint32") return get(uint32_t{});
-  if (t == "int64") return get(int64_t{});
-  if (t == "uint64") return get(uint64_t{});
-  if (t == "float") return get(float{});
-  return get(double{});
-}
-
-template <typename T>
-T load(const uint8_t* p) {
-  T v;
-  std::memcpy(&v, p, sizeof(T));
-  return v;
-}
 
 glm::dvec3 vec3(const json& j, const char* key, const std::string& uri) {
   const json& a = j.contains(key) ? j[key] : json();
@@ -59,36 +30,6 @@ glm::dvec3 vec3(const json& j, const char* key, const std::string& uri) {
   if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
     fail("{}: {} is not finite", uri, key);
   return v;
-}
-
-std::string node_name(uint32_t level, uint32_t x, uint32_t y, uint32_t z) {
-  std::string name = "r";
-  for (uint32_t l = level; l > 0; --l) {
-    const uint32_t b = l - 1;
-    name += char('0' + (((x >> b) & 1) << 2 | ((y >> b) & 1) << 1 | ((z >> b) & 1)));
-  }
-  return name;
-}
-
-struct Key {
-  uint32_t level = 0, x = 0, y = 0, z = 0;
-  Key child(int i) const {
-    return {level + 1, 2 * x + ((i >> 2) & 1), 2 * y + ((i >> 1) & 1), 2 * z + (i & 1)};
-  }
-};
-
-Tile node_tile(const PotreeCloud& c, const Key& k) {
-  const double n = std::ldexp(1.0, int(k.level));
-  const glm::dvec3 size = (c.cube_max - c.cube_min) / n;
-  const glm::dvec3 centre = c.cube_min + size * (glm::dvec3(k.x, k.y, k.z) + 0.5);
-  Tile t;
-  t.volume.kind = BoundingVolume::Kind::Box;
-  t.volume.box = {centre.x, centre.y,   centre.z, size.x / 2, 0, 0,
-                  0,        size.y / 2, 0,        0,          0, size.z / 2};
-  t.box = obb_of(t.volume, t.transform);
-  t.geometric_error = c.spacing / n;
-  t.refine = Refine::Add;
-  return t;
 }
 
 std::shared_ptr<PendingChildren> chunk_pending(std::shared_ptr<const PotreeCloud> cloud,
@@ -105,15 +46,38 @@ std::shared_ptr<PendingChildren> chunk_pending(std::shared_ptr<const PotreeCloud
 std::string content_uri(const PotreeCloud& c, const Key& k, uint64_t offset, uint64_t size,
                         uint32_t points) {
   return fmt::format("{}&points={}&key={}", range_uri(c.octree_uri, offset, size), points,
-                     node_name(k.level, k.x, k.y, k.z));
+                     node_name(k));
 }
 
 }  // namespace
 
+namespace potree_detail {
+
+uint64_t node_points(const std::string& uri, const DecodeLimits& limits) {
+  const std::string count = fragment_field(uri, "points");
+  char* end = nullptr;
+  const unsigned long long points = std::strtoull(count.c_str(), &end, 10);
+  if (count.empty() || *end != '\0') fail("{}: not a Potree node (no point count)", uri);
+  if (points > limits.max_points)
+    fail("{}: {} points in one node is over the limit of {}", uri, points, limits.max_points);
+  return points;
+}
+
+void set_positions(PointContent& out, const std::vector<glm::dvec3>& absolute) {
+  glm::dvec3 lo(INFINITY), hi(-INFINITY);
+  for (const auto& p : absolute) lo = glm::min(lo, p), hi = glm::max(hi, p);
+  out.center = absolute.empty() ? glm::dvec3(0.0) : (lo + hi) * 0.5;
+  out.positions.reserve(absolute.size());
+  for (const auto& p : absolute) out.positions.push_back(glm::vec3(p - out.center));
+}
+
+}  // namespace potree_detail
+
 bool is_potree_input(const std::string& uri) {
   const std::string p = uri_path(uri);
   const size_t slash = p.find_last_of('/');
-  return p.substr(slash == std::string::npos ? 0 : slash + 1) == "metadata.json";
+  const std::string file = p.substr(slash == std::string::npos ? 0 : slash + 1);
+  return file == "metadata.json" || file == "cloud.js";
 }
 
 std::shared_ptr<const PotreeCloud> parse_potree_metadata(std::span<const uint8_t> bytes,
@@ -129,11 +93,10 @@ std::shared_ptr<const PotreeCloud> parse_potree_metadata(std::span<const uint8_t
     if (version.rfind("2.", 0) != 0) fail("{}: version '{}' is not Potree 2.x", uri, version);
     c.name = j.value("name", "");
     c.projection = j.value("projection", "");
+    c.version = version;
     c.encoding = j.value("encoding", "DEFAULT");
-    if (c.encoding == "BROTLI")
-      fail("{}: BROTLI encoding is not supported (DEFAULT is); convert with --encoding DEFAULT",
-           uri);
-    if (c.encoding != "DEFAULT") fail("{}: unknown encoding '{}'", uri, c.encoding);
+    if (c.encoding != "DEFAULT" && c.encoding != "BROTLI")
+      fail("{}: unknown encoding '{}' (DEFAULT and BROTLI are Potree's)", uri, c.encoding);
     if (!j.contains("points") || !j["points"].is_number_unsigned())
       fail("{}: points is missing or not a count", uri);
     c.points = j["points"].get<uint64_t>();
@@ -189,6 +152,9 @@ std::shared_ptr<const PotreeCloud> parse_potree_metadata(std::span<const uint8_t
         position = true;
         if (pa.max.x >= pa.min.x && pa.max != pa.min) c.data_min = pa.min, c.data_max = pa.max;
       }
+      // BROTLI stores rgb as a Morton code of three 16-bit values.
+      if (c.encoding == "BROTLI" && pa.name == "rgb" && (pa.type != "uint16" || pa.elements != 3))
+        fail("{}: BROTLI rgb must be 3 x uint16, not {} x {}", uri, pa.elements, pa.type);
       c.attributes.push_back(std::move(pa));
     }
     if (!position) fail("{}: no position attribute", uri);
@@ -203,12 +169,13 @@ std::shared_ptr<const PotreeCloud> parse_potree_metadata(std::span<const uint8_t
 
 Expansion read_potree_chunk(uint32_t tile, const PendingChildren& pending, size_t tiles_now,
                             const Fetcher& fetcher, const TilesetOptions& options) {
+  if (pending.potree && pending.potree->major == 1)
+    return potree_detail::read_hrc(tile, pending, tiles_now, fetcher, options);
   Expansion e;
   e.tile = tile;
   const Key root{pending.level, pending.x, pending.y, pending.z};
-  const std::string name =
-      fmt::format("{} (hierarchy chunk of node {})", pending.potree ? pending.potree->uri : "?",
-                  node_name(root.level, root.x, root.y, root.z));
+  const std::string name = fmt::format("{} (hierarchy chunk of node {})",
+                                       pending.potree ? pending.potree->uri : "?", node_name(root));
   try {
     if (!pending.potree || pending.uris.size() != 1) fail("a hierarchy chunk without its cloud");
     const PotreeCloud& c = *pending.potree;
@@ -244,10 +211,10 @@ Expansion read_potree_chunk(uint32_t tile, const PendingChildren& pending, size_
         continue;  // its children are in its chunk
       }
       if (points > 0) {
-        if (size != uint64_t(points) * c.record_size)
-          fail("{}: node {}: {} bytes for {} points of {} bytes", name,
-               node_name(item.key.level, item.key.x, item.key.y, item.key.z), size, points,
-               c.record_size);
+        // DEFAULT nodes are records; a BROTLI node's compressed size says nothing of its count.
+        if (c.encoding == "DEFAULT" && size != uint64_t(points) * c.record_size)
+          fail("{}: node {}: {} bytes for {} points of {} bytes", name, node_name(item.key), size,
+               points, c.record_size);
         std::string uri = content_uri(c, item.key, offset, size, points);
         if (t) {
           t->contents.push_back(std::move(uri));
@@ -290,6 +257,8 @@ Expansion read_potree_chunk(uint32_t tile, const PendingChildren& pending, size_
 
 Tileset load_potree_tileset(const std::string& uri, const Fetcher& fetcher,
                             const TilesetOptions& options) {
+  const std::string path = uri_path(uri);
+  if (path.ends_with("cloud.js")) return potree_detail::load_potree1(uri, fetcher, options);
   const std::vector<uint8_t> bytes = fetcher(uri);
   if (looks_like_html(bytes.data(), bytes.size()))
     fail("{}: this is an HTML page, not Potree metadata", uri);
@@ -311,14 +280,79 @@ Tileset load_potree_tileset(const std::string& uri, const Fetcher& fetcher,
   return ts;
 }
 
+namespace {
+
+// Every third bit of `x` from bit 0, packed: one axis of a Morton code, 16 bits of it.
+uint32_t morton_axis(uint64_t x) {
+  x &= 0x1249249249249249ull;
+  x = (x ^ (x >> 2)) & 0x10c30c30c30c30c3ull;
+  x = (x ^ (x >> 4)) & 0x100f00f00f00f00full;
+  x = (x ^ (x >> 8)) & 0x1f0000ff0000ffull;
+  x = (x ^ (x >> 16)) & 0x1f00000000ffffull;
+  x = (x ^ (x >> 32)) & 0x1fffffull;
+  return uint32_t(x & 0xffff);
+}
+
+bool is_position(const PotreeAttribute& a) {
+  return a.name == "position" || a.name == "POSITION_CARTESIAN";
+}
+
+// A BROTLI node turned into DEFAULT records: decompressed (to exactly the size its count makes),
+// the attributes one after the other put back into records, Morton codes undone.
+std::vector<uint8_t> brotli_records(const PotreeCloud& c, std::span<const uint8_t> bytes, size_t n,
+                                    const std::string& uri) {
+  size_t packed = 0;
+  for (const auto& a : c.attributes)
+    packed += is_position(a) ? 16 : a.name == "rgb" ? 8 : size_t(a.size);
+  if (n == 0) return {};
+  if (packed * n > (size_t(2) << 30))
+    fail("{}: {} points of {} bytes is over 2 GiB once decompressed", uri, n, packed);
+  std::vector<uint8_t> raw(packed * n);
+  size_t got = raw.size();
+  if (BrotliDecoderDecompress(bytes.size(), bytes.data(), &got, raw.data()) !=
+          BROTLI_DECODER_RESULT_SUCCESS ||
+      got != raw.size())
+    fail("{}: not a Brotli stream of {} points of {} bytes", uri, n, packed);
+  std::vector<uint8_t> records(n * c.record_size);
+  const uint8_t* at = raw.data();
+  for (const auto& a : c.attributes) {
+    uint8_t* dst = records.data() + a.offset;
+    if (is_position(a)) {
+      // 128 bits a point, the upper 64 first: bits 3k, 3k+1, 3k+2 are bit k of x, y, z.
+      for (size_t i = 0; i < n; ++i, at += 16) {
+        const uint64_t upper = load<uint64_t>(at), lower = load<uint64_t>(at + 8);
+        for (int k = 0; k < 3; ++k) {
+          const uint32_t v = morton_axis(lower >> k) | morton_axis(upper >> k) << 16;
+          std::memcpy(dst + i * c.record_size + 4 * size_t(k), &v, 4);
+        }
+      }
+    } else if (a.name == "rgb") {
+      for (size_t i = 0; i < n; ++i, at += 8) {
+        const uint64_t code = load<uint64_t>(at);
+        for (int k = 0; k < 3; ++k) {
+          const uint16_t v = uint16_t(morton_axis(code >> k));
+          std::memcpy(dst + i * c.record_size + 2 * size_t(k), &v, 2);
+        }
+      }
+    } else {
+      for (size_t i = 0; i < n; ++i, at += a.size)
+        std::memcpy(dst + i * c.record_size, at, size_t(a.size));
+    }
+  }
+  return records;
+}
+
+}  // namespace
+
 PointContent decode_potree_node(const PotreeCloud& c, std::span<const uint8_t> bytes,
                                 const std::string& uri, const DecodeLimits& limits) {
-  const std::string count = fragment_field(uri, "points");
-  char* end = nullptr;
-  const unsigned long long points = std::strtoull(count.c_str(), &end, 10);
-  if (count.empty() || *end != '\0') fail("{}: not a Potree node (no point count)", uri);
-  if (points > limits.max_points)
-    fail("{}: {} points in one node is over the limit of {}", uri, points, limits.max_points);
+  if (c.major == 1) return potree_detail::decode_node1(c, bytes, uri, limits);
+  const uint64_t points = node_points(uri, limits);
+  std::vector<uint8_t> unpacked;
+  if (c.encoding == "BROTLI") {
+    unpacked = brotli_records(c, bytes, size_t(points), uri);
+    bytes = unpacked;
+  }
   if (c.record_size == 0 || bytes.size() != points * c.record_size)
     fail("{}: {} bytes for {} points of {} bytes", uri, bytes.size(), points, c.record_size);
   const size_t n = size_t(points);
@@ -326,17 +360,12 @@ PointContent decode_potree_node(const PotreeCloud& c, std::span<const uint8_t> b
   out.format = "potree";
   out.point_count = n;
   std::vector<glm::dvec3> pos(n);
-  glm::dvec3 lo(INFINITY), hi(-INFINITY);
   for (size_t i = 0; i < n; ++i) {
     const uint8_t* p = bytes.data() + i * c.record_size;
     pos[i] = glm::dvec3(load<int32_t>(p), load<int32_t>(p + 4), load<int32_t>(p + 8)) * c.scale +
              c.offset;
-    lo = glm::min(lo, pos[i]);
-    hi = glm::max(hi, pos[i]);
   }
-  out.center = n ? (lo + hi) * 0.5 : glm::dvec3(0.0);
-  out.positions.reserve(n);
-  for (const auto& p : pos) out.positions.push_back(glm::vec3(p - out.center));
+  set_positions(out, pos);
   // Potree's own names to the keys the colour modes read (as LAS and 3D Tiles content give them).
   static const std::map<std::string, std::string> keys = {
       {"intensity", "intensity"},         {"classification", "classification"},

@@ -17,7 +17,9 @@
 namespace stipple::tiles3d {
 
 bool is_tileset_input(const std::string& input) {
-  return io::is_url(input) || io::is_tileset_uri(input) || io::is_copc_input(input);
+  // A Potree 1.x cloud.js is not named .json.
+  return io::is_url(input) || io::is_tileset_uri(input) || io::is_copc_input(input) ||
+         io::is_potree_input(input);
 }
 
 glm::dmat4 world_from_tileset(const io::Tileset& ts) {

@@ -1,17 +1,28 @@
 #pragma once
-// Potree 2.0 (PotreeConverter 2: metadata.json, hierarchy.bin, octree.bin) as a streamed source,
-// the way COPC is one (copc.hpp): the octree becomes an io::Tileset that the 3D Tiles traversal
-// and streamer serve unchanged. Every node is a tile (its cube, geometric error = spacing /
-// 2^depth, additive refinement) whose content is its byte range of octree.bin; every hierarchy
-// chunk is a tile's pending children, read when a traversal reaches it (a proxy node names the
-// chunk that lists it again with its descendants). Local files and http(s) alike (byte ranges).
+// Potree octrees as streamed sources, the way COPC is one (copc.hpp): the octree becomes an
+// io::Tileset that the 3D Tiles traversal and streamer serve unchanged. Every node is a tile (its
+// cube, geometric error = spacing / 2^depth, additive refinement) whose content is its points;
+// every hierarchy file or chunk is a tile's pending children, read when a traversal reaches it.
+// Local files and http(s) alike. Child i of a node is the octant x = bit 2, y = bit 1, z = bit 0.
 //
-// hierarchy.bin: chunks of 22-byte records (type u8: 0 normal, 1 leaf, 2 proxy; child mask u8,
-// bit i = child i; points u32; byte offset u64; byte size u64), breadth first from the chunk's
-// root; a proxy's offset and size locate its chunk in hierarchy.bin. Child i of a node is the
-// octant x = bit 2, y = bit 1, z = bit 0 of i. octree.bin, encoding DEFAULT: a node is its points'
-// records one after the other, the attributes of metadata.json in order; position is int32 x 3,
-// scale and offset applied. BROTLI encoding is refused by name.
+// Potree 2.0 (PotreeConverter 2: metadata.json, hierarchy.bin, octree.bin). hierarchy.bin: chunks
+// of 22-byte records (type u8: 0 normal, 1 leaf, 2 proxy; child mask u8, bit i = child i; points
+// u32; byte offset u64; byte size u64), breadth first from the chunk's root; a proxy's offset and
+// size locate its chunk, which lists it again with its descendants. A node's content is its byte
+// range of octree.bin. Encoding DEFAULT: the points' records one after the other, the attributes
+// of metadata.json in order, position int32 x 3 with scale and offset. Encoding BROTLI: the node
+// is one Brotli stream of the attributes one after the other (each for every point), position
+// as a 128-bit Morton code of its three int32 (upper 64 bits first), rgb as a 64-bit Morton code
+// of its three uint16; the other attributes as in DEFAULT.
+//
+// Potree 1.x (PotreeConverter 1.x, formats 1.5 to 1.8: cloud.js, and beside it the octreeDir of
+// nodes). A node's files are under octreeDir/r/, one folder deeper per whole group of
+// hierarchyStepSize digits in its name (step 5: r0123 at r/r0123.bin, r012345 at
+// r/01234/r012345.bin). A node whose level is a multiple of the step has a .hrc file beside its
+// data: 5-byte records (child mask u8, points u32), breadth first over its subtree down to `step`
+// levels below it; the deepest listed nodes' children are in their own .hrc. Data: binary (the
+// pointAttributes' records one after the other; position uint32 x 3, scale applied, relative to
+// the node's cube's corner), LAS or LAZ (a file per node, absolute coordinates).
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -34,16 +45,19 @@ struct PotreeAttribute {
 };
 
 struct PotreeCloud {
-  std::string uri;                         // metadata.json
-  std::string hierarchy_uri, octree_uri;   // beside it
-  std::string name, projection, encoding;  // encoding: DEFAULT
+  int major = 2;                           // 2: metadata.json; 1: cloud.js
+  std::string version;                     // as the file gives it
+  std::string uri;                         // metadata.json or cloud.js
+  std::string hierarchy_uri, octree_uri;   // 2.0: beside it
+  std::string octree_dir;                  // 1.x: the folder holding r/ (resolved)
+  std::string name, projection, encoding;  // 2.0: DEFAULT, BROTLI; 1.x: BINARY, LAS, LAZ
   uint64_t points = 0;
   glm::dvec3 scale{1.0}, offset{0.0};
   glm::dvec3 cube_min{0.0}, cube_max{0.0};  // boundingBox: the octree's root cube
   glm::dvec3 data_min{0.0}, data_max{0.0};  // the points' bounds (position min/max)
   double spacing = 0;
   uint64_t first_chunk_size = 0;
-  int step_size = 0, depth = 0;
+  int step_size = 0, depth = 0;  // 1.x: hierarchyStepSize
   std::vector<PotreeAttribute> attributes;
   size_t record_size = 0;
 };
@@ -51,23 +65,29 @@ struct PotreeCloud {
 // Deepest level accepted (2^30 cells an axis would already be absurd).
 constexpr int kMaxPotreeDepth = 30;
 
-// Whether `uri` is a Potree 2.0 cloud: a path or URL whose file name is metadata.json.
+// Whether `uri` is a Potree cloud: a path or URL whose file name is metadata.json (2.0) or
+// cloud.js (1.x).
 bool is_potree_input(const std::string& uri);
 
 // Parses metadata.json. Throws stipple::Error naming the file and the problem.
 std::shared_ptr<const PotreeCloud> parse_potree_metadata(std::span<const uint8_t> json,
                                                          const std::string& uri);
+// Parses a Potree 1.x cloud.js (formats 1.5 to 1.8). Throws stipple::Error naming the file.
+std::shared_ptr<const PotreeCloud> parse_potree1_cloud(std::span<const uint8_t> json,
+                                                       const std::string& uri);
 
 Tileset load_potree_tileset(const std::string& uri, const Fetcher& fetcher,
                             const TilesetOptions& options = {});
 
-// Reads the hierarchy chunk that `pending` names (read_children calls this for its kind).
+// Reads the hierarchy chunk (2.0) or .hrc file (1.x) that `pending` names (read_children calls
+// this for its kind).
 Expansion read_potree_chunk(uint32_t tile, const PendingChildren& pending, size_t tiles_now,
                             const Fetcher& fetcher, const TilesetOptions& options);
 
-// A node's bytes of octree.bin (its range URI carries its point count) decoded into points
-// relative to the node's points' centre: colour, and intensity, classification, return number
-// and count, GPS time and every other attribute as PointAttribute under Potree's name.
+// A node's bytes (2.0: its range of octree.bin; 1.x: its file; the URI carries its point count
+// and, for 1.x, its name) decoded into points relative to the node's points' centre: colour,
+// normals, and intensity, classification, return number and count, GPS time and every other
+// attribute as PointAttribute under Potree's name.
 PointContent decode_potree_node(const PotreeCloud& cloud, std::span<const uint8_t> bytes,
                                 const std::string& uri, const DecodeLimits& limits = {});
 
