@@ -1,6 +1,6 @@
 // The colour ramps of the colour modes, shared by the billboard passes (point_common.wgsl) and
 // the compute rasterizer (compute_raster_shading.wgsl), so that both paths colour alike; the
-// CPU mirror is pc::shade_point.
+// CPU mirror is the profile image's (shade_sample in src/pointcloud/src/profile.cpp).
 
 fn ramp(t_in: f32) -> vec3<f32> {
   // Dark blue, cyan, green, yellow, red.

@@ -16,6 +16,6 @@ fi
 if [[ -n "$extra" && -d "$extra" ]]; then
   while IFS= read -r -d '' f; do
     cp "$f" "$corpus/$(basename "$f")"
-  done < <(find "$extra" -type f \( -name '*.pnts' -o -name '*.glb' -o -name '*.subtree' -o -name '*.pointlets' -o -name '*.page' -o -name '*.seed' \) -print0)
+  done < <(find "$extra" -type f \( -name '*.pnts' -o -name '*.glb' -o -name '*.subtree' -o -name '*.pointlets' -o -name '*.page' -o -name '*.seed' -o -name '*.geojson' -o -name '*.json' \) -print0)
 fi
 exec "$fuzzer" -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=20 -print_final_stats=1 "$corpus"

@@ -1,4 +1,5 @@
-// The stipple command line: render, view, info, generate, bench, plugins.
+// The stipple command line: render, view, info, generate, bench, plugins, tile, pointlets, clip,
+// profile.
 #include <cstdio>
 #include <exception>
 
@@ -24,6 +25,8 @@ int main(int argc, char** argv) {
   stipple::app::add_plugins_command(cli);
   stipple::app::add_tile_command(cli);
   stipple::app::add_pointlets_command(cli);
+  stipple::app::add_clip_command(cli);
+  stipple::app::add_profile_command(cli);
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -27,7 +27,8 @@ void put_fixed(uint8_t* dst, const std::string& s, size_t n) {
 }
 
 // The public header block of h, header_size bytes long.
-std::vector<uint8_t> encode_header(const LasHeader& h, uint32_t vlr_count) {
+std::vector<uint8_t> encode_header(const LasHeader& h, uint32_t vlr_count, uint64_t evlr_start = 0,
+                                   uint32_t evlr_count = 0) {
   std::vector<uint8_t> b(375, 0);
   uint8_t* p = b.data();
   std::memcpy(p, "LASF", 4);
@@ -60,8 +61,8 @@ std::vector<uint8_t> encode_header(const LasHeader& h, uint32_t vlr_count) {
   }
   if (h.version_minor >= 3) store<uint64_t>(p + 227, h.start_of_waveform_data);
   if (h.version_minor >= 4) {
-    store<uint64_t>(p + 235, 0);  // no EVLRs
-    store<uint32_t>(p + 243, 0);
+    store<uint64_t>(p + 235, evlr_count ? evlr_start : 0);
+    store<uint32_t>(p + 243, evlr_count);
     store<uint64_t>(p + 247, h.point_count);
     for (int i = 0; i < 15; ++i) store<uint64_t>(p + 255 + 8 * i, h.points_by_return[i]);
   }
@@ -99,7 +100,7 @@ struct LasWriter::Impl {
   LasWriteOptions options;
   LasHeader h;
   detail::RecordLayout layout;
-  std::vector<Vlr> vlrs;
+  std::vector<Vlr> vlrs, evlrs;
   std::ofstream out;                        // uncompressed
   std::unique_ptr<detail::LazEncoder> laz;  // compressed
   std::vector<uint8_t> buffer;
@@ -152,6 +153,10 @@ struct LasWriter::Impl {
     if (!h.extra_bytes.empty()) {
       vlrs.push_back({"LASF_Spec", 4, "Extra Bytes", encode_extra_bytes_vlr(h.extra_bytes)});
     }
+    h.global_encoding = o.global_encoding & 0x1d;        // see LasWriteOptions::global_encoding
+    if (o.version_minor < 4) h.global_encoding &= 0x0f;  // bit 4 (WKT) is 1.4's
+    h.file_source_id = o.file_source_id;
+    h.guid = o.guid;
     if (!o.wkt.empty()) {
       std::vector<uint8_t> wkt(o.wkt.begin(), o.wkt.end());
       wkt.push_back(0);  // the spec asks for a null-terminated string
@@ -159,6 +164,21 @@ struct LasWriter::Impl {
       vlrs.push_back({"LASF_Projection", 2112, "OGC WKT", std::move(wkt)});
       if (o.version_minor >= 4) h.global_encoding |= 1 << 4;  // CRS is WKT
     }
+    for (const Vlr& v : o.vlrs) {
+      if (v.data.size() != v.data_size)
+        fail("{}: VLR {} {} has no loaded payload to copy", name, v.user_id, v.record_id);
+      Vlr copy = v;
+      copy.extended = false;
+      (v.data.size() > 65535 ? evlrs : vlrs).push_back(std::move(copy));
+    }
+    for (const Vlr& v : o.evlrs) {
+      if (v.data.size() != v.data_size)
+        fail("{}: EVLR {} {} has no loaded payload to copy", name, v.user_id, v.record_id);
+      evlrs.push_back(v);
+    }
+    if (!evlrs.empty() && o.version_minor < 4)
+      fail("{}: {} extended VLRs need LAS 1.4", name, evlrs.size());
+    for (Vlr& v : evlrs) v.extended = true;
     for (Vlr& v : vlrs) v.data_size = v.data.size();
     layout = detail::record_layout(h.point_format, h.point_record_length);
 
@@ -227,6 +247,23 @@ struct LasWriter::Impl {
     file->commit();
   }
 
+  // Appends the EVLRs at the stream's end; returns where they start.
+  uint64_t write_evlrs(std::ostream& f) {
+    f.seekp(0, std::ios::end);
+    const uint64_t start = static_cast<uint64_t>(f.tellp());
+    for (const Vlr& v : evlrs) {
+      uint8_t vh[60] = {};
+      put_fixed(vh + 2, v.user_id, 16);
+      store<uint16_t>(vh + 18, v.record_id);
+      store<uint64_t>(vh + 20, v.data.size());
+      put_fixed(vh + 28, v.description, 32);
+      f.write(reinterpret_cast<const char*>(vh), 60);
+      f.write(reinterpret_cast<const char*>(v.data.data()), std::streamsize(v.data.size()));
+    }
+    if (!f) fail("{}: cannot write the extended VLRs", name);
+    return start;
+  }
+
   void finish() {
     if (h.point_count > 0) {
       h.min = lo;
@@ -236,16 +273,19 @@ struct LasWriter::Impl {
       fail("{}: {} points need LAS 1.4", name, h.point_count);
     }
     std::vector<uint8_t> header;
+    const uint32_t evlr_count = static_cast<uint32_t>(evlrs.size());
     if (laz) {
       laz->close();
       laz.reset();
-      // LASzip wrote its own header (with its VLR); patch counts and bounds in place.
+      // LASzip wrote its own header (with its VLR); patch counts and bounds in place. EVLRs go
+      // after its chunk table, where LASzip-based readers expect them.
       std::fstream f(path, std::ios::binary | std::ios::in | std::ios::out);
       uint8_t existing[375] = {};
       f.read(reinterpret_cast<char*>(existing), h.header_size);
       if (!f) fail("{}: cannot reopen to finish the header", name);
+      const uint64_t evlr_start = evlr_count ? write_evlrs(f) : 0;
       h.offset_to_points = detail::load<uint32_t>(existing + 96);
-      header = encode_header(h, detail::load<uint32_t>(existing + 100));
+      header = encode_header(h, detail::load<uint32_t>(existing + 100), evlr_start, evlr_count);
       // Keep LASzip's format byte (compression bits) and everything before the counts.
       header[104] = existing[104];
       f.seekp(0);
@@ -253,7 +293,8 @@ struct LasWriter::Impl {
       if (!f) fail("{}: cannot finish the header", name);
       return;
     }
-    header = encode_header(h, static_cast<uint32_t>(vlrs.size()));
+    const uint64_t evlr_start = evlr_count ? write_evlrs(out) : 0;
+    header = encode_header(h, static_cast<uint32_t>(vlrs.size()), evlr_start, evlr_count);
     out.seekp(0);
     out.write(reinterpret_cast<const char*>(header.data()), header.size());
     out.close();

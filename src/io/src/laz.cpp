@@ -163,6 +163,11 @@ class LaszipEncoder : public LazEncoder {
     check(laszip_get_header_pointer(zip_, &h));
     h->file_source_ID = hdr.file_source_id;
     h->global_encoding = hdr.global_encoding;
+    // The GUID's 16 bytes as stored in the header (the struct fields are laid out the same way).
+    std::memcpy(&h->project_ID_GUID_data_1, hdr.guid.data(), 4);
+    std::memcpy(&h->project_ID_GUID_data_2, hdr.guid.data() + 4, 2);
+    std::memcpy(&h->project_ID_GUID_data_3, hdr.guid.data() + 6, 2);
+    std::memcpy(h->project_ID_GUID_data_4, hdr.guid.data() + 8, 8);
     h->version_major = 1;
     h->version_minor = hdr.version_minor;
     copy_fixed(h->system_identifier, hdr.system_identifier, 32);

@@ -1,5 +1,9 @@
 #include "stipple/io/point_batch.hpp"
 
+#include <cstring>
+
+#include "stipple/core/error.hpp"
+
 namespace stipple::io {
 
 void PointBatch::clear() {
@@ -35,6 +39,47 @@ void PointBatch::reserve(size_t n) {
   if (!nir.empty()) nir.reserve(n);
   if (!wave_packets.empty()) wave_packets.reserve(n);
   if (extra_bytes_per_point) extra_bytes.reserve(n * extra_bytes_per_point);
+}
+
+namespace {
+
+template <typename T>
+void compact_array(std::vector<T>& values, std::span<const uint8_t> keep) {
+  if (values.empty()) return;
+  size_t out = 0;
+  for (size_t i = 0; i < keep.size(); ++i)
+    if (keep[i]) values[out++] = values[i];
+  values.resize(out);
+}
+
+}  // namespace
+
+void PointBatch::compact(std::span<const uint8_t> keep) {
+  if (keep.size() != size())
+    fail("PointBatch::compact: {} flags for {} points", keep.size(), size());
+  compact_array(positions, keep);
+  compact_array(intensity, keep);
+  compact_array(return_number, keep);
+  compact_array(number_of_returns, keep);
+  compact_array(classification, keep);
+  compact_array(flags, keep);
+  compact_array(scan_angle, keep);
+  compact_array(user_data, keep);
+  compact_array(point_source_id, keep);
+  compact_array(gps_time, keep);
+  compact_array(rgb, keep);
+  compact_array(nir, keep);
+  compact_array(wave_packets, keep);
+  if (extra_bytes_per_point && !extra_bytes.empty()) {
+    const size_t eb = extra_bytes_per_point;
+    size_t out = 0;
+    for (size_t i = 0; i < keep.size(); ++i)
+      if (keep[i]) {
+        if (out != i) std::memmove(extra_bytes.data() + out * eb, extra_bytes.data() + i * eb, eb);
+        ++out;
+      }
+    extra_bytes.resize(out * eb);
+  }
 }
 
 }  // namespace stipple::io

@@ -49,4 +49,8 @@ glm::dvec3 LocalEnu::from_geodetic(const glm::dvec3& llh) const {
   return glm::transpose(basis) * (geodetic_to_ecef(llh) - origin_ecef);
 }
 
+glm::dvec3 LocalEnu::to_geodetic(const glm::dvec3& enu) const {
+  return ecef_to_geodetic(origin_ecef + basis * enu);
+}
+
 }  // namespace stipple::geo

@@ -107,6 +107,12 @@ uint32_t batch_attributes(const io::PointBatch& batch, size_t i) {
                          batch.number_of_returns.empty() ? 1 : batch.number_of_returns[i]);
 }
 
+uint32_t batch_extra_word(const io::PointBatch& batch, size_t i) {
+  return uint32_t(batch.point_source_id.empty() ? 0 : batch.point_source_id[i]) |
+         uint32_t(batch.flags.empty() ? 0 : batch.flags[i]) << 16 |
+         uint32_t(batch.user_data.empty() ? 0 : batch.user_data[i]) << 24;
+}
+
 void append_batch(PointCloud& cloud, const io::PointBatch& batch, int rgb_bits,
                   size_t chunk_points) {
   const size_t n = batch.size();
@@ -124,9 +130,14 @@ void append_batch(PointCloud& cloud, const io::PointBatch& batch, int rgb_bits,
     if (cloud.chunks.empty() || cloud.chunks.back().vertices.size() >= chunk_points) {
       cloud.chunks.emplace_back();
       // Origin: the first point of the chunk; the chunk's points are spatially close in
-      // scan order, and float offsets from it stay precise.
+      // scan order, and float offsets from it stay precise. The same for GPS time.
       cloud.chunks.back().origin = z_up_to_y_up(batch.positions[i]);
       cloud.chunks.back().vertices.reserve(std::min(chunk_points, n - i));
+      cloud.chunks.back().first_point = cloud.point_count + i;
+      if (cloud.keep_extras) {
+        cloud.chunks.back().gps_origin = batch.gps_time.empty() ? 0.0 : batch.gps_time[i];
+        cloud.chunks.back().extras.reserve(std::min(chunk_points, n - i));
+      }
     }
     PointChunk& chunk = cloud.chunks.back();
     size_t end = std::min(n, i + (chunk_points - chunk.vertices.size()));
@@ -139,6 +150,10 @@ void append_batch(PointCloud& cloud, const io::PointBatch& batch, int rgb_bits,
       glm::dvec3 rel = world - chunk.origin;
       chunk.vertices.push_back({float(rel.x), float(rel.y), float(rel.z),
                                 batch_rgba(batch, i, rgb_bits), batch_attributes(batch, i)});
+      if (cloud.keep_extras)
+        chunk.extras.push_back(
+            {float(batch.gps_time.empty() ? 0.0 : batch.gps_time[i] - chunk.gps_origin),
+             batch_extra_word(batch, i)});
     }
   }
   cloud.point_count += n;
@@ -200,7 +215,8 @@ void finish_cloud(PointCloud& cloud) {
   cloud.attributes.intensity_percentiles = percentile_range(std::move(intensity), {}, 0.02, 0.98);
 }
 
-PointCloud generate_scene_cloud(const io::SceneParams& params, size_t chunk_points) {
+PointCloud generate_scene_cloud(const io::SceneParams& params, size_t chunk_points,
+                                bool keep_extras) {
   const uint64_t block = std::max<uint64_t>(1, std::min<uint64_t>(chunk_points, 1 << 20));
   const uint64_t blocks = (params.point_count + block - 1) / block;
   std::vector<PointCloud> parts(blocks);
@@ -212,10 +228,13 @@ PointCloud generate_scene_cloud(const io::SceneParams& params, size_t chunk_poin
       batch.clear();
       uint64_t first = b * block;
       io::generate_scene(params, first, std::min(block, params.point_count - first), batch);
+      parts[b].keep_extras = keep_extras;
       append_batch(parts[b], batch, 8, block);
+      for (PointChunk& chunk : parts[b].chunks) chunk.first_point += first;
     }
   });
   PointCloud cloud;
+  cloud.keep_extras = keep_extras;
   for (PointCloud& part : parts) {
     if (part.point_count == 0) continue;
     bool first = cloud.point_count == 0;
@@ -257,12 +276,18 @@ PointCloud load_point_cloud(const std::vector<std::filesystem::path>& files,
     fail("cannot mix geographic (lon/lat) and projected inputs in one render: {} and {}",
          files.front().string(), files.back().string());
   cloud.geographic = any_geographic;
+  cloud.keep_extras = options.keep_extras;
   std::optional<geo::LocalEnu> enu;
-  if (any_geographic) enu.emplace(glm::dvec3(header_box.center().x, header_box.center().y, 0.0));
+  if (any_geographic) {
+    cloud.enu_origin = glm::dvec3(header_box.center().x, header_box.center().y, 0.0);
+    enu.emplace(*cloud.enu_origin);
+  }
 
   Progress progress("reading", total);
   io::PointBatch batch;
   for (size_t f = 0; f < files.size(); ++f) {
+    cloud.files.push_back(files[f]);
+    cloud.file_first_point.push_back(cloud.point_count);
     io::LasReader reader(files[f]);
     const io::LasHeader& header = reader.header();
     while (true) {

@@ -19,5 +19,7 @@ void add_tile_command(CLI::App& cli);
 void add_bench_points_command(CLI::App* bench);
 void add_view_command(CLI::App& cli);
 void add_pointlets_command(CLI::App& cli);
+void add_clip_command(CLI::App& cli);
+void add_profile_command(CLI::App& cli);
 
 }  // namespace stipple::app

@@ -137,6 +137,16 @@ struct LasWriteOptions {
   std::vector<ExtraBytesDescriptor> extra_bytes;  // per-point layout of PointBatch::extra_bytes
   std::string system_identifier = "stipple";
   std::string generating_software = "stipple";
+  // Carried over from a source file (stipple clip): VLRs written after the writer's own (Extra
+  // Bytes from `extra_bytes`, WKT from `wkt`), EVLRs after the points (LAS 1.4 only). A VLR whose
+  // payload exceeds 65535 bytes becomes an EVLR. Payloads must be loaded (Vlr::data).
+  std::vector<Vlr> vlrs, evlrs;
+  // Global encoding bits kept from the source: 0 (adjusted standard GPS time), 2 (external
+  // waveform data), 3 (synthetic return numbers), 4 (WKT CRS). Bit 1 (internal waveform data) is
+  // never written: waveform packets are not copied.
+  uint16_t global_encoding = 0;
+  uint16_t file_source_id = 0;
+  std::array<uint8_t, 16> guid{};
 };
 
 // Writes points; close() (or the destructor) finalises header counts, bounds and

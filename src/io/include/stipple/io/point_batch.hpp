@@ -3,6 +3,7 @@
 // for attributes the source does not have, none.
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include <glm/gtc/type_precision.hpp>
@@ -39,6 +40,8 @@ struct PointBatch {
   size_t size() const { return positions.size(); }
   void clear();
   void reserve(size_t n);
+  // Keeps point i where keep[i] is non-zero (keep.size() == size()), in order, in place.
+  void compact(std::span<const uint8_t> keep);
 };
 
 }  // namespace stipple::io

@@ -20,6 +20,7 @@ struct LocalEnu {
   glm::dmat3 basis;  // ENU -> ECEF
   explicit LocalEnu(const glm::dvec3& origin_lon_lat_h);
   glm::dvec3 from_geodetic(const glm::dvec3& lon_lat_h) const;
+  glm::dvec3 to_geodetic(const glm::dvec3& enu) const;  // the inverse of from_geodetic
 };
 
 }  // namespace stipple::geo

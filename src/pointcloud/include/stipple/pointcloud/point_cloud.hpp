@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,8 +38,23 @@ struct PointChunk {
   std::vector<Vertex> vertices;
   Aabb bounds;           // world space (Y-up), of this chunk's points
   double spacing = 0.0;  // mean point spacing (metres) over the chunk's horizontal extent
+  // Attributes beyond the packed word, for GPS-time and point-source filters and inspection;
+  // kept only when the cloud is loaded with keep_extras (the viewer), so the default path pays
+  // nothing. GPS time is relative to the chunk's gps_origin (a chunk spans seconds of a survey,
+  // so a float keeps microseconds), the word holds the point source ID (bits 0-15), the flags
+  // of io::PointBatch (16-23) and user data (24-31).
+  struct Extra {
+    float gps;
+    uint32_t word;
+  };
+  std::vector<Extra> extras;  // empty, or one per vertex
+  double gps_origin = 0.0;
+  // Index of the chunk's first point among all input points (files in order, records in
+  // order): with PointCloud::file_first_point it finds a point's record again.
+  uint64_t first_point = 0;
 };
 static_assert(sizeof(PointChunk::Vertex) == 20);
+static_assert(sizeof(PointChunk::Extra) == 8);
 
 uint32_t pack_attributes(uint16_t intensity, uint8_t classification, uint8_t return_number,
                          uint8_t number_of_returns);
@@ -63,7 +79,12 @@ struct PointCloud {
   Aabb world_bounds;   // Y-up world space
   uint64_t point_count = 0;
   bool geographic = false;  // source was lon/lat: positions converted to a local ENU frame
+  std::optional<glm::dvec3> enu_origin;  // geographic: the ENU frame's origin (lon, lat, h)
   CloudAttributes attributes;
+  bool keep_extras = false;  // append_batch fills PointChunk::extras
+  // The inputs, and the index of each one's first point (for finding a record again).
+  std::vector<std::filesystem::path> files;
+  std::vector<uint64_t> file_first_point;
 };
 
 // The colour mode actually shown for this cloud: Auto becomes RGB when the source has colours,
@@ -73,6 +94,7 @@ ColorMode resolve_color_mode(const CloudAttributes& attributes, ColorMode reques
 struct LoadOptions {
   size_t chunk_points = 1 << 20;
   bool progress = true;
+  bool keep_extras = false;  // PointChunk::extras (GPS time, point source, flags, user data)
 };
 
 // Reads LAS/LAZ/COPC files chunk by chunk into one cloud. Throws stipple::Error.
@@ -95,7 +117,11 @@ void finish_cloud(PointCloud& cloud);
 // The built-in procedural scene as a cloud, generated in parallel (1M-point chunks).
 
 // Chunks hold at most chunk_points points (capped at 1M, the generation block).
-PointCloud generate_scene_cloud(const io::SceneParams& params, size_t chunk_points = 1 << 20);
+PointCloud generate_scene_cloud(const io::SceneParams& params, size_t chunk_points = 1 << 20,
+                                bool keep_extras = false);
+
+// The packed extras word of point i of a batch (PointChunk::Extra::word).
+uint32_t batch_extra_word(const io::PointBatch& batch, size_t i);
 
 uint32_t pack_rgba(uint8_t r, uint8_t g, uint8_t b, uint8_t a = 255);
 

@@ -1,0 +1,27 @@
+// libFuzzer target: arbitrary bytes through the JSON readers of user files: GeoJSON (clip
+// polygons and saved measurements). Any stipple::Error is a correct rejection; crashes,
+// sanitizer reports, hangs and huge allocations are bugs.
+#include <cstddef>
+#include <cstdint>
+#include <string_view>
+
+#include <spdlog/spdlog.h>
+
+#include "stipple/core/error.hpp"
+#include "stipple/io/geojson.hpp"
+
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  spdlog::set_level(spdlog::level::off);
+  return 0;
+}
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const std::string_view text(reinterpret_cast<const char*>(data), size);
+  try {
+    const stipple::io::GeoDocument doc = stipple::io::parse_geojson(text, "fuzz.geojson");
+    (void)stipple::io::geojson_text(doc.features, 2992);
+    (void)stipple::io::geojson_polygons(doc, "fuzz.geojson");
+  } catch (const stipple::Error&) {
+  }
+  return 0;
+}
