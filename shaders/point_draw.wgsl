@@ -1,5 +1,7 @@
 // Vertex pulling: 6 vertices per point (two triangles), no vertex buffers, no instancing.
-// `point_index(slot)` comes from the including file (every point, or the CLOD survivors).
+// `point_index(slot)` comes from the including file (every point, or the CLOD survivors), as do
+// `point_extra(index)` and `kHasExtra` (whether the extras buffer is bound: GPS-time and
+// point-source filters). Filtered points collapse to a vertex outside the clip volume.
 #include "point_common.wgsl"
 
 @group(1) @binding(0) var<storage, read> points: array<Point>;
@@ -13,18 +15,31 @@ struct VertexOut {
 
 @vertex
 fn vs_main(@builtin(vertex_index) vertex: u32) -> VertexOut {
-  let p = points[point_index(vertex / 6u)];
+  let index = point_index(vertex / 6u);
+  let p = points[index];
   // Corners of triangles (-1,-1) (1,-1) (-1,1) and (-1,1) (1,-1) (1,1), as bit masks.
   let c = vertex % 6u;
   let corner = vec2<f32>(f32((0x32u >> c) & 1u), f32((0x2cu >> c) & 1u)) * 2.0 - 1.0;
   let rel = vec3<f32>(p.x, p.y, p.z) + chunk.offset;
+  var out: VertexOut;
+  var shown = 1u;
+  if (filters.flags != 0u) {
+    shown = point_filter(p, point_extra(index), kHasExtra, rel);
+    if (shown == 0u) {
+      // z > w: outside the clip volume, so both triangles are dropped before rasterisation.
+      out.clip = vec4<f32>(0.0, 0.0, 2.0, 1.0);
+      return out;
+    }
+  }
   var clip = frame.view_proj * vec4<f32>(rel, 1.0);
   let size = point_pixels(rel);
   // Offset in clip space so the quad spans `size` pixels whatever the depth.
   clip = vec4<f32>(clip.xy + corner * size / frame.viewport * clip.w, clip.zw);
-  var out: VertexOut;
   out.clip = clip;
   out.color = point_color(p);
+  if (shown == 2u) {
+    out.color = mix(out.color, filters.highlight.rgb, filters.highlight.a);
+  }
   out.corner = corner;
   out.size_px = size;
   return out;

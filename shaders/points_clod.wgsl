@@ -3,6 +3,12 @@
 
 @group(2) @binding(0) var<storage, read> survivors: array<u32>;
 
+const kHasExtra = false;
+
 fn point_index(slot: u32) -> u32 {
   return survivors[slot];
+}
+
+fn point_extra(index: u32) -> PointExtra {
+  return PointExtra(0.0, 0u);
 }

@@ -56,16 +56,17 @@ void run_render(const RenderArgs& args) {
   Engine engine;
   engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
   if (args.pipelined) engine.add_plugin(PipelinedRenderingPlugin{});
+  SceneOptions scene_options = args.scene;
+  apply_filters(scene_options);
   // The virtualized path (inputs over the host budget, or --virtual) draws with the compute
   // rasterizer too.
-  const bool virtualized = use_virtual_path(args.scene);
+  const bool virtualized = use_virtual_path(scene_options);
   GpuPlugin gpu;
   gpu.options.backend = args.backend;
   // Requested always: --renderer auto decides once the adapter is known.
   gpu.options.optional_features = pc::compute_raster_features();
   engine.add_plugin(std::move(gpu));
   std::string renderer_reason;
-  SceneOptions scene_options = args.scene;
   scene_options.renderer =
       resolve_renderer(scene_options, *engine.render().resource<GpuContext>(), &renderer_reason);
   bool compute = scene_options.renderer == Renderer::Compute || virtualized;
@@ -114,7 +115,7 @@ void run_render(const RenderArgs& args) {
   // image (blending as HQS does) far faster (measured on lavapipe, 12M points: 134 ms against
   // 6953 ms a frame), on any adapter.
   if (args.scene.renderer == Renderer::Auto && !compute && !tileset && sized_by_data &&
-      settings.render.point_size <= 1.0f && clouds > 0) {
+      settings.render.point_size <= 1.0f && clouds > 0 && !filters_active(scene_options)) {
     compute = true;
     settings.compute = true;
     settings.hqs = settings.render.splat == pc::SplatMode::Blend;

@@ -46,6 +46,8 @@ void run_view(const ViewArgs& args) {
   engine.add_plugin(RenderGraphPlugin{});
   const bool tileset = is_tileset_scene(args.scene);
   SceneOptions options = args.scene;
+  apply_filters(options);
+  options.keep_extras = true;  // the panel can turn GPS-time and point-source filters on
   std::string reason;
   options.renderer = resolve_renderer(options, *engine.render().resource<GpuContext>(), &reason);
   // Blending's form on the compute rasterizer is HQS: a tileset auto-drawn there keeps it.

@@ -50,8 +50,19 @@ uint64_t host_budget(const SceneOptions& options) {
 
 }  // namespace
 
+void apply_filters(SceneOptions& options) {
+  options.render.filter = make_filter(options.filters);
+  options.render.clip = make_region(options.filters);
+}
+
+bool filters_active(const SceneOptions& options) {
+  return options.render.filter.active() || !options.render.clip.empty();
+}
+
 bool use_virtual_path(const SceneOptions& options, std::string* reason) {
   if (options.inputs.empty() || is_tileset_scene(options)) return false;
+  // Filters are drawn by the billboard path: the in-memory path keeps them possible.
+  if (filters_active(options) && !options.force_virtual) return false;
   if (options.force_virtual) {
     if (reason) *reason = "--virtual";
     return true;
@@ -86,7 +97,13 @@ Renderer resolve_renderer(const SceneOptions& options, const gpu::Context& ctx,
     if (reason) *reason = std::move(why);
     return r;
   };
+  const bool filtering = filters_active(options);
+  if (filtering && (options.renderer == Renderer::Compute || options.force_virtual))
+    fail(
+        "filters and clip regions (--classes, --returns, --clip-box, ...) are drawn by the "
+        "billboard renderer: leave out --renderer compute and --virtual");
   if (options.renderer != Renderer::Auto) return say(options.renderer, "--renderer");
+  if (filtering) return say(Renderer::Billboard, "auto: filters and clip regions");
   if (use_virtual_path(options))
     return say(Renderer::Compute, "auto: the virtualized path draws with it");
   // Points known up front: LAS/LAZ headers, a COPC header, the built-in scene; a 3D Tiles
@@ -179,6 +196,7 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
   points.inputs.scene.point_count = options.scene_points;
   points.inputs.scene.seed = options.seed;
   points.inputs.chunk_points = options.chunk_points;
+  points.inputs.keep_extras = options.keep_extras || options.render.filter.needs_extras();
   points.settings.render = options.render;
   points.settings.budget = options.budget;
   points.settings.compute = compute;
@@ -244,6 +262,7 @@ void add_scene_options(CLI::App* cmd, SceneOptions& options) {
                   "Tilesets: resident tile memory budget in MiB (least recently used evicted)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 20))
       ->capture_default_str();
+  add_filter_options(cmd, options.filters, FilterFlags::Render);
 }
 
 }  // namespace stipple::app

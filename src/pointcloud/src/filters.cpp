@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include "stipple/core/error.hpp"
+#include "stipple/math/camera.hpp"
 
 namespace stipple::pc {
 
@@ -100,6 +101,29 @@ bool ClipRegion::contains(const glm::dvec3& p) const {
   for (const ClipPolygon& polygon : polygons)
     if (polygon.contains(p)) return true;
   return false;
+}
+
+bool chunk_point_shown(const PointChunk& chunk, size_t i, const PointFilter& filter,
+                       const ClipRegion& clip) {
+  const PointChunk::Vertex& v = chunk.vertices[i];
+  if (filter.active()) {
+    const bool extras = chunk.extras.size() == chunk.vertices.size();
+    if (!filter.class_kept((v.attributes >> 16) & 0xffu) ||
+        !return_kind_matches(filter.returns, (v.attributes >> 24) & 0xfu, v.attributes >> 28))
+      return false;
+    const double in = v.attributes & 0xffffu;
+    if (filter.intensity && (in < filter.intensity->x || in > filter.intensity->y)) return false;
+    if (extras) {
+      const double gps = chunk.gps_origin + double(chunk.extras[i].gps);
+      const double source = chunk.extras[i].word & 0xffffu;
+      if (filter.gps_time && (gps < filter.gps_time->x || gps > filter.gps_time->y)) return false;
+      if (filter.point_source &&
+          (source < filter.point_source->x || source > filter.point_source->y))
+        return false;
+    }
+  }
+  if (clip.empty() || clip.mode == ClipMode::Highlight) return true;
+  return clip.keeps(y_up_to_z_up(chunk.origin + glm::dvec3(v.x, v.y, v.z)));
 }
 
 ClipMode parse_clip_mode(const std::string& name) {

@@ -36,19 +36,31 @@ bool cone_may_hit(const Aabb& bounds, const PickRay& ray, double max_t) {
 }
 
 void pick_in_chunk(const pc::PointChunk& chunk, const Aabb& bounds, const PickRay& ray,
-                   std::optional<PickHit>& best) {
+                   std::optional<PickHit>& best, const PickFilter* filter, bool numbered) {
   double best_t = best ? best->t : std::numeric_limits<double>::infinity();
   if (!cone_may_hit(bounds, ray, best_t)) return;
   const glm::dvec3 rel_origin = ray.origin - chunk.origin;
   const double tan2 = ray.tan_radius * ray.tan_radius;
-  for (const auto& p : chunk.vertices) {
+  const bool filtering = filter && (filter->filter.active() || !filter->clip.empty());
+  const bool extras = chunk.extras.size() == chunk.vertices.size();
+  for (size_t i = 0; i < chunk.vertices.size(); ++i) {
+    const auto& p = chunk.vertices[i];
     const glm::dvec3 w = glm::dvec3(p.x, p.y, p.z) - rel_origin;
     const double t = glm::dot(w, ray.direction);
     if (t <= 0 || t >= best_t) continue;
     const glm::dvec3 perpendicular = w - t * ray.direction;
     if (glm::dot(perpendicular, perpendicular) > tan2 * t * t) continue;
+    if (filtering && !chunk_point_shown(chunk, i, filter->filter, filter->clip)) continue;
     best_t = t;
-    best = PickHit{chunk.origin + glm::dvec3(p.x, p.y, p.z), t};
+    PickHit hit;
+    hit.point = chunk.origin + glm::dvec3(p.x, p.y, p.z);
+    hit.t = t;
+    hit.vertex = p;
+    hit.has_extra = extras;
+    if (extras) hit.extra = chunk.extras[i];
+    hit.gps_origin = chunk.gps_origin;
+    hit.source_point = numbered ? chunk.first_point + i : PickHit::kNoSourcePoint;
+    best = hit;
   }
 }
 

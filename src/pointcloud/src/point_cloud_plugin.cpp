@@ -41,6 +41,7 @@ struct RenderPointCloud {
   // The compute rasterizer's batches (built on first use), boxed for the same reason.
   std::unique_ptr<pc::GpuBatchedCloud> batched;
   uint64_t batched_generation = std::numeric_limits<uint64_t>::max();
+  bool extras_uploaded = false;  // PointChunk::extras on the GPU (once a filter needed them)
 };
 
 // Render-world resource: the pipelines for the current target format.
@@ -82,6 +83,7 @@ void upload_point_clouds(Registry& render) {
     r.drawn->chunks.clear();
     r.drawn_ids.clear();
     r.all = pc::upload_point_cloud(ctx, *r.cloud);
+    r.extras_uploaded = false;
     // The drawn subset (point budget) needs its own CLOD argument slots, one per chunk at most.
     r.drawn->attributes = r.all.attributes;
     r.drawn->clod_args_stride = r.all.clod_args_stride;
@@ -168,6 +170,16 @@ void queue_point_clouds(Registry& render) {
       drawn_one = true;
       return;
     }
+    // GPS-time and point-source filters read the chunks' extras: uploaded the first time one
+    // is on, and kept (the default path never holds them on the GPU).
+    if (settings.render.filter.needs_extras() && !r.extras_uploaded) {
+      if (!pc::upload_point_extras(ctx, r.all, *r.cloud))
+        STIPPLE_WARN(
+            "GPS-time and point-source filters need the points' extras, which were not "
+            "loaded for every chunk: those chunks are not filtered on them");
+      r.extras_uploaded = true;
+      r.drawn->bind_groups_for = nullptr;
+    }
     std::vector<uint32_t> ids =
         select_chunks(r.gpu_bounds, r.gpu_counts, camera.position, settings.budget);
     // Each chunk's bind groups point at its CLOD argument slot (its index in the drawn view):
@@ -193,12 +205,13 @@ pc::PointCloud load_inputs(const PointCloudInputs& inputs) {
   pc::PointCloud cloud;
   if (inputs.files.empty()) {
     io::SceneParams scene = inputs.scene;
-    cloud = pc::generate_scene_cloud(scene, inputs.chunk_points);
+    cloud = pc::generate_scene_cloud(scene, inputs.chunk_points, inputs.keep_extras);
     STIPPLE_INFO("built-in scene: {} points", cloud.point_count);
   } else {
     pc::LoadOptions options;
     options.chunk_points = inputs.chunk_points;
     options.progress = inputs.progress;
+    options.keep_extras = inputs.keep_extras;
     cloud = pc::load_point_cloud(inputs.files, options);
   }
   return cloud;
@@ -252,11 +265,12 @@ namespace {
 // ScenePickers entry: every loaded cloud, whatever the point budget draws.
 std::optional<PickHit> pick_point_clouds(Registry& main, const PickRay& ray) {
   std::optional<PickHit> best;
+  const PickFilter* filter = main.try_resource<PickFilter>();
   main.view<PointCloudData>().each([&](const PointCloudData& data) {
     if (!data.cloud) return;
     const auto& chunks = data.cloud->chunks;
     for (size_t c = 0; c < chunks.size(); ++c)
-      pick_in_chunk(chunks[c], data.chunk_bounds[c], ray, best);
+      pick_in_chunk(chunks[c], data.chunk_bounds[c], ray, best, filter);
   });
   return best;
 }

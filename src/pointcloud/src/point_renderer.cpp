@@ -62,9 +62,33 @@ struct ChunkUniforms {
   float spacing;
   float elevation;
   uint32_t count;
-  uint32_t pad[2];
+  float gps_range[2];
 };
 static_assert(sizeof(ChunkUniforms) == 32);
+
+// Mirrors `Filter` in point_common.wgsl.
+struct FilterUniforms {
+  uint32_t classes[8];
+  uint32_t returns;
+  uint32_t flags;
+  uint32_t clip_mode;
+  uint32_t counts;
+  float intensity[2];
+  float point_source[2];
+  float highlight[4];
+  float boxes[kMaxGpuClipShapes][16];
+  float planes[kMaxGpuClipShapes][4];
+  uint32_t rings[32][4];
+  float polygons[kMaxGpuClipShapes][4];
+};
+static_assert(sizeof(FilterUniforms) == 1360);
+constexpr size_t kMaxGpuRings = 32;
+// Stand-in for an unbounded range in a float uniform (shaders may assume no infinities).
+constexpr double kFloatHuge = 3e38;
+
+float clamp_float(double v) {
+  return float(std::clamp(v, -kFloatHuge, kFloatHuge));
+}
 
 WGPUBindGroupLayout make_layout(gpu::Context& ctx,
                                 std::initializer_list<WGPUBindGroupLayoutEntry> e) {
@@ -98,7 +122,7 @@ enum class DrawKind { Naive, SplatDepth, SplatAccum };
 
 gpu::RenderPipeline make_draw_pipeline(gpu::Context& ctx, const PointPipelines& p,
                                        WGPUShaderModule shader, bool indexed, DrawKind kind,
-                                       WGPUTextureFormat color_format) {
+                                       WGPUTextureFormat color_format, bool extras = false) {
   WGPUBlendState additive = WGPU_BLEND_STATE_INIT;
   additive.color = {WGPUBlendOperation_Add, WGPUBlendFactor_One, WGPUBlendFactor_One};
   additive.alpha = {WGPUBlendOperation_Add, WGPUBlendFactor_One, WGPUBlendFactor_One};
@@ -126,7 +150,8 @@ gpu::RenderPipeline make_draw_pipeline(gpu::Context& ctx, const PointPipelines& 
   desc.label = gpu::to_view(kind == DrawKind::Naive        ? "points-naive"
                             : kind == DrawKind::SplatDepth ? "splat-depth"
                                                            : "splat-accumulate");
-  desc.layout = indexed ? p.indexed_layout.get() : p.direct_layout.get();
+  desc.layout = extras ? (indexed ? p.indexed_extras_layout.get() : p.direct_extras_layout.get())
+                       : (indexed ? p.indexed_layout.get() : p.direct_layout.get());
   desc.vertex.module = shader;
   desc.vertex.entryPoint = gpu::to_view("vs_main");
   desc.primitive.topology = WGPUPrimitiveTopology_TriangleList;
@@ -174,6 +199,31 @@ void finish_upload(gpu::Context& ctx, GpuPointCloud& gpu_cloud) {
   ctx.check("uploading points");
 }
 
+bool upload_point_extras(gpu::Context& ctx, GpuPointCloud& gpu_cloud, const PointCloud& cloud) {
+  // The pieces upload_chunk made: non-empty chunks in order, split at max_gpu_chunk_points.
+  const uint64_t max_points = max_gpu_chunk_points(ctx);
+  size_t piece = 0;
+  bool all = true;
+  for (const PointChunk& chunk : cloud.chunks) {
+    const size_t n = chunk.vertices.size();
+    const bool has = chunk.extras.size() == n;
+    all &= has || n == 0;
+    for (size_t first = 0; first < n; first += max_points, ++piece) {
+      if (piece >= gpu_cloud.chunks.size())
+        fail("upload_point_extras: the GPU cloud has fewer pieces than the cloud's chunks");
+      GpuPointCloud::Chunk& c = gpu_cloud.chunks[piece];
+      c.gps_origin = chunk.gps_origin;
+      if (!has || c.extras) continue;
+      c.extras = gpu::create_buffer(ctx, uint64_t(c.count) * sizeof(PointChunk::Extra),
+                                    WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst,
+                                    "point-extras", chunk.extras.data() + first);
+    }
+  }
+  gpu_cloud.bind_groups_for = nullptr;  // the extras groups are made with the others
+  ctx.check("uploading point extras");
+  return all;
+}
+
 GpuPointCloud upload_point_cloud(gpu::Context& ctx, const PointCloud& cloud) {
   GpuPointCloud gpu_cloud;
   gpu_cloud.attributes = cloud.attributes;
@@ -192,10 +242,17 @@ PointPipelines create_point_pipelines(gpu::Context& ctx, WGPUTextureFormat color
       WGPUShaderStage_Vertex | WGPUShaderStage_Fragment | WGPUShaderStage_Compute;
   p.frame_layout = gpu::BindGroupLayout(make_layout(
       ctx, {buffer_entry(0, all, WGPUBufferBindingType_Uniform, sizeof(FrameUniforms)),
-            buffer_entry(1, all, WGPUBufferBindingType_Uniform, sizeof(ChunkUniforms), true)}));
+            buffer_entry(1, all, WGPUBufferBindingType_Uniform, sizeof(ChunkUniforms), true),
+            buffer_entry(2, all, WGPUBufferBindingType_Uniform, sizeof(FilterUniforms)),
+            buffer_entry(3, all, WGPUBufferBindingType_ReadOnlyStorage, 8)}));
   p.points_layout = gpu::BindGroupLayout(make_layout(
       ctx, {buffer_entry(0, WGPUShaderStage_Vertex | WGPUShaderStage_Compute,
                          WGPUBufferBindingType_ReadOnlyStorage, sizeof(PointChunk::Vertex))}));
+  p.points_extras_layout = gpu::BindGroupLayout(make_layout(
+      ctx, {buffer_entry(0, WGPUShaderStage_Vertex | WGPUShaderStage_Compute,
+                         WGPUBufferBindingType_ReadOnlyStorage, sizeof(PointChunk::Vertex)),
+            buffer_entry(1, WGPUShaderStage_Vertex, WGPUBufferBindingType_ReadOnlyStorage,
+                         sizeof(PointChunk::Extra))}));
   p.survivors_layout = gpu::BindGroupLayout(make_layout(
       ctx, {buffer_entry(0, WGPUShaderStage_Vertex, WGPUBufferBindingType_ReadOnlyStorage, 4)}));
   p.clod_layout = gpu::BindGroupLayout(make_layout(
@@ -219,6 +276,10 @@ PointPipelines create_point_pipelines(gpu::Context& ctx, WGPUTextureFormat color
       ctx, {p.frame_layout.get(), p.points_layout.get(), p.clod_layout.get()}));
   p.resolve_pipeline_layout = gpu::PipelineLayout(
       make_pipeline_layout(ctx, {p.frame_layout.get(), p.resolve_layout.get()}));
+  p.direct_extras_layout = gpu::PipelineLayout(
+      make_pipeline_layout(ctx, {p.frame_layout.get(), p.points_extras_layout.get()}));
+  p.indexed_extras_layout = gpu::PipelineLayout(make_pipeline_layout(
+      ctx, {p.frame_layout.get(), p.points_extras_layout.get(), p.survivors_layout.get()}));
 
   gpu::ShaderModule shaders[2] = {gpu::create_shader_from_file(ctx, "points.wgsl"),
                                   gpu::create_shader_from_file(ctx, "points_clod.wgsl")};
@@ -247,6 +308,12 @@ PointPipelines create_point_pipelines(gpu::Context& ctx, WGPUTextureFormat color
   p.frame_uniforms =
       gpu::create_buffer(ctx, sizeof(FrameUniforms),
                          WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "frame-uniforms");
+  p.filter_uniforms =
+      gpu::create_buffer(ctx, sizeof(FilterUniforms),
+                         WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "filter-uniforms");
+  p.polygon_vertices =
+      gpu::create_buffer(ctx, kMaxGpuPolygonVertices * 8,
+                         WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "clip-polygons");
   ctx.check("creating the point pipelines");
   return p;
 }
@@ -262,7 +329,29 @@ void ensure_chunk_capacity(gpu::Context& ctx, PointPipelines& p, uint32_t chunks
   p.frame_group = gpu::create_bind_group(
       ctx, p.frame_layout.get(),
       {gpu::bind_buffer(0, p.frame_uniforms.get(), 0, sizeof(FrameUniforms)),
-       gpu::bind_buffer(1, p.chunk_uniforms.get(), 0, sizeof(ChunkUniforms))});
+       gpu::bind_buffer(1, p.chunk_uniforms.get(), 0, sizeof(ChunkUniforms)),
+       gpu::bind_buffer(2, p.filter_uniforms.get(), 0, sizeof(FilterUniforms)),
+       gpu::bind_buffer(3, p.polygon_vertices.get(), 0, kMaxGpuPolygonVertices * 8)});
+}
+
+// The draw pipelines that bind the extras: only GPS-time and point-source filters need them.
+void ensure_extras_pipelines(gpu::Context& ctx, PointPipelines& p) {
+  if (p.extras_pipelines) return;
+  gpu::ShaderModule shaders[2] = {gpu::create_shader_from_file(ctx, "points_extras.wgsl"),
+                                  gpu::create_shader_from_file(ctx, "points_clod_extras.wgsl")};
+  for (int indexed = 0; indexed < 2; ++indexed) {
+    WGPUShaderModule s = shaders[indexed].get();
+    p.naive_out_x[indexed] =
+        make_draw_pipeline(ctx, p, s, indexed, DrawKind::Naive, p.color_format, true);
+    p.naive_hdr_x[indexed] =
+        make_draw_pipeline(ctx, p, s, indexed, DrawKind::Naive, kAccumFormat, true);
+    p.splat_depth_x[indexed] =
+        make_draw_pipeline(ctx, p, s, indexed, DrawKind::SplatDepth, kAccumFormat, true);
+    p.splat_accum_x[indexed] =
+        make_draw_pipeline(ctx, p, s, indexed, DrawKind::SplatAccum, kAccumFormat, true);
+  }
+  p.extras_pipelines = true;
+  ctx.check("creating the filter pipelines");
 }
 
 gpu::BindGroup buffer_group(
@@ -289,6 +378,12 @@ void ensure_cloud_groups(gpu::Context& ctx, const PointPipelines& p, GpuPointClo
         buffer_group(ctx, p.clod_layout.get(),
                      {{c.survivors_buffer, survivors},
                       {cloud.clod_args.get(), {uint64_t(i) * cloud.clod_args_stride, 16}}});
+    c.points_extras_group = {};
+    if (c.extras)
+      c.points_extras_group =
+          buffer_group(ctx, p.points_extras_layout.get(),
+                       {{c.points_buffer, {c.points_offset, bytes}},
+                        {c.extras.get(), {0, uint64_t(c.count) * sizeof(PointChunk::Extra)}}});
   }
   cloud.bind_groups_for = &p;
 }
@@ -297,9 +392,92 @@ void ensure_cloud_groups(gpu::Context& ctx, const PointPipelines& p, GpuPointClo
 struct FrameSetup {
   PointRenderSettings settings;
   FrameUniforms frame{};
+  FilterUniforms filter{};
+  std::vector<float> polygon_vertices;  // x, y pairs
   glm::dvec2 elevation_range;
   bool clod = false;
+  bool extras = false;  // GPS-time or point-source filters: the extras pipelines
 };
+
+// The filter and clip region as the shaders test them, camera-relative: every transform is made
+// in double with the camera position subtracted, then cast (seed 000, section 5).
+void make_filter(FrameSetup& f, const PointRenderSettings& settings, const Camera& camera) {
+  const PointFilter& filter = settings.filter;
+  const ClipRegion& clip = settings.clip;
+  FilterUniforms& u = f.filter;
+  std::copy(filter.classes.begin(), filter.classes.end(), u.classes);
+  u.returns = filter.returns;
+  u.flags = (filter.filters_classes() || filter.returns || filter.intensity ? 1u : 0u) |
+            (filter.needs_extras() ? 2u : 0u) | (clip.empty() ? 0u : 4u);
+  f.extras = filter.needs_extras();
+  const glm::dvec2 everything(-kFloatHuge, kFloatHuge);
+  const glm::dvec2 in = filter.intensity.value_or(everything);
+  const glm::dvec2 source = filter.point_source.value_or(everything);
+  u.intensity[0] = clamp_float(in.x);
+  u.intensity[1] = clamp_float(in.y);
+  u.point_source[0] = clamp_float(source.x);
+  u.point_source[1] = clamp_float(source.y);
+  for (int c = 0; c < 4; ++c) u.highlight[c] = settings.highlight[c];
+  u.clip_mode = uint32_t(clip.mode);
+  if (clip.boxes.size() > kMaxGpuClipShapes || clip.planes.size() > kMaxGpuClipShapes ||
+      clip.polygons.size() > kMaxGpuClipShapes)
+    fail("at most {} clip boxes, {} planes and {} polygons can be drawn at once", kMaxGpuClipShapes,
+         kMaxGpuClipShapes, kMaxGpuClipShapes);
+  // The camera in the source frame (Z up): world (x, y, z) is source (x, -z, y).
+  const glm::dvec3 cam = y_up_to_z_up(camera.position);
+  for (size_t i = 0; i < clip.boxes.size(); ++i) {
+    const ClipBox& b = clip.boxes[i];
+    const double c = std::cos(b.yaw), s = std::sin(b.yaw);
+    const glm::dvec3 inv(1.0 / std::max(b.half_size.x, 1e-12), 1.0 / std::max(b.half_size.y, 1e-12),
+                         1.0 / std::max(b.half_size.z, 1e-12));
+    // Rows of S * R on source offsets: box coordinates of (source - centre).
+    const double sr[3][3] = {{c * inv.x, s * inv.x, 0}, {-s * inv.y, c * inv.y, 0}, {0, 0, inv.z}};
+    // source = P * world with P's rows (1,0,0), (0,0,-1), (0,1,0): columns of S R P.
+    double a[3][3];
+    for (int r = 0; r < 3; ++r) {
+      a[r][0] = sr[r][0];
+      a[r][1] = sr[r][2];
+      a[r][2] = -sr[r][1];
+    }
+    const glm::dvec3 d = cam - b.center;
+    float* m = u.boxes[i];  // column-major
+    for (int r = 0; r < 3; ++r) {
+      for (int col = 0; col < 3; ++col) m[col * 4 + r] = float(a[r][col]);
+      m[12 + r] = float(sr[r][0] * d.x + sr[r][1] * d.y + sr[r][2] * d.z);
+    }
+    m[15] = 1.0f;
+  }
+  for (size_t i = 0; i < clip.planes.size(); ++i) {
+    const ClipPlane& pl = clip.planes[i];
+    const glm::dvec3 n = pl.normal;
+    u.planes[i][0] = float(n.x);
+    u.planes[i][1] = float(n.z);
+    u.planes[i][2] = float(-n.y);
+    u.planes[i][3] = float(pl.offset + glm::dot(n, cam));
+  }
+  size_t rings = 0;
+  for (size_t i = 0; i < clip.polygons.size(); ++i) {
+    const ClipPolygon& poly = clip.polygons[i];
+    u.polygons[i][0] = clamp_float(poly.min_z - cam.z);
+    u.polygons[i][1] = clamp_float(poly.max_z - cam.z);
+    for (const auto& ring : poly.rings) {
+      if (rings == kMaxGpuRings) fail("clip polygons have more than {} rings", kMaxGpuRings);
+      u.rings[rings][0] = uint32_t(f.polygon_vertices.size() / 2);
+      u.rings[rings][1] = uint32_t(ring.size());
+      u.rings[rings][2] = uint32_t(i);
+      ++rings;
+      for (const glm::dvec2& v : ring) {
+        f.polygon_vertices.push_back(float(v.x - cam.x));
+        f.polygon_vertices.push_back(float(v.y - cam.y));
+      }
+    }
+  }
+  if (f.polygon_vertices.size() / 2 > kMaxGpuPolygonVertices)
+    fail("clip polygons have {} vertices; at most {} can be drawn", f.polygon_vertices.size() / 2,
+         kMaxGpuPolygonVertices);
+  u.counts = uint32_t(clip.boxes.size()) | uint32_t(rings) << 8 |
+             uint32_t(clip.planes.size()) << 16 | uint32_t(clip.polygons.size()) << 24;
+}
 
 FrameSetup make_frame(const GpuPointCloud& cloud, const Camera& camera,
                       const PointRenderSettings& settings, uint32_t width, uint32_t height) {
@@ -347,6 +525,7 @@ FrameSetup make_frame(const GpuPointCloud& cloud, const Camera& camera,
     for (int c = 0; c < 3; ++c) u.palette[i][c] = palette[i][c];
     u.palette[i][3] = 1.0f;
   }
+  make_filter(f, settings, camera);
   return f;
 }
 
@@ -355,6 +534,11 @@ void write_uniforms(gpu::Context& ctx, PointPipelines& p, const GpuPointCloud& c
                     const Camera& camera, const FrameSetup& f) {
   ensure_chunk_capacity(ctx, p, uint32_t(cloud.chunks.size()));
   gpu::write_buffer(ctx, p.frame_uniforms.get(), 0, f.frame);
+  gpu::write_buffer(ctx, p.filter_uniforms.get(), 0, f.filter);
+  if (!f.polygon_vertices.empty())
+    gpu::write_buffer(ctx, p.polygon_vertices.get(), 0, f.polygon_vertices.data(),
+                      f.polygon_vertices.size() * sizeof(float));
+  const glm::dvec2 gps = f.settings.filter.gps_time.value_or(glm::dvec2(-kFloatHuge, kFloatHuge));
   // Camera-relative offsets: subtract in double, then cast (seed 000, eq. 5).
   std::vector<uint8_t> bytes(size_t(p.chunk_stride) * std::max<size_t>(1, cloud.chunks.size()));
   for (size_t i = 0; i < cloud.chunks.size(); ++i) {
@@ -367,6 +551,9 @@ void write_uniforms(gpu::Context& ctx, PointPipelines& p, const GpuPointCloud& c
     u.spacing = float(c.spacing);
     u.elevation = float(c.origin.y - f.elevation_range.x);
     u.count = c.count;
+    // The GPS-time range relative to the chunk's own origin, in double, then cast.
+    u.gps_range[0] = clamp_float(gps.x - c.gps_origin);
+    u.gps_range[1] = clamp_float(gps.y - c.gps_origin);
     std::memcpy(bytes.data() + i * p.chunk_stride, &u, sizeof(u));
   }
   gpu::write_buffer(ctx, p.chunk_uniforms.get(), 0, bytes.data(), bytes.size());
@@ -392,20 +579,25 @@ WGPURenderPassDepthStencilAttachment depth_attachment(WGPUTextureView view, bool
   return a;
 }
 
-// Draws every chunk with `pipeline` (index 1: the CLOD survivors, indirect).
+// Draws every chunk with `pipeline` (index 1: the CLOD survivors, indirect); with `extras`
+// (a GPS-time or point-source filter), chunks that have extras use `extras_pipelines`.
 void draw_chunks(WGPURenderPassEncoder pass, const PointPipelines& p, const GpuPointCloud& cloud,
-                 const std::array<gpu::RenderPipeline, 2>& pipelines, bool clod) {
-  wgpuRenderPassEncoderSetPipeline(pass, pipelines[clod ? 1 : 0].get());
+                 const std::array<gpu::RenderPipeline, 2>& pipelines, bool clod,
+                 const std::array<gpu::RenderPipeline, 2>* extras_pipelines = nullptr) {
+  WGPURenderPipeline bound = nullptr;
   for (size_t i = 0; i < cloud.chunks.size(); ++i) {
     const auto& c = cloud.chunks[i];
+    const bool with_extras = extras_pipelines && c.points_extras_group;
+    WGPURenderPipeline pipeline = (with_extras ? *extras_pipelines : pipelines)[clod ? 1 : 0].get();
+    if (pipeline != bound) wgpuRenderPassEncoderSetPipeline(pass, bound = pipeline);
+    WGPUBindGroup points = with_extras ? c.points_extras_group.get() : c.points_group.get();
     const uint32_t offset[1] = {uint32_t(i) * p.chunk_stride};
     if (clod) {
-      gpu::set_bind_groups(
-          pass, {{p.frame_group.get(), offset}, c.points_group.get(), c.survivors_group.get()});
+      gpu::set_bind_groups(pass, {{p.frame_group.get(), offset}, points, c.survivors_group.get()});
       wgpuRenderPassEncoderDrawIndirect(pass, cloud.clod_args.get(),
                                         uint64_t(i) * cloud.clod_args_stride);
     } else {
-      gpu::set_bind_groups(pass, {{p.frame_group.get(), offset}, c.points_group.get()});
+      gpu::set_bind_groups(pass, {{p.frame_group.get(), offset}, points});
       wgpuRenderPassEncoderDraw(pass, c.count * 6, 1, 0, 0);
     }
   }
@@ -438,9 +630,11 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
   GpuPointCloud* cp = &cloud;
   // The first pass that runs uploads the uniforms and makes the cloud's bind groups.
   auto prepare = [pp, cp, camera, setup](gpu::Context& ctx) {
+    if (setup->extras) ensure_extras_pipelines(ctx, *pp);
     ensure_cloud_groups(ctx, *pp, *cp);
     write_uniforms(ctx, *pp, *cp, camera, *setup);
   };
+  const bool extras = setup->extras;
 
   if (clod) {
     graph.import_buffer(
@@ -487,8 +681,8 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
 
   if (!blend) {
     // Naive: straight into the output, or into the accumulation texture for the EDL resolve.
-    auto execute = [pp, cp, prepare, setup, targets, resolve, clod, keep_depth, bg,
-                    accum](gpu::PassContext& pc) {
+    auto execute = [pp, cp, prepare, setup, targets, resolve, clod, keep_depth, bg, accum,
+                    extras](gpu::PassContext& pc) {
       if (!clod) prepare(pc.gpu());
       WGPURenderPassColorAttachment color =
           resolve ? color_attachment(pc.view(accum), WGPULoadOp_Clear, glm::vec4(0.0f))
@@ -500,7 +694,8 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
       desc.colorAttachments = &color;
       desc.depthStencilAttachment = &depth;
       gpu::RenderPassEncoder pass = pc.begin_render_pass(desc);
-      draw_chunks(pass.get(), *pp, *cp, resolve ? pp->naive_hdr : pp->naive_out, clod);
+      draw_chunks(pass.get(), *pp, *cp, resolve ? pp->naive_hdr : pp->naive_out, clod,
+                  extras ? (resolve ? &pp->naive_hdr_x : &pp->naive_out_x) : nullptr);
       wgpuRenderPassEncoderEnd(pass.get());
     };
     auto pass = graph.add_pass("points", gpu::PassKind::Render, std::move(execute));
@@ -511,21 +706,22 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
       pass.write(targets.color);
     declare_depth(pass);
   } else {
-    auto depth_pass = [pp, cp, prepare, targets, clod](gpu::PassContext& pc) {
+    auto depth_pass = [pp, cp, prepare, targets, clod, extras](gpu::PassContext& pc) {
       if (!clod) prepare(pc.gpu());
       WGPURenderPassDepthStencilAttachment depth =
           depth_attachment(pc.view(targets.depth), true, true);
       WGPURenderPassDescriptor desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
       desc.depthStencilAttachment = &depth;
       gpu::RenderPassEncoder pass = pc.begin_render_pass(desc);
-      draw_chunks(pass.get(), *pp, *cp, pp->splat_depth, clod);
+      draw_chunks(pass.get(), *pp, *cp, pp->splat_depth, clod,
+                  extras ? &pp->splat_depth_x : nullptr);
       wgpuRenderPassEncoderEnd(pass.get());
     };
     auto pass = graph.add_pass("splat-depth", gpu::PassKind::Render, std::move(depth_pass));
     if (clod) pass.read("clod-args");
     declare_depth(pass);
 
-    auto accum_pass = [pp, cp, targets, clod, accum](gpu::PassContext& pc) {
+    auto accum_pass = [pp, cp, targets, clod, accum, extras](gpu::PassContext& pc) {
       WGPURenderPassColorAttachment color =
           color_attachment(pc.view(accum), WGPULoadOp_Clear, glm::vec4(0.0f));
       WGPURenderPassDepthStencilAttachment depth =
@@ -538,7 +734,8 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
       desc.colorAttachments = &color;
       desc.depthStencilAttachment = &depth;
       gpu::RenderPassEncoder pass = pc.begin_render_pass(desc);
-      draw_chunks(pass.get(), *pp, *cp, pp->splat_accum, clod);
+      draw_chunks(pass.get(), *pp, *cp, pp->splat_accum, clod,
+                  extras ? &pp->splat_accum_x : nullptr);
       wgpuRenderPassEncoderEnd(pass.get());
     };
     auto acc = graph.add_pass("splat-accumulate", gpu::PassKind::Render, std::move(accum_pass));

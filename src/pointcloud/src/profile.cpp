@@ -432,20 +432,11 @@ std::vector<ProfileSample> profile_samples(const PointCloud& cloud, const Profil
     if (std::max(a.x, b.x) < lo.x || std::min(a.x, b.x) > hi.x || std::max(a.y, b.y) < lo.y ||
         std::min(a.y, b.y) > hi.y)
       continue;
-    const bool extras = chunk.extras.size() == chunk.vertices.size();
     for (size_t i = 0; i < chunk.vertices.size(); ++i) {
       const PointChunk::Vertex& v = chunk.vertices[i];
       const glm::dvec3 p = y_up_to_z_up(chunk.origin + glm::dvec3(v.x, v.y, v.z));
       const auto hit = line.locate({p.x, p.y});
-      if (!hit) continue;
-      if (filter.active()) {
-        const double gps = extras ? chunk.gps_origin + double(chunk.extras[i].gps) : 0.0;
-        const uint32_t source = extras ? chunk.extras[i].word & 0xffffu : 0u;
-        if (!filter.accepts((v.attributes >> 16) & 0xffu, (v.attributes >> 24) & 0xfu,
-                            v.attributes >> 28, v.attributes & 0xffffu, gps, source))
-          continue;
-      }
-      if (!region.keeps(p)) continue;
+      if (!hit || !chunk_point_shown(chunk, i, filter, region)) continue;
       out.push_back(
           {float(hit->along), float(p.z - z_origin), float(hit->offset), v.rgba, v.attributes});
     }

@@ -60,12 +60,13 @@ struct TilesetComputeGpu {
 
 }  // namespace
 
-std::optional<pc::PickHit> pick_tileset_point(const TilesetStream& stream, const pc::PickRay& ray) {
+std::optional<pc::PickHit> pick_tileset_point(const TilesetStream& stream, const pc::PickRay& ray,
+                                              const pc::PickFilter* filter) {
   std::optional<pc::PickHit> best;
   for (uint32_t t : stream.draw) {
     if (t >= stream.chunks.size() || !stream.chunks[t]) continue;
     for (const auto& chunk : stream.chunks[t]->chunks)
-      pc::pick_in_chunk(chunk, chunk.bounds, ray, best);
+      pc::pick_in_chunk(chunk, chunk.bounds, ray, best, filter, false);
   }
   return best;
 }
@@ -74,7 +75,8 @@ namespace {
 
 std::optional<pc::PickHit> pick_tileset(Registry& main, const pc::PickRay& ray) {
   const auto* stream = main.try_resource<TilesetStream>();
-  return stream ? pick_tileset_point(*stream, ray) : std::nullopt;
+  return stream ? pick_tileset_point(*stream, ray, main.try_resource<pc::PickFilter>())
+                : std::nullopt;
 }
 
 // MainStage::Update: one streamer update with the first camera.

@@ -10,6 +10,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "stipple/app/filter_options.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/renderer/gpu.hpp"
 
@@ -44,7 +45,18 @@ struct SceneOptions {
   std::string cache_dir;         // empty: beside the input
   std::string host_memory;       // empty: a quarter of RAM
   std::string gpu_memory;        // virtualized: device memory budget; empty: what B needs
+  // --classes, --returns, --clip-box ...: apply_filters() moves them into `render`.
+  FilterArgs filters;
+  // Point clouds: keep the per-point extras (GPS time, point source) so that filters on them
+  // can be turned on later (the viewer); render keeps them only when its filters need them.
+  bool keep_extras = false;
 };
+
+// Reads the clip polygons and puts the filters and clip region into options.render; throws
+// stipple::Error for a bad polygon file.
+void apply_filters(SceneOptions& options);
+// Whether filters or a clip region are set.
+bool filters_active(const SceneOptions& options);
 
 // Whether `options` take the virtualized path (for point-cloud inputs), and why.
 bool use_virtual_path(const SceneOptions& options, std::string* reason = nullptr);
@@ -72,7 +84,8 @@ double max_sse_for(const SceneOptions& options);
 void add_scene_plugin(Engine& engine, const SceneOptions& options);
 
 // --renderer, --hqs, --max-sse, --memory-mb and the virtualized path's --virtual, --bucket,
-// --pointlets, --cache, --host-memory, --gpu-memory: the same for `render` and `view`.
+// --pointlets, --cache, --host-memory, --gpu-memory, and the filter and clip flags: the same
+// for `render` and `view`.
 void add_scene_options(CLI::App* cmd, SceneOptions& options);
 
 }  // namespace stipple::app

@@ -17,6 +17,7 @@
 #include <glm/vec3.hpp>
 
 #include "stipple/io/point_batch.hpp"
+#include "stipple/pointcloud/point_cloud.hpp"
 
 namespace stipple::pc {
 
@@ -105,6 +106,12 @@ struct ClipRegion {
     return contains(p) == (mode == ClipMode::Inside);
   }
 };
+
+// Whether point i of a loaded chunk is drawn under `filter` and `clip` (as the shaders decide;
+// Highlight draws every point): the CPU side of the GPU filters, for picking and the viewer's
+// profile. GPS time and point source count only where the chunk kept its extras.
+bool chunk_point_shown(const PointChunk& chunk, size_t i, const PointFilter& filter,
+                       const ClipRegion& clip);
 
 // Most clip shapes the GPU path takes at once (each kind); more is an error naming the limit.
 inline constexpr size_t kMaxGpuClipShapes = 8;

@@ -32,6 +32,7 @@ struct PointCloudInputs {
   io::SceneParams scene;
   size_t chunk_points = 1 << 20;  // smaller chunks make the point budget finer
   bool progress = true;
+  bool keep_extras = false;  // PointChunk::extras, for GPS-time and point-source filters
 };
 
 // Main-world component: the loaded points, shared with the render world (never modified; a

@@ -29,6 +29,7 @@
 #include <glm/vec3.hpp>
 
 #include "stipple/math/camera.hpp"
+#include "stipple/pointcloud/filters.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/renderer/gpu_timer.hpp"
@@ -68,6 +69,12 @@ struct PointRenderSettings {
   float edl_radius = 1.4f;     // pixels
   float edl_strength = 60.0f;  // k of eq. 11
   glm::vec3 background{0.07f, 0.08f, 0.1f};
+  // Filters and clipping (filters.hpp), tested per point in the vertex shader: changing them
+  // re-uploads nothing. GPS-time and point-source filters read the chunks' extras (uploaded by
+  // upload_point_extras), the others the packed attribute word.
+  PointFilter filter;
+  ClipRegion clip;
+  glm::vec4 highlight{1.0f, 0.85f, 0.1f, 0.65f};  // Highlight mode: tint rgb, strength a
 };
 
 // The point diameter the compute rasterizer dilates to: the fixed size in pixels (attenuated
@@ -93,8 +100,12 @@ struct GpuPointCloud {
     uint32_t count = 0;
     glm::dvec3 origin{0.0};
     double spacing = 0.0;  // s_native of CLOD
+    // PointChunk::extras, bound only while a GPS-time or point-source filter is on (null:
+    // not uploaded, or the source has none); GPS times are relative to gps_origin.
+    gpu::Buffer extras;
+    double gps_origin = 0.0;
     // Created on first draw, for the pipelines' layouts.
-    gpu::BindGroup points_group, survivors_group, clod_group;
+    gpu::BindGroup points_group, survivors_group, clod_group, points_extras_group;
   };
   std::vector<Chunk> chunks;
   uint64_t point_count = 0;
@@ -131,6 +142,11 @@ void append_chunk_pieces(GpuPointCloud& cloud, const PointChunk& chunk, uint64_t
 }
 void finish_upload(gpu::Context& ctx, GpuPointCloud& gpu_cloud);
 GpuPointCloud upload_point_cloud(gpu::Context& ctx, const PointCloud& cloud);
+// Uploads the chunks' extras (8 bytes a point) beside a cloud that upload_point_cloud made from
+// `cloud` (the same pieces, in order). Called when a filter first needs them, so the default
+// path never holds them on the GPU. Chunks without extras get none (the filter then passes
+// their points). Returns whether every chunk got its extras.
+bool upload_point_extras(gpu::Context& ctx, GpuPointCloud& gpu_cloud, const PointCloud& cloud);
 
 struct PointPipelines {
   WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
@@ -142,10 +158,17 @@ struct PointPipelines {
   std::array<gpu::RenderPipeline, 2> naive_hdr;    // opaque, into RGBA16Float for the resolve
   std::array<gpu::RenderPipeline, 2> splat_depth;  // depth pre-pass
   std::array<gpu::RenderPipeline, 2> splat_accum;  // additive weighted colours
+  // The same four with the extras bound (group 1 binding 1), made on first use.
+  gpu::BindGroupLayout points_extras_layout;
+  gpu::PipelineLayout direct_extras_layout, indexed_extras_layout;
+  std::array<gpu::RenderPipeline, 2> naive_out_x, naive_hdr_x, splat_depth_x, splat_accum_x;
+  bool extras_pipelines = false;
   gpu::ComputePipeline clod;
   gpu::RenderPipeline resolve;
   gpu::Buffer frame_uniforms;
-  gpu::Buffer chunk_uniforms;  // one slot per chunk (dynamic offsets)
+  gpu::Buffer filter_uniforms;   // `Filter` of point_common.wgsl
+  gpu::Buffer polygon_vertices;  // clip polygons' ring vertices, camera-relative
+  gpu::Buffer chunk_uniforms;    // one slot per chunk (dynamic offsets)
   uint32_t chunk_stride = 256;
   uint32_t chunk_capacity = 0;
   gpu::BindGroup frame_group;

@@ -57,7 +57,8 @@ struct TilesetStream {
 
 // The nearest point of this frame's drawn tiles within the ray's cone (TilesetPlugin registers it
 // in ScenePickers for double-click focus). Chunks whose bounds miss the cone are not read.
-std::optional<pc::PickHit> pick_tileset_point(const TilesetStream& stream, const pc::PickRay& ray);
+std::optional<pc::PickHit> pick_tileset_point(const TilesetStream& stream, const pc::PickRay& ray,
+                                              const pc::PickFilter* filter = nullptr);
 
 // Main-world resource: what the stream did this frame (tests, the UI, `stipple render`).
 struct TilesetStats {

@@ -1,0 +1,142 @@
+// Filters and clip regions on the GPU (`render --classes ... --clip-box ...`): a filtered class
+// disappears and nothing else changes, and what the GPU keeps is what `stipple clip` keeps on the
+// CPU (the same points rendered from the clipped file give the same image).
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "stipple/renderer/png.hpp"
+#include "test_util.hpp"
+
+using namespace stipple;
+namespace fs = std::filesystem;
+
+namespace {
+
+class FilterRender : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::temp_directory_path() / fmt::format("stipple-filter-render-{}", ::getpid());
+    fs::create_directories(dir_);
+    // The built-in scene as a file, so that `stipple clip` can make the references.
+    const auto r =
+        test::run_stipple(fmt::format("generate -n 150000 -o {}", (dir_ / "scene.las").string()));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir_); }
+
+  // Classification colours, opaque points without blending or EDL: a pixel shows exactly the
+  // palette colour of the nearest point, so removing points changes only where they were.
+  static gpu::Image render(const std::string& input, const std::string& name,
+                           const std::string& extra, const std::string& backend = "wgpu") {
+    const fs::path out = dir_ / name;
+    const auto r = test::run_stipple(fmt::format(
+        "render {} -o {} --width 400 --height 260 --camera "
+        "500000,5099890,320,500000,5100000,200 --color classification --splat naive --no-edl "
+        "--point-size 2 --renderer billboard --backend {} {}",
+        input, out.string(), backend, extra));
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return gpu::read_png(out);
+  }
+
+  static std::string clip(const std::string& name, const std::string& args) {
+    const fs::path out = dir_ / name;
+    const auto r = test::run_stipple(fmt::format("clip {} -o {} {}", scene(), out.string(), args));
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return out.string();
+  }
+
+  static std::string scene() { return (dir_ / "scene.las").string(); }
+  static fs::path dir_;
+};
+fs::path FilterRender::dir_;
+
+bool is_color(const gpu::Image& image, size_t pixel, const uint8_t rgb[3]) {
+  const uint8_t* p = &image.rgba[pixel * 4];
+  return std::abs(p[0] - rgb[0]) <= 1 && std::abs(p[1] - rgb[1]) <= 1 &&
+         std::abs(p[2] - rgb[2]) <= 1;
+}
+
+}  // namespace
+
+TEST_F(FilterRender, FilteredClassDisappearsAndNothingElseChanges) {
+  const gpu::Image all = render(scene(), "all.png", "");
+  const gpu::Image no_buildings = render(scene(), "no-buildings.png", "--classes 0-5,7-255");
+  ASSERT_EQ(all.rgba.size(), no_buildings.rgba.size());
+  const uint8_t building[3] = {220, 80, 60};  // ASPRS class 6 in the palette
+  size_t before = 0, after = 0, changed_elsewhere = 0, other = 0;
+  const size_t n = size_t(all.width) * all.height;
+  for (size_t i = 0; i < n; ++i) {
+    const bool was_building = is_color(all, i, building);
+    before += was_building;
+    after += is_color(no_buildings, i, building);
+    if (was_building) continue;
+    ++other;
+    bool same = true;
+    for (int c = 0; c < 3; ++c) same &= all.rgba[i * 4 + c] == no_buildings.rgba[i * 4 + c];
+    changed_elsewhere += !same;
+  }
+  EXPECT_GT(before, n / 50);  // buildings cover a visible part of the view
+  EXPECT_EQ(after, 0u);       // and are gone
+  // Every pixel that did not show a building is unchanged (exactly: same points, same order).
+  EXPECT_EQ(changed_elsewhere, 0u) << "of " << other;
+}
+
+// The GPU keeps what `stipple clip` keeps: the same view of the clipped file matches. Tolerance:
+// 0.5% of pixels, as the two clouds are chunked differently (other float origins, other draw
+// order among equal depths).
+TEST_F(FilterRender, GpuFiltersMatchTheClippedFiles) {
+  struct Case {
+    std::string name, render_flags, clip_flags;
+  };
+  const fs::path polygon = dir_ / "area.geojson";
+  std::ofstream(polygon) << R"({"type": "Polygon", "coordinates": [[[499960, 5099950],
+      [500050, 5099970], [500010, 5100060], [499960, 5099950]], [[499990, 5099980],
+      [500010, 5099980], [500000, 5100000], [499990, 5099980]]]})";
+  const Case cases[] = {
+      {"box", "--clip-box 499970,5099960,190,500040,5100030,240,25",
+       "--box 499970,5099960,190,500040,5100030,240,25"},
+      {"outside", "--clip-box 499970,5099960,190,500040,5100030,240,25 --clip-mode outside",
+       "--box 499970,5099960,190,500040,5100030,240,25 --outside"},
+      {"polygon", "--clip-polygon " + polygon.string() + " --returns first",
+       "--polygon " + polygon.string() + " --returns first"},
+      {"gps-and-plane", "--gps-time-range 300000000.3,300000000.9 --clip-plane 0,0,-1,215",
+       "--gps-time-range 300000000.3,300000000.9 --plane 0,0,-1,215"},
+  };
+  for (const Case& c : cases) {
+    const gpu::Image gpu = render(scene(), c.name + "-gpu.png", c.render_flags);
+    const std::string clipped = clip(c.name + ".las", c.clip_flags);
+    const gpu::Image cpu = render(clipped, c.name + "-cpu.png", "");
+    const uint8_t bg[3] = {18, 20, 26};
+    const auto stats = test::coverage_stats(gpu, bg, 1);
+    EXPECT_GT(stats.coverage, 0.02) << c.name;  // something is drawn
+    EXPECT_LT(test::differing_fraction(gpu, cpu, 1), 0.005) << c.name;
+  }
+}
+
+// Highlight keeps every point and tints those inside the region; Dawn compiles the filter
+// shaders (extras variant included) as wgpu-native does.
+TEST_F(FilterRender, HighlightTintsTheRegionOnBothBackends) {
+  const gpu::Image all = render(scene(), "plain.png", "");
+  for (const char* backend : {"wgpu", "dawn"}) {
+    const gpu::Image lit =
+        render(scene(), fmt::format("highlight-{}.png", backend),
+               "--clip-box 499970,5099960,150,500040,5100030,300 --clip-mode highlight "
+               "--point-source-range 0,65535",
+               backend);
+    const uint8_t bg[3] = {18, 20, 26};
+    // Same coverage (nothing hidden), but many pixels changed colour (tinted).
+    EXPECT_NEAR(test::coverage_stats(lit, bg, 1).coverage,
+                test::coverage_stats(all, bg, 1).coverage, 0.002)
+        << backend;
+    const double changed = test::differing_fraction(all, lit, 8);
+    EXPECT_GT(changed, 0.05) << backend;
+    EXPECT_LT(changed, 0.6) << backend;
+  }
+}
