@@ -322,3 +322,27 @@ TEST(Profile, BadInputFailsCleanly) {
   EXPECT_EQ(files_in(dir), 0u);  // not even the image of the run whose CSV folder was missing
   fs::remove_all(dir);
 }
+
+// The viewer checks its files before it opens a window.
+TEST(ViewFiles, BadScriptsAndMeasurementsFailCleanly) {
+  const fs::path dir = temp_dir();
+  write_text(dir / "script.json", R"({"events": [{"frame": 2, "tap": "warp"}]})");
+  write_text(dir / "broken.geojson", "{\"type\": \"Feature\", ");
+  struct Case {
+    std::string args, message;
+  };
+  const Case cases[] = {
+      {"--script " + (dir / "script.json").string(), "script.json: event 0: unknown key"},
+      {"--measurements " + (dir / "broken.geojson").string(), "broken.geojson: not valid GeoJSON"},
+      {"--measurements-out " + (dir / "none" / "m.geojson").string(), "does not exist"},
+      {"--clip-box 1,2,3,0,5,6", "minx 1 is greater than maxx 0"},
+      {"--classes 999", "class 999 is out of range"},
+  };
+  for (const Case& c : cases) {
+    const auto r = test::run_stipple("view --scene-points 1000 " + c.args);
+    EXPECT_NE(r.exit_code, 0) << c.args;
+    EXPECT_NE(r.output.find(c.message), std::string::npos) << c.args << "\n" << r.output;
+  }
+  EXPECT_EQ(files_in(dir), 2u);
+  fs::remove_all(dir);
+}

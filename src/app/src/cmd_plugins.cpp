@@ -17,6 +17,8 @@
 #include "stipple/pointcloud/virtual_cloud.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 #include "stipple/viewer/camera_controller.hpp"
+#include "stipple/viewer/script.hpp"
+#include "stipple/viewer/tools_plugin.hpp"
 #include "stipple/viewer/ui_plugin.hpp"
 #include "stipple/viewer/viewer_plugin.hpp"
 #include "stipple/viewer/window_plugins.hpp"
@@ -44,6 +46,8 @@ std::vector<PluginInfo> builtin_plugins() {
           plugin_info<viewer::InputPlugin>(),
           plugin_info<viewer::SurfaceTargetPlugin>(),
           plugin_info<viewer::UiPlugin>(),
+          plugin_info<viewer::ScriptedInputPlugin>(),
+          plugin_info<viewer::ToolsPlugin>(),
           plugin_info<viewer::CameraControllerPlugin>(),
           plugin_info<viewer::ViewerPlugin>()};
 }
@@ -70,9 +74,9 @@ void run_plugins(const std::string& dot_path) {
       "stipple view:   TimePlugin, TransformPlugin, CameraPlugin, PipelinedRenderingPlugin "
       "[not with --single-thread], GpuPlugin, RenderGraphPlugin, PointCloudPlugin (TilesetPlugin "
       "for a tileset, VirtualPointCloudPlugin over the host budget or with --virtual), "
-      "WindowPlugin, "
-      "InputPlugin, SurfaceTargetPlugin, UiPlugin [not with --no-ui], CameraControllerPlugin, "
-      "ViewerPlugin\n");
+      "WindowPlugin, [ScriptedInputPlugin with --script], "
+      "InputPlugin, SurfaceTargetPlugin, UiPlugin [not with --no-ui], ToolsPlugin, "
+      "CameraControllerPlugin, ViewerPlugin\n");
   if (dot_path.empty()) return;
   std::string dot = plugins_dot(plugins);
   if (dot_path == "-") {

@@ -90,18 +90,8 @@ void run_render(const RenderArgs& args) {
   Registry& main = engine.main();
   const pc::SceneInfo& scene = main.resource<pc::SceneInfo>();
   double aspect = double(args.width) / args.height;
-  Camera camera;
-  if (args.camera.empty()) {
-    camera = frame_box(scene.world_bounds, aspect, args.azimuth, args.elevation, args.fov);
-  } else {
-    auto v = parse_numbers(args.camera, 6, "--camera");
-    camera.fov_y = glm::radians(args.fov);
-    glm::dvec3 eye = z_up_to_y_up({v[0], v[1], v[2]});
-    glm::dvec3 target = z_up_to_y_up({v[3], v[4], v[5]});
-    if (glm::length(target - eye) <= 0.0) fail("--camera: eye and target are the same point");
-    camera.look_at(eye, target);
-    camera.near_plane = std::max(glm::length(target - eye) * 1e-4, 1e-3);
-  }
+  const Camera camera =
+      scene_camera(args.camera, scene.world_bounds, aspect, args.azimuth, args.elevation, args.fov);
   main.emplace<Camera>(main.create(), camera);
   auto& settings = main.resource<pc::PointDrawSettings>();
   const bool sized_by_data = settings.render.point_size <= 0;

@@ -12,11 +12,14 @@
 #include "stipple/engine/plugins.hpp"
 #include "stipple/engine/render_plugins.hpp"
 #include "stipple/io/fetch.hpp"
+#include "stipple/io/geojson.hpp"
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/viewer/camera_controller.hpp"
+#include "stipple/viewer/script.hpp"
+#include "stipple/viewer/tools_plugin.hpp"
 #include "stipple/viewer/ui_plugin.hpp"
 #include "stipple/viewer/viewer_plugin.hpp"
 #include "stipple/viewer/window_plugins.hpp"
@@ -33,9 +36,23 @@ struct ViewArgs {
   bool no_vsync = false;
   bool no_ui = false;
   bool single_thread = false;
+  std::string camera;
+  double fov = 50.0;
+  std::string script;
+  std::string measurements, measurements_out;
 };
 
 void run_view(const ViewArgs& args) {
+  // Read before anything opens: a bad script is an error, not a window.
+  viewer::InputScript script;
+  if (!args.script.empty()) script = viewer::read_input_script(args.script);
+  if (!args.measurements.empty()) (void)io::read_geojson(args.measurements);
+  if (!args.measurements_out.empty()) {
+    const std::filesystem::path out(args.measurements_out);
+    const std::filesystem::path folder = out.parent_path().empty() ? "." : out.parent_path();
+    if (!std::filesystem::is_directory(folder))
+      fail("{}: the folder {} does not exist", out.string(), folder.string());
+  }
   Engine engine;
   engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
   if (!args.single_thread) engine.add_plugin(PipelinedRenderingPlugin{});
@@ -61,18 +78,22 @@ void run_view(const ViewArgs& args) {
   window.width = args.width;
   window.height = args.height;
   engine.add_plugin(viewer::WindowPlugin{window});
+  // Scripted events join the window's before InputState is built from them.
+  if (!args.script.empty()) engine.add_plugin(viewer::ScriptedInputPlugin{script});
   engine.add_plugin(viewer::InputPlugin{});
   engine.add_plugin(viewer::SurfaceTargetPlugin{!args.no_vsync});
   if (!args.no_ui) engine.add_plugin(viewer::UiPlugin{});
   engine.add_plugin(viewer::CameraControllerPlugin{});
   engine.add_plugin(viewer::ViewerPlugin{args.frames, args.screenshot});
+  // After the viewer: its panel section follows the viewer's in the same window.
+  engine.add_plugin(viewer::ToolsPlugin{args.measurements, args.measurements_out});
 
   // The scene: a camera framing the data, and a point size that closes the gaps from there.
   Registry& main = engine.main();
   const auto& scene = main.resource<pc::SceneInfo>();
   glm::uvec2 size = main.resource<viewer::WindowState>().framebuffer_size;
   double aspect = size.y > 0 ? double(size.x) / size.y : double(args.width) / args.height;
-  Camera camera = frame_box(scene.world_bounds, aspect);
+  Camera camera = scene_camera(args.camera, scene.world_bounds, aspect, 30.0, 40.0, args.fov);
   main.emplace<Camera>(main.create(), camera);
   auto& settings = main.resource<pc::PointDrawSettings>();
   main.view<pc::PointCloudData>().each([&](const pc::PointCloudData& data) {
@@ -122,6 +143,21 @@ void add_view_command(CLI::App& cli) {
   cmd->add_flag("--no-vsync", args->no_vsync, "Start with vsync off (Immediate or Mailbox)");
   cmd->add_flag("--no-ui", args->no_ui, "Leave out the ImGui panel (UiPlugin)");
   add_scene_options(cmd, args->scene);
+  cmd->add_option("--camera", args->camera,
+                  "Start camera 'eye_x,eye_y,eye_z,target_x,target_y,target_z' in the data's "
+                  "coordinates (Z up); default frames the data");
+  cmd->add_option("--fov", args->fov, "Vertical field of view in degrees")
+      ->check(CLI::Range(1.0, 170.0))
+      ->capture_default_str();
+  cmd->add_option("--script", args->script,
+                  "Replay scripted input (JSON: at frame N move the cursor, press or release "
+                  "buttons and keys, scroll; see README)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--measurements", args->measurements,
+                  "Load measurements and annotations from GeoJSON (source CRS)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--measurements-out", args->measurements_out,
+                  "Write the measurements (and the last inspected point) as GeoJSON on exit");
   cmd->add_flag("--single-thread", args->single_thread,
                 "Run the render world on the main thread (no PipelinedRenderingPlugin)");
   cmd->callback([args] { run_view(*args); });

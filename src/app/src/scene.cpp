@@ -8,6 +8,7 @@
 
 #include <fmt/format.h>
 
+#include "stipple/app/point_options.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
 #include "stipple/engine/engine.hpp"
@@ -137,6 +138,20 @@ Renderer resolve_renderer(const SceneOptions& options, const gpu::Context& ctx,
   return say(
       Renderer::Billboard,
       fmt::format("auto: {} points, under {}: point sizes above one pixel", points, kComputeFrom));
+}
+
+Camera scene_camera(const std::string& text, const Aabb& world_bounds, double aspect,
+                    double azimuth, double elevation, double fov) {
+  if (text.empty()) return frame_box(world_bounds, aspect, azimuth, elevation, fov);
+  const std::vector<double> v = parse_numbers(text, 6, "--camera");
+  Camera camera;
+  camera.fov_y = glm::radians(fov);
+  const glm::dvec3 eye = z_up_to_y_up({v[0], v[1], v[2]});
+  const glm::dvec3 target = z_up_to_y_up({v[3], v[4], v[5]});
+  if (glm::length(target - eye) <= 0.0) fail("--camera: eye and target are the same point");
+  camera.look_at(eye, target);
+  camera.near_plane = std::max(glm::length(target - eye) * 1e-4, 1e-3);
+  return camera;
 }
 
 void add_scene_plugin(Engine& engine, const SceneOptions& options) {

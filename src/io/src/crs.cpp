@@ -3,6 +3,7 @@
 #include <proj.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include <fmt/format.h>
@@ -196,4 +197,40 @@ Crs parse_crs(const std::vector<Vlr>& vlrs, const std::vector<Vlr>& evlrs, bool 
 }
 
 }  // namespace detail
+
+LonLatTransform::LonLatTransform(const Crs& crs) {
+  if (crs.empty()) return;
+  PJ_CONTEXT* ctx = proj_context_create();
+  if (!ctx) return;
+  proj_log_level(ctx, PJ_LOG_NONE);
+  context_ = ctx;
+  PJ* source = nullptr;
+  if (!crs.wkt.empty()) source = proj_create(ctx, crs.wkt.c_str());
+  if (!source && crs.epsg > 0) source = proj_create(ctx, fmt::format("EPSG:{}", crs.epsg).c_str());
+  if (!source) return;
+  PJ* target = proj_create(ctx, "EPSG:4979");  // WGS 84 3D: lat, lon, ellipsoidal height
+  if (!target) target = proj_create(ctx, "EPSG:4326");
+  PJ* raw =
+      target ? proj_create_crs_to_crs_from_pj(ctx, source, target, nullptr, nullptr) : nullptr;
+  PJ* normalized = raw ? proj_normalize_for_visualization(ctx, raw) : nullptr;  // lon, lat
+  if (raw) proj_destroy(raw);
+  if (target) proj_destroy(target);
+  proj_destroy(source);
+  transform_ = normalized;
+}
+
+LonLatTransform::~LonLatTransform() {
+  if (transform_) proj_destroy(static_cast<PJ*>(transform_));
+  if (context_) proj_context_destroy(static_cast<PJ_CONTEXT*>(context_));
+}
+
+std::optional<glm::dvec3> LonLatTransform::operator()(const glm::dvec3& p) const {
+  if (!transform_) return std::nullopt;
+  PJ_COORD c = proj_coord(p.x, p.y, p.z, 0);
+  PJ_COORD out = proj_trans(static_cast<PJ*>(transform_), PJ_FWD, c);
+  if (!std::isfinite(out.xyz.x) || !std::isfinite(out.xyz.y) || out.xyz.x == HUGE_VAL)
+    return std::nullopt;
+  return glm::dvec3(out.xyz.x, out.xyz.y, out.xyz.z);
+}
+
 }  // namespace stipple::io

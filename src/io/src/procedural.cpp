@@ -55,16 +55,10 @@ struct Building {
   uint8_t r, g, b;
 };
 
-// The town occupies the middle of the scene; each block holds up to four buildings.
-Building building_at(double x, double y, double size, uint64_t seed) {
+// The building on lot (qx, qy) of block (bx, by), present or not, whatever point is asked.
+Building building_on_lot(double bx, double by, int qx, int qy, uint64_t seed) {
   Building bld;
-  double town = size * 0.3;
-  if (std::abs(x) > town || std::abs(y) > town) return bld;
-  double bx = std::floor(x / kBlock), by = std::floor(y / kBlock);
-  double lx = x - bx * kBlock, ly = y - by * kBlock;
-  if (lx < kRoad || ly < kRoad) return bld;  // roads
   double inner = kBlock - kRoad;
-  int qx = lx - kRoad < inner / 2 ? 0 : 1, qy = ly - kRoad < inner / 2 ? 0 : 1;
   int64_t id_x = int64_t(bx) * 2 + qx, id_y = int64_t(by) * 2 + qy;
   double h0 = hash2(id_x, id_y, seed + 101);
   if (h0 < 0.25) return bld;  // empty lot
@@ -75,7 +69,6 @@ Building building_at(double x, double y, double size, uint64_t seed) {
   bld.y0 = cy0 + margin;
   bld.x1 = cx0 + cell - margin * (0.6 + 0.8 * hash2(id_x, id_y, seed + 103));
   bld.y1 = cy0 + cell - margin * (0.6 + 0.8 * hash2(id_x, id_y, seed + 104));
-  if (x < bld.x0 || x > bld.x1 || y < bld.y0 || y > bld.y1) return bld;
   bld.present = true;
   bld.base = terrain_height((bld.x0 + bld.x1) / 2, (bld.y0 + bld.y1) / 2, seed);
   bool tall = hash2(id_x, id_y, seed + 105) < 0.15;
@@ -89,6 +82,20 @@ Building building_at(double x, double y, double size, uint64_t seed) {
   bld.r = c[0];
   bld.g = c[1];
   bld.b = c[2];
+  return bld;
+}
+
+// The town occupies the middle of the scene; each block holds up to four buildings.
+Building building_at(double x, double y, double size, uint64_t seed) {
+  double town = size * 0.3;
+  if (std::abs(x) > town || std::abs(y) > town) return {};
+  double bx = std::floor(x / kBlock), by = std::floor(y / kBlock);
+  double lx = x - bx * kBlock, ly = y - by * kBlock;
+  if (lx < kRoad || ly < kRoad) return {};  // roads
+  double inner = kBlock - kRoad;
+  int qx = lx - kRoad < inner / 2 ? 0 : 1, qy = ly - kRoad < inner / 2 ? 0 : 1;
+  Building bld = building_on_lot(bx, by, qx, qy, seed);
+  if (!bld.present || x < bld.x0 || x > bld.x1 || y < bld.y0 || y > bld.y1) return {};
   return bld;
 }
 
@@ -141,6 +148,36 @@ Tree tree_at(double x, double y, double size, uint64_t seed) {
 }
 
 }  // namespace
+
+std::vector<SceneBuilding> scene_buildings(const SceneParams& params) {
+  const double size = scene_size(params);
+  const double town = size * 0.3;
+  const uint64_t seed = mix(params.seed);
+  std::vector<SceneBuilding> out;
+  for (double by = std::floor(-town / kBlock); by * kBlock <= town; ++by)
+    for (double bx = std::floor(-town / kBlock); bx * kBlock <= town; ++bx)
+      for (int qy = 0; qy < 2; ++qy)
+        for (int qx = 0; qx < 2; ++qx) {
+          const Building b = building_on_lot(bx, by, qx, qy, seed);
+          if (!b.present) continue;
+          // Only what lies inside the town is built (building_at's first test).
+          const Building at = building_at((b.x0 + b.x1) / 2, (b.y0 + b.y1) / 2, size, seed);
+          if (!at.present || at.x0 != b.x0 || at.y0 != b.y0) continue;
+          SceneBuilding sb;
+          sb.min = glm::dvec2(params.origin) + glm::dvec2(b.x0, b.y0);
+          sb.max = glm::dvec2(params.origin) + glm::dvec2(b.x1, b.y1);
+          sb.base = params.origin.z + b.base;
+          sb.height = b.height;
+          sb.gabled = b.gabled;
+          out.push_back(sb);
+        }
+  return out;
+}
+
+double scene_ground_height(const SceneParams& params, double x, double y) {
+  return params.origin.z +
+         terrain_height(x - params.origin.x, y - params.origin.y, mix(params.seed));
+}
 
 double scene_size(const SceneParams& params) {
   return std::max(50.0, std::sqrt(double(params.point_count) / params.density));

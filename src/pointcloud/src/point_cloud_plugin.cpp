@@ -289,7 +289,9 @@ void PointCloudPlugin::build(Engine& engine) {
   main.insert_resource(info);
 
   Entity e = main.create();
-  main.emplace<PointCloudData>(e, make_data(std::move(cloud), 0));
+  PointCloudData data = make_data(std::move(cloud), 0);
+  if (inputs.files.empty()) data.scene = inputs.scene;
+  main.emplace<PointCloudData>(e, std::move(data));
   main.emplace<Transform>(e);
   main.emplace<SyncTo<RenderWorldTag>>(e);
   main.insert_resource(settings);

@@ -159,6 +159,7 @@ void control_cameras(Registry& main) {
       input.key_down.fill(false);
       input.key_pressed.fill(false);
     }
+    if (capture->double_click) input.double_clicked = false;
   }
   const auto* time = main.try_resource<Time>();
   double dt = time ? std::min(time->delta_seconds, 0.1) : 1.0 / 60.0;

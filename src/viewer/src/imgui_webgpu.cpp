@@ -29,6 +29,7 @@ UiDrawList copy_draw_data(const ImDrawData& data) {
       c.first_index = index_base + cmd.IdxOffset;
       c.index_count = cmd.ElemCount;
       c.base_vertex = int32_t(vertex_base + cmd.VtxOffset);
+      c.texture = reinterpret_cast<uintptr_t>(cmd.TextureId);
       out.commands.push_back(c);
     }
   }
@@ -165,10 +166,40 @@ std::unique_ptr<UiRenderer> create_ui_renderer(gpu::Context& ctx, WGPUTextureFor
   return r;
 }
 
+namespace {
+
+// Uploads the images the frame draws that changed since they were last uploaded.
+void update_images(gpu::Context& ctx, UiRenderer& r, const UiDrawList& draw) {
+  for (const auto& [id, image] : draw.images) {
+    UiRenderer::Image& slot = r.images[id];
+    if (slot.source == image || !image || image->width == 0 || image->height == 0) continue;
+    slot.source = image;
+    slot.texture = gpu::create_texture_2d(
+        ctx, image->width, image->height, WGPUTextureFormat_RGBA8Unorm,
+        WGPUTextureUsage_TextureBinding | WGPUTextureUsage_CopyDst, "ui-image");
+    slot.view = gpu::create_view(slot.texture);
+    WGPUTexelCopyTextureInfo dst = WGPU_TEXEL_COPY_TEXTURE_INFO_INIT;
+    dst.texture = slot.texture.get();
+    WGPUTexelCopyBufferLayout layout = WGPU_TEXEL_COPY_BUFFER_LAYOUT_INIT;
+    layout.bytesPerRow = image->width * 4;
+    layout.rowsPerImage = image->height;
+    WGPUExtent3D extent = {image->width, image->height, 1};
+    wgpuQueueWriteTexture(ctx.queue.get(), &dst, image->rgba.data(), image->rgba.size(), &layout,
+                          &extent);
+    slot.bind_group = gpu::create_bind_group(
+        ctx, r.layout.get(),
+        {gpu::bind_buffer(0, r.uniforms.get(), 0, sizeof(Uniforms)),
+         gpu::bind_sampler(1, r.sampler.get()), gpu::bind_texture(2, slot.view.get())});
+  }
+}
+
+}  // namespace
+
 void add_ui_pass(gpu::RenderGraph& graph, UiRenderer& r, const UiDrawList& draw, uint32_t width,
                  uint32_t height, const std::string& color) {
   auto execute = [&r, &draw, width, height, color](gpu::PassContext& pc) {
     gpu::Context& ctx = pc.gpu();
+    update_images(ctx, r, draw);
     const uint64_t vertex_bytes = draw.vertices.size() * sizeof(ImDrawVert);
     const uint64_t index_bytes = draw.indices.size() * sizeof(ImDrawIdx);
     ensure_buffer(ctx, r.vertices, r.vertex_capacity, vertex_bytes, WGPUBufferUsage_Vertex,
@@ -196,6 +227,7 @@ void add_ui_pass(gpu::RenderGraph& graph, UiRenderer& r, const UiDrawList& draw,
     gpu::RenderPassEncoder pass = pc.begin_render_pass(desc);
     wgpuRenderPassEncoderSetPipeline(pass.get(), r.pipeline.get());
     gpu::set_bind_groups(pass.get(), {r.bind_group.get()});
+    uintptr_t bound = 1;
     wgpuRenderPassEncoderSetVertexBuffer(pass.get(), 0, r.vertices.get(), 0, r.vertex_capacity);
     wgpuRenderPassEncoderSetIndexBuffer(
         pass.get(), r.indices.get(),
@@ -209,6 +241,13 @@ void add_ui_pass(gpu::RenderGraph& graph, UiRenderer& r, const UiDrawList& draw,
       float x1 = std::min((cmd.clip.z - offset.x) * scale.x, float(width));
       float y1 = std::min((cmd.clip.w - offset.y) * scale.y, float(height));
       if (x1 <= x0 || y1 <= y0 || cmd.index_count == 0) continue;
+      if (cmd.texture != bound) {
+        auto it = r.images.find(cmd.texture);
+        if (cmd.texture != 1 && (it == r.images.end() || !it->second.bind_group)) continue;
+        gpu::set_bind_groups(pass.get(),
+                             {cmd.texture == 1 ? r.bind_group.get() : it->second.bind_group.get()});
+        bound = cmd.texture;
+      }
       wgpuRenderPassEncoderSetScissorRect(pass.get(), uint32_t(x0), uint32_t(y0), uint32_t(x1 - x0),
                                           uint32_t(y1 - y0));
       wgpuRenderPassEncoderDrawIndexed(pass.get(), cmd.index_count, 1, cmd.first_index,

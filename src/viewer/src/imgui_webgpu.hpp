@@ -4,6 +4,7 @@
 // the frame graph as pass "ui" (font atlas texture, growing vertex/index buffers, scissor rects,
 // shaders/imgui.wgsl). Debian's imgui_impl_wgpu speaks an older webgpu.h, hence our own.
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -14,6 +15,7 @@
 
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/renderer/render_graph.hpp"
+#include "stipple/viewer/ui_plugin.hpp"
 
 namespace stipple::viewer {
 
@@ -23,10 +25,13 @@ struct UiDrawList {
     glm::vec4 clip{0.0f};  // x0, y0, x1, y1 in ImGui coordinates
     uint32_t first_index = 0, index_count = 0;
     int32_t base_vertex = 0;
+    uintptr_t texture = 1;  // 1: the font atlas; others: `images`
   };
   std::vector<ImDrawVert> vertices;
   std::vector<ImDrawIdx> indices;
   std::vector<Command> commands;
+  // The images ImGui::Image drew this frame (immutable, shared with the main world).
+  std::map<uintptr_t, std::shared_ptr<const UiImage>> images;
   glm::vec2 display_pos{0.0f}, display_size{0.0f}, framebuffer_scale{1.0f};
   bool empty() const { return commands.empty(); }
 };
@@ -52,6 +57,13 @@ struct UiRenderer {
   gpu::BindGroup bind_group;
   gpu::Buffer vertices, indices;
   uint64_t vertex_capacity = 0, index_capacity = 0;  // bytes
+  struct Image {
+    std::shared_ptr<const UiImage> source;  // what was uploaded
+    gpu::Texture texture;
+    gpu::TextureView view;
+    gpu::BindGroup bind_group;
+  };
+  std::map<uintptr_t, Image> images;
 };
 std::unique_ptr<UiRenderer> create_ui_renderer(gpu::Context& ctx, WGPUTextureFormat format,
                                                const UiFontAtlas& atlas);

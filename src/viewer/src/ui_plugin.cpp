@@ -9,7 +9,9 @@
 #include "imgui_webgpu.hpp"
 #include "stipple/engine/engine.hpp"
 #include "stipple/engine/render_plugins.hpp"
+#include "stipple/platform/input.hpp"
 #include "stipple/viewer/camera_controller.hpp"
+#include "stipple/viewer/script.hpp"
 #include "stipple/viewer/window_plugins.hpp"
 
 namespace stipple::viewer {
@@ -32,6 +34,17 @@ struct UiRenderState {
 
 void ui_begin_frame(Registry& main) {
   ImGui_ImplGlfw_NewFrame();
+  if (main.try_resource<ScriptedInputActive>()) {
+    // Scripted input: the cursor and buttons of InputState, not the system pointer's. A press
+    // and release in one frame still counts as down for that frame.
+    const auto& input = main.resource<platform::InputState>();
+    ImGuiIO& io = ImGui::GetIO();
+    io.MousePos = ImVec2(float(input.cursor.x), float(input.cursor.y));
+    for (size_t b = 0; b < platform::kMouseButtonCount; ++b)
+      io.MouseDown[b] = input.button_down[b] || input.button_pressed[b];
+    io.MouseWheel = float(input.scroll.y);
+    io.MouseWheelH = float(input.scroll.x);
+  }
   ImGui::NewFrame();
   const ImGuiIO& io = ImGui::GetIO();
   bool visible = main.resource<UiSettings>().visible;
@@ -41,7 +54,9 @@ void ui_begin_frame(Registry& main) {
 
 void ui_end_frame(Registry& main) {
   ImGui::Render();
-  main.resource<UiContext>().frame = copy_draw_data(*ImGui::GetDrawData());
+  UiDrawList draw = copy_draw_data(*ImGui::GetDrawData());
+  draw.images = main.resource<UiImages>().images;
+  main.resource<UiContext>().frame = std::move(draw);
 }
 
 void extract_ui(Registry& main) {
@@ -85,6 +100,7 @@ void UiPlugin::build(Engine& engine) {
   main.insert_resource(std::move(ui));
   main.insert_resource(UiSettings{visible});
   main.insert_resource(UiCapture{});
+  main.insert_resource(UiImages{});
   engine.render().insert_resource(std::move(render_state));
   engine.add_system(MainStage::Input, ui_begin_frame, "ui_begin_frame");
   engine.add_system(MainStage::PostUpdate, ui_end_frame, "ui_end_frame");

@@ -14,6 +14,7 @@
 #include "stipple/pointcloud/virtual_cloud.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 #include "stipple/viewer/camera_controller.hpp"
+#include "stipple/viewer/tools_plugin.hpp"
 #include "stipple/viewer/ui_plugin.hpp"
 #include "stipple/viewer/window_plugins.hpp"
 
@@ -43,7 +44,10 @@ void viewer_keys(Registry& main) {
     main.resource<AppExit>().requested = true;
   }
   if (capture && capture->keyboard) return;
-  if (input.pressed(Key::Escape)) main.resource<AppExit>().requested = true;
+  // Escape quits, unless it cancels a measurement being drawn (the tools see it first).
+  const auto* tools = main.try_resource<ToolsState>();
+  if (input.pressed(Key::Escape) && !(tools && tools->active >= 0))
+    main.resource<AppExit>().requested = true;
   if (input.pressed(Key::P))
     main.resource<ScreenshotRequests>().paths.push_back(next_screenshot_name());
   if (input.pressed(Key::V))

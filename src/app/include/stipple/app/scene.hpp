@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 
 #include "stipple/app/filter_options.hpp"
+#include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/renderer/gpu.hpp"
 
@@ -78,6 +79,11 @@ bool is_tileset_scene(const SceneOptions& options);
 // --max-sse, or the source's default: 16 px for 3D Tiles, 2 px for COPC, whose node error is
 // its point spacing (so a level is refined while its spacing covers more than 2 pixels).
 double max_sse_for(const SceneOptions& options);
+
+// The camera of `render` and `view`: from --camera 'eye,target' (source coordinates, Z up),
+// else framing `world_bounds` from the azimuth and elevation (degrees); fov in degrees.
+Camera scene_camera(const std::string& camera, const Aabb& world_bounds, double aspect,
+                    double azimuth, double elevation, double fov);
 
 // Adds the scene plugin for `options` to `engine`; throws stipple::Error for what the chosen
 // path cannot do.

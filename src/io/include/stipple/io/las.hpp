@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -61,6 +62,23 @@ struct Crs {
 
   bool empty() const { return wkt.empty() && geokeys.empty() && epsg == 0; }
   std::string describe() const;  // one line for logs and `stipple info`
+};
+
+// Longitude and latitude (degrees, WGS 84) of coordinates in a CRS, through PROJ; invalid
+// when the CRS is unknown or PROJ cannot make the transformation (never throws).
+class LonLatTransform {
+ public:
+  explicit LonLatTransform(const Crs& crs);
+  ~LonLatTransform();
+  LonLatTransform(const LonLatTransform&) = delete;
+  LonLatTransform& operator=(const LonLatTransform&) = delete;
+  bool valid() const { return transform_ != nullptr; }
+  // lon, lat, height; nullopt where PROJ fails for that point.
+  std::optional<glm::dvec3> operator()(const glm::dvec3& p) const;
+
+ private:
+  void* context_ = nullptr;
+  void* transform_ = nullptr;
 };
 
 struct LasHeader {

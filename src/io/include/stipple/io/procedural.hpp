@@ -4,6 +4,9 @@
 // a few wall hits). Deterministic: point i depends only on the seed and i, so any range can be
 // generated independently (in parallel, or streamed into a file of billions of points).
 #include <cstdint>
+#include <vector>
+
+#include <glm/vec2.hpp>
 
 #include "stipple/io/point_batch.hpp"
 #include "stipple/math/aabb.hpp"
@@ -23,6 +26,17 @@ struct SceneParams {
 double scene_size(const SceneParams& params);
 // Bounds of all points the scene can produce (Z-up, CRS units).
 Aabb scene_bounds(const SceneParams& params);
+// The scene's geometry as built, in its CRS (for tests that measure it): every building's
+// footprint, ground level (at its centre) and eave height; flat roofs are at base + height.
+struct SceneBuilding {
+  glm::dvec2 min, max;
+  double base = 0, height = 0;
+  bool gabled = false;
+};
+std::vector<SceneBuilding> scene_buildings(const SceneParams& params);
+// The terrain's height at (x, y) without ranging noise.
+double scene_ground_height(const SceneParams& params, double x, double y);
+
 // Appends points [first, first + count) to batch: positions, RGB (8-bit values), intensity,
 // classification, returns, scan angle, GPS time, point source id.
 void generate_scene(const SceneParams& params, uint64_t first, uint64_t count,

@@ -41,6 +41,9 @@ struct PointCloudData {
   std::shared_ptr<const pc::PointCloud> cloud;
   std::vector<Aabb> chunk_bounds;  // world space, per cloud chunk (picking, budget order)
   uint64_t generation = 0;
+  // The built-in scene's parameters when it was generated (its points can be made again, one
+  // by one, for inspection); unset for files.
+  std::optional<io::SceneParams> scene;
 };
 
 // LAS/LAZ/COPC files read whole, or the procedural scene (tilesets: tiles3d::TilesetPlugin).

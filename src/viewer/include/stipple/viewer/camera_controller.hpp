@@ -67,6 +67,8 @@ void update_controller(CameraController& c, const platform::InputState& input, d
 struct UiCapture {
   bool mouse = false;
   bool keyboard = false;
+  // A measuring tool owns clicks this frame: no double-click focus (the tools plugin sets it).
+  bool double_click = false;
 };
 
 struct CameraControllerPlugin {
