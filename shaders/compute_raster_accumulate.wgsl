@@ -12,6 +12,7 @@
 // count) that the later passes read.
 #include "compute_raster_batch.wgsl"
 #include "compute_raster_shading.wgsl"
+#include "compute_raster_filter.wgsl"
 
 override PACKED: bool = false;
 
@@ -81,6 +82,11 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   if (!pr.valid) {
     return;
   }
+  let position = point_position(cells);
+  let state = raster_filter(index, position);
+  if (state == 0u) {
+    return;
+  }
   if (!MERGE || pr.pixel != run_pixel) {
     end_run();
     run_pixel = pr.pixel;
@@ -90,7 +96,11 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   if (pr.depth > run_limit) {
     return;
   }
-  run_sum += vec4<u32>(channels(shade(colors[index], attributes_of(index), point_position(cells).y)), 1u);
+  var color = shade(colors[index], attributes_of(index), position.y);
+  if (state == 2u) {
+    color = highlighted(color);
+  }
+  run_sum += vec4<u32>(channels(color), 1u);
   if (!MERGE) {
     end_run();
   }

@@ -4,9 +4,11 @@
 // batch is found by binary search in the segment's batch table (sorted by first index) and the
 // point dequantized at full precision, as the billboard path colours the exact position (a ray
 // through the pixel centre would favour the near half of each pixel). Writes the accumulation
-// layout (sum, count = 1) so one display pass serves every variant.
+// layout (sum, count = 1) so one display pass serves every variant. Hidden points never got
+// here (the geometry pass dropped them); highlighted ones are tinted.
 #include "compute_raster_common.wgsl"
 #include "compute_raster_shading.wgsl"
+#include "compute_raster_filter.wgsl"
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> visibility: array<u32>;
@@ -50,11 +52,17 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
   if (local_index >= params.segment_points) {
     return;
   }
-  var rel_y = 0.0;
-  if (shading.mode == 4u && params.batch_count > 0u) {
-    rel_y = point_position(local_index).y;
+  // Highlight needs the position too: is the visible point inside the clip region?
+  let highlight = (filters.flags & 4u) != 0u && filters.clip_mode == 2u;
+  var position = vec3<f32>(0.0);
+  if ((shading.mode == 4u || highlight) && params.batch_count > 0u) {
+    position = point_position(local_index);
   }
-  let c = channels(shade(colors[local_index], attributes_of(local_index), rel_y));
+  var color = shade(colors[local_index], attributes_of(local_index), position.y);
+  if (highlight && params.batch_count > 0u && clip_state(position) == 2u) {
+    color = highlighted(color);
+  }
+  let c = channels(color);
   let o = pixel * 4u;
   accum[o] = c.x;
   accum[o + 1u] = c.y;

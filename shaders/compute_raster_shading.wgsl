@@ -3,6 +3,7 @@
 // 0-15, class 16-23, return 24-27, returns 28-31), and the resolve (visible points only) or the
 // accumulation pass shades them in the frame's colour mode. Mode and ramps are uniforms, so a
 // change costs nothing and the intensity ramp can follow what is loaded.
+#include "compute_raster_attributes.wgsl"
 #include "point_colors.wgsl"
 
 struct Shading {
@@ -18,7 +19,6 @@ struct Shading {
   palette: array<vec4<f32>, 32>,  // ASPRS classes
 }
 
-@group(0) @binding(9) var<storage, read> attributes: array<u32>;
 @group(0) @binding(10) var<uniform> shading: Shading;
 
 // `rel_y`: the point's camera-relative Y (world Y is the source elevation).

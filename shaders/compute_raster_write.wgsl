@@ -1,13 +1,16 @@
 // draw_point of the geometry passes: a point's key (depth, and for the 64-bit visibility buffer
 // its index) into the pixel it projects to. The including shader defines `alias Key`,
 // point_key(depth bits, index), key_less(a, b), depth_word(pixel) and write_key(pixel, key),
-// which does the early depth test and the atomic.
+// which does the early depth test and the atomic. Points hidden by the filters or the clip
+// region (compute_raster_filter.wgsl) are dropped before they join a run.
 //
 // PLAIN_EARLY: the early depth test reads the depth word with a plain load of an aliased,
 // non-atomic view of the buffer, as seed 001's Listing 1 does, instead of an atomic load.
 // MERGE: a thread keeps the nearest key of the pixel its last points fell on and writes it once
 // the pixel changes (or its points end): at overview distances hundreds of points share a
 // pixel, and consecutive points of a sorted batch mostly do.
+#include "compute_raster_filter.wgsl"
+
 override PLAIN_EARLY: bool = true;
 override MERGE: bool = true;
 
@@ -24,7 +27,7 @@ fn end_run() {
 
 fn draw_point(cells: vec3<f32>, index: u32) {
   let pr = project_point(cells);
-  if (!pr.valid) {
+  if (!pr.valid || raster_filter(index, point_position(cells)) == 0u) {
     return;
   }
   let key = point_key(bitcast<u32>(pr.depth), index);  // positive floats order as their bits

@@ -1,6 +1,7 @@
 // Shared by the point passes: frame and chunk uniforms, the point record, colour modes, point
 // size modes and the CLOD filter (seed 000, eqs. 6-9).
 #include "point_colors.wgsl"
+#include "point_filter.wgsl"
 
 struct Frame {
   view_proj: mat4x4<f32>,  // projection * rotation-only view (camera at the origin)
@@ -31,23 +32,6 @@ struct Chunk {
   elevation: f32,  // chunk origin elevation - elevation range minimum (double on the CPU)
   count: u32,
   gps_range: vec2<f32>,  // the GPS-time filter relative to the chunk's GPS origin (double on the CPU)
-}
-
-// Filters and clip regions (pointcloud/filters.hpp, FilterUniforms on the CPU). Clip shapes are
-// camera-relative like the points: their transforms had the camera subtracted in double.
-struct Filter {
-  classes: array<vec4<u32>, 2>,  // bit c: class c kept
-  returns: u32,  // ReturnKind bits: 1 first, 2 last, 4 single, 8 intermediate; 0 every return
-  flags: u32,  // 1 attribute tests, 2 GPS-time / point-source tests, 4 clip region
-  clip_mode: u32,  // 0 inside, 1 outside, 2 highlight
-  counts: u32,  // boxes (bits 0-7), rings (8-15), planes (16-23), polygons (24-31)
-  intensity: vec2<f32>,
-  point_source: vec2<f32>,
-  highlight: vec4<f32>,  // tint of the region's points in highlight mode; a: how much
-  boxes: array<mat4x4<f32>, 8>,  // camera-relative world -> box coordinates, inside |u| <= 1
-  planes: array<vec4<f32>, 8>,  // camera-relative world: dot(xyz, p) + w >= 0 is kept
-  rings: array<vec4<u32>, 32>,  // first vertex, vertex count, polygon
-  polygons: array<vec4<f32>, 8>,  // camera-relative height range (world y) of each polygon
 }
 
 // PointChunk::Extra: GPS time relative to the chunk's origin; point source (bits 0-15), flags
@@ -127,82 +111,11 @@ fn point_pixels(rel: vec3<f32>) -> f32 {
   return clamp(px, 1.0, frame.max_point_px);
 }
 
-fn return_matches(kinds: u32, number: u32, count: u32) -> bool {
-  return kinds == 0u || ((kinds & 1u) != 0u && number <= 1u) ||
-         ((kinds & 2u) != 0u && number >= count) || ((kinds & 4u) != 0u && count <= 1u) ||
-         ((kinds & 8u) != 0u && number > 1u && number < count);
-}
-
-// Even-odd rule over the polygon's rings, in the horizontal plane.
-fn in_polygon(polygon: u32, rel: vec3<f32>) -> bool {
-  let range = filters.polygons[polygon];
-  if (rel.y < range.x || rel.y > range.y) {
-    return false;
-  }
-  let q = vec2<f32>(rel.x, -rel.z);
-  var inside = false;
-  let rings = (filters.counts >> 8u) & 0xffu;
-  for (var r = 0u; r < rings; r++) {
-    let ring = filters.rings[r];
-    if (ring.z != polygon) {
-      continue;
-    }
-    var j = ring.x + ring.y - 1u;
-    for (var i = ring.x; i < ring.x + ring.y; i++) {
-      let a = polygon_vertices[i];
-      let b = polygon_vertices[j];
-      if ((a.y > q.y) != (b.y > q.y) && q.x < (b.x - a.x) * (q.y - a.y) / (b.y - a.y) + a.x) {
-        inside = !inside;
-      }
-      j = i;
-    }
-  }
-  return inside;
-}
-
-// Whether the camera-relative position lies in the clip region (pointcloud::ClipRegion).
-fn in_clip_region(rel: vec3<f32>) -> bool {
-  let boxes = filters.counts & 0xffu;
-  let planes = (filters.counts >> 16u) & 0xffu;
-  let polygons = filters.counts >> 24u;
-  for (var i = 0u; i < planes; i++) {
-    if (dot(filters.planes[i].xyz, rel) + filters.planes[i].w < 0.0) {
-      return false;
-    }
-  }
-  if (boxes == 0u && polygons == 0u) {
-    return true;
-  }
-  for (var i = 0u; i < boxes; i++) {
-    let u = (filters.boxes[i] * vec4<f32>(rel, 1.0)).xyz;
-    if (all(abs(u) <= vec3<f32>(1.0))) {
-      return true;
-    }
-  }
-  for (var i = 0u; i < polygons; i++) {
-    if (in_polygon(i, rel)) {
-      return true;
-    }
-  }
-  return false;
-}
-
 // 0: hidden, 1: shown, 2: shown highlighted. `extra` counts only with has_extra (the pipelines
 // that bind the extras buffer).
 fn point_filter(p: Point, extra: PointExtra, has_extra: bool, rel: vec3<f32>) -> u32 {
-  if ((filters.flags & 1u) != 0u) {
-    let class_id = (p.attributes >> 16u) & 0xffu;
-    let word = filters.classes[class_id >> 7u][(class_id >> 5u) & 3u];
-    if (((word >> (class_id & 31u)) & 1u) == 0u) {
-      return 0u;
-    }
-    if (!return_matches(filters.returns, (p.attributes >> 24u) & 0xfu, p.attributes >> 28u)) {
-      return 0u;
-    }
-    let intensity = f32(p.attributes & 0xffffu);
-    if (intensity < filters.intensity.x || intensity > filters.intensity.y) {
-      return 0u;
-    }
+  if (!attributes_pass(p.attributes)) {
+    return 0u;
   }
   if ((filters.flags & 2u) != 0u && has_extra) {
     if (extra.gps < chunk.gps_range.x || extra.gps > chunk.gps_range.y) {
@@ -213,14 +126,5 @@ fn point_filter(p: Point, extra: PointExtra, has_extra: bool, rel: vec3<f32>) ->
       return 0u;
     }
   }
-  if ((filters.flags & 4u) != 0u) {
-    let inside = in_clip_region(rel);
-    if (filters.clip_mode == 2u) {
-      return select(1u, 2u, inside);
-    }
-    if (inside != (filters.clip_mode == 0u)) {
-      return 0u;
-    }
-  }
-  return 1u;
+  return clip_state(rel);
 }

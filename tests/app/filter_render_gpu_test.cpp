@@ -34,13 +34,14 @@ class FilterRender : public ::testing::Test {
   // Classification colours, opaque points without blending or EDL: a pixel shows exactly the
   // palette colour of the nearest point, so removing points changes only where they were.
   static gpu::Image render(const std::string& input, const std::string& name,
-                           const std::string& extra, const std::string& backend = "wgpu") {
+                           const std::string& extra, const std::string& backend = "wgpu",
+                           const std::string& renderer = "billboard") {
     const fs::path out = dir_ / name;
     const auto r = test::run_stipple(fmt::format(
         "render {} -o {} --width 400 --height 260 --camera "
         "500000,5099890,320,500000,5100000,200 --color classification --splat naive --no-edl "
-        "--point-size 2 --renderer billboard --backend {} {}",
-        input, out.string(), backend, extra));
+        "--point-size 2 --renderer {} --backend {} {}",
+        input, out.string(), renderer, backend, extra));
     EXPECT_EQ(r.exit_code, 0) << r.output;
     return gpu::read_png(out);
   }
@@ -53,6 +54,8 @@ class FilterRender : public ::testing::Test {
   }
 
   static std::string scene() { return (dir_ / "scene.las").string(); }
+  static void expect_filters_match_clips(const std::string& renderer, bool with_gps);
+  static void expect_class_disappears(const std::string& renderer);
   static fs::path dir_;
 };
 fs::path FilterRender::dir_;
@@ -66,8 +69,19 @@ bool is_color(const gpu::Image& image, size_t pixel, const uint8_t rgb[3]) {
 }  // namespace
 
 TEST_F(FilterRender, FilteredClassDisappearsAndNothingElseChanges) {
-  const gpu::Image all = render(scene(), "all.png", "");
-  const gpu::Image no_buildings = render(scene(), "no-buildings.png", "--classes 0-5,7-255");
+  expect_class_disappears("billboard");
+}
+
+// The compute rasterizer's visibility buffer keeps the nearest point of each pixel: dropping a
+// class changes only the pixels it won.
+TEST_F(FilterRender, FilteredClassDisappearsOnTheComputePath) {
+  expect_class_disappears("compute");
+}
+
+void FilterRender::expect_class_disappears(const std::string& renderer) {
+  const gpu::Image all = render(scene(), "all-" + renderer + ".png", "", "wgpu", renderer);
+  const gpu::Image no_buildings =
+      render(scene(), "no-buildings-" + renderer + ".png", "--classes 0-5,7-255", "wgpu", renderer);
   ASSERT_EQ(all.rgba.size(), no_buildings.rgba.size());
   const uint8_t building[3] = {220, 80, 60};  // ASPRS class 6 in the palette
   size_t before = 0, after = 0, changed_elsewhere = 0, other = 0;
@@ -92,6 +106,17 @@ TEST_F(FilterRender, FilteredClassDisappearsAndNothingElseChanges) {
 // 0.5% of pixels, as the two clouds are chunked differently (other float origins, other draw
 // order among equal depths).
 TEST_F(FilterRender, GpuFiltersMatchTheClippedFiles) {
+  expect_filters_match_clips("billboard", true);
+}
+
+// The compute rasterizer drops hidden points in its geometry pass: the same comparisons, on
+// the 64-bit visibility buffer (wgpu-native) and the two-pass fallback (Dawn). Its batches
+// hold no GPS time, so that case stays with the billboards.
+TEST_F(FilterRender, ComputeFiltersMatchTheClippedFiles) {
+  expect_filters_match_clips("compute", false);
+}
+
+void FilterRender::expect_filters_match_clips(const std::string& renderer, bool with_gps) {
   struct Case {
     std::string name, render_flags, clip_flags;
   };
@@ -110,33 +135,43 @@ TEST_F(FilterRender, GpuFiltersMatchTheClippedFiles) {
        "--gps-time-range 300000000.3,300000000.9 --plane 0,0,-1,215"},
   };
   for (const Case& c : cases) {
-    const gpu::Image gpu = render(scene(), c.name + "-gpu.png", c.render_flags);
-    const std::string clipped = clip(c.name + ".las", c.clip_flags);
-    const gpu::Image cpu = render(clipped, c.name + "-cpu.png", "");
-    const uint8_t bg[3] = {18, 20, 26};
-    const auto stats = test::coverage_stats(gpu, bg, 1);
-    EXPECT_GT(stats.coverage, 0.02) << c.name;  // something is drawn
-    EXPECT_LT(test::differing_fraction(gpu, cpu, 1), 0.005) << c.name;
+    if (!with_gps && c.name == "gps-and-plane") continue;
+    for (const char* backend : {"wgpu", "dawn"}) {
+      if (renderer == "billboard" && std::string(backend) == "dawn") continue;
+      const std::string tag = fmt::format("{}-{}-{}", c.name, renderer, backend);
+      const gpu::Image gpu = render(scene(), tag + "-gpu.png", c.render_flags, backend, renderer);
+      const std::string clipped = clip(c.name + ".las", c.clip_flags);
+      const gpu::Image cpu = render(clipped, tag + "-cpu.png", "", backend, renderer);
+      const uint8_t bg[3] = {18, 20, 26};
+      const auto stats = test::coverage_stats(gpu, bg, 1);
+      EXPECT_GT(stats.coverage, 0.02) << tag;  // something is drawn
+      EXPECT_LT(test::differing_fraction(gpu, cpu, 1), 0.005) << tag;
+    }
   }
 }
 
 // Highlight keeps every point and tints those inside the region; Dawn compiles the filter
-// shaders (extras variant included) as wgpu-native does.
+// shaders (extras variant included) as wgpu-native does; the compute rasterizer tints in its
+// resolve (wgpu-native) and accumulation (Dawn) passes.
 TEST_F(FilterRender, HighlightTintsTheRegionOnBothBackends) {
-  const gpu::Image all = render(scene(), "plain.png", "");
-  for (const char* backend : {"wgpu", "dawn"}) {
-    const gpu::Image lit =
-        render(scene(), fmt::format("highlight-{}.png", backend),
-               "--clip-box 499970,5099960,150,500040,5100030,300 --clip-mode highlight "
-               "--point-source-range 0,65535",
-               backend);
+  for (const std::string variant : {"wgpu", "dawn", "wgpu compute", "dawn compute"}) {
+    const bool compute = variant.find("compute") != std::string::npos;
+    const std::string backend = variant.substr(0, 4);
+    const std::string renderer = compute ? "compute" : "billboard";
+    const std::string tag = backend + "-" + renderer;
+    const gpu::Image all = render(scene(), "plain-" + tag + ".png", "", backend, renderer);
+    const gpu::Image lit = render(
+        scene(), "highlight-" + tag + ".png",
+        fmt::format("--clip-box 499970,5099960,150,500040,5100030,300 --clip-mode highlight {}",
+                    compute ? "" : "--point-source-range 0,65535"),
+        backend, renderer);
     const uint8_t bg[3] = {18, 20, 26};
     // Same coverage (nothing hidden), but many pixels changed colour (tinted).
     EXPECT_NEAR(test::coverage_stats(lit, bg, 1).coverage,
                 test::coverage_stats(all, bg, 1).coverage, 0.002)
-        << backend;
+        << variant;
     const double changed = test::differing_fraction(all, lit, 8);
-    EXPECT_GT(changed, 0.05) << backend;
-    EXPECT_LT(changed, 0.6) << backend;
+    EXPECT_GT(changed, 0.05) << variant;
+    EXPECT_LT(changed, 0.6) << variant;
   }
 }

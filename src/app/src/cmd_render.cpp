@@ -105,7 +105,8 @@ void run_render(const RenderArgs& args) {
   // image (blending as HQS does) far faster (measured on lavapipe, 12M points: 134 ms against
   // 6953 ms a frame), on any adapter.
   if (args.scene.renderer == Renderer::Auto && !compute && !tileset && sized_by_data &&
-      settings.render.point_size <= 1.0f && clouds > 0 && !filters_active(scene_options)) {
+      settings.render.point_size <= 1.0f && clouds > 0 &&
+      !scene_options.render.filter.needs_extras()) {
     compute = true;
     settings.compute = true;
     settings.hqs = settings.render.splat == pc::SplatMode::Blend;

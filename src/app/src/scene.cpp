@@ -56,14 +56,11 @@ void apply_filters(SceneOptions& options) {
   options.render.clip = make_region(options.filters);
 }
 
-bool filters_active(const SceneOptions& options) {
-  return options.render.filter.active() || !options.render.clip.empty();
-}
-
 bool use_virtual_path(const SceneOptions& options, std::string* reason) {
   if (options.inputs.empty() || is_tileset_scene(options)) return false;
-  // Filters are drawn by the billboard path: the in-memory path keeps them possible.
-  if (filters_active(options) && !options.force_virtual) return false;
+  // GPS-time and point-source filters are drawn by the billboard path: the in-memory path keeps
+  // them possible.
+  if (options.render.filter.needs_extras() && !options.force_virtual) return false;
   if (options.force_virtual) {
     if (reason) *reason = "--virtual";
     return true;
@@ -98,13 +95,15 @@ Renderer resolve_renderer(const SceneOptions& options, const gpu::Context& ctx,
     if (reason) *reason = std::move(why);
     return r;
   };
-  const bool filtering = filters_active(options);
-  if (filtering && (options.renderer == Renderer::Compute || options.force_virtual))
+  // GPS-time and point-source filters read the billboard path's per-point extras; the compute
+  // rasterizer's batches hold positions, colours and the attribute word only.
+  const bool extras = options.render.filter.needs_extras();
+  if (extras && (options.renderer == Renderer::Compute || options.force_virtual))
     fail(
-        "filters and clip regions (--classes, --returns, --clip-box, ...) are drawn by the "
-        "billboard renderer: leave out --renderer compute and --virtual");
+        "--gps-time-range and --point-source-range are drawn by the billboard renderer: leave "
+        "out --renderer compute and --virtual");
   if (options.renderer != Renderer::Auto) return say(options.renderer, "--renderer");
-  if (filtering) return say(Renderer::Billboard, "auto: filters and clip regions");
+  if (extras) return say(Renderer::Billboard, "auto: GPS-time and point-source filters");
   if (use_virtual_path(options))
     return say(Renderer::Compute, "auto: the virtualized path draws with it");
   // Points known up front: LAS/LAZ headers, a COPC header, the built-in scene; a 3D Tiles

@@ -4,11 +4,13 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <string_view>
 
 #include <webgpu/wgpu.h>
 #include <glm/gtc/type_ptr.hpp>
 
+#include "filter_uniforms.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
 #include "stipple/core/thread_pool.hpp"
@@ -269,6 +271,12 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
                                             p.dilate_pipeline_layout.get(), "raster-dilate");
     p.dilate_params = gpu::create_buffer(ctx, 32, uniform, "raster-dilate-params");
   }
+  p.filter_uniforms =
+      gpu::create_buffer(ctx, sizeof(detail::FilterUniforms),
+                         WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "raster-filter");
+  p.polygon_vertices =
+      gpu::create_buffer(ctx, kMaxGpuPolygonVertices * 8,
+                         WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "raster-clip-polygons");
   p.counters = gpu::create_buffer(
       ctx, kCounterWords * 4 + 4,
       WGPUBufferUsage_Storage | WGPUBufferUsage_CopySrc | WGPUBufferUsage_CopyDst,
@@ -291,8 +299,18 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   const std::string depth_name = "raster-depth-buffer", accum_name = "raster-accum";
   const uint32_t groups_x = (width + 15) / 16, groups_y = (height + 15) / 16;
 
+  // The filter's uniforms are made now, so that a region past the GPU's limits is an error here
+  // rather than in the pass.
+  auto filter = std::make_shared<detail::FilterUniforms>();
+  auto polygons = std::make_shared<std::vector<float>>(detail::make_filter_uniforms(
+      options.filter, options.clip, options.highlight, camera, *filter));
   // Per-frame uniforms and camera-relative batch tables (double subtraction, then float).
-  auto upload_frame = [&cloud, camera, options, width, height, use64](gpu::Context& ctx) {
+  auto upload_frame = [&cloud, &p, camera, options, width, height, use64, filter,
+                       polygons](gpu::Context& ctx) {
+    gpu::write_buffer(ctx, p.filter_uniforms.get(), 0, *filter);
+    if (!polygons->empty())
+      gpu::write_buffer(ctx, p.polygon_vertices.get(), 0, polygons->data(),
+                        polygons->size() * sizeof(float));
     Params params{};
     glm::mat4 vp = raster_view_proj(camera, width, height);
     std::memcpy(params.view_proj, glm::value_ptr(vp), sizeof(params.view_proj));
@@ -355,34 +373,40 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
       .create_buffer(accum_name, {pixels * 16, WGPUBufferUsage_Storage});
 
   graph
-      .add_pass(
-          "raster-depth", gpu::PassKind::Compute,
-          [&p, &cloud, use64, depth_name](gpu::PassContext& pc) {
-            gpu::Context& ctx = pc.gpu();
-            const gpu::ComputePipeline& pipeline = use64 ? p.raster64 : p.depth32;
-            auto layout = gpu::bind_group_layout_of(pipeline);
-            std::vector<gpu::BindGroup> groups;
-            WGPUBuffer depth = pc.buffer(depth_name);
-            for (auto& seg : cloud.segments) {
-              // 64-bit: the visibility buffer again as 32-bit words, atomic (binding 6) and
-              // plain (binding 8), for the early depth test (wgpu-native allows the aliasing).
-              std::vector<gpu::Binding> bindings = {
-                  gpu::bind_buffer(0, seg.params.get()), gpu::bind_buffer(1, seg.batches.get()),
-                  gpu::bind_buffer(2, seg.coarse.get()), gpu::bind_buffer(3, seg.medium.get()),
-                  gpu::bind_buffer(4, seg.fine.get()),   gpu::bind_buffer(5, depth),
-                  gpu::bind_buffer(7, p.counters.get())};
-              if (use64) {
-                bindings.push_back(gpu::bind_buffer(6, depth));
-                bindings.push_back(gpu::bind_buffer(8, depth));
-              }
-              groups.push_back(gpu::create_bind_group(ctx, layout.get(), bindings));
-            }
-            auto pass = pc.begin_compute_pass();
-            for (size_t s = 0; s < cloud.segments.size(); ++s)
-              dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
-                               cloud.segments[s].batch_count);
-            wgpuComputePassEncoderEnd(pass.get());
-          })
+      .add_pass("raster-depth", gpu::PassKind::Compute,
+                [&p, &cloud, use64, depth_name](gpu::PassContext& pc) {
+                  gpu::Context& ctx = pc.gpu();
+                  const gpu::ComputePipeline& pipeline = use64 ? p.raster64 : p.depth32;
+                  auto layout = gpu::bind_group_layout_of(pipeline);
+                  std::vector<gpu::BindGroup> groups;
+                  WGPUBuffer depth = pc.buffer(depth_name);
+                  for (auto& seg : cloud.segments) {
+                    // 64-bit: the visibility buffer again as 32-bit words, atomic (binding 6) and
+                    // plain (binding 8), for the early depth test (wgpu-native allows the
+                    // aliasing).
+                    std::vector<gpu::Binding> bindings = {
+                        gpu::bind_buffer(0, seg.params.get()),
+                        gpu::bind_buffer(1, seg.batches.get()),
+                        gpu::bind_buffer(2, seg.coarse.get()),
+                        gpu::bind_buffer(3, seg.medium.get()),
+                        gpu::bind_buffer(4, seg.fine.get()),
+                        gpu::bind_buffer(5, depth),
+                        gpu::bind_buffer(7, p.counters.get()),
+                        gpu::bind_buffer(9, seg.attributes.get()),
+                        gpu::bind_buffer(11, p.filter_uniforms.get()),
+                        gpu::bind_buffer(12, p.polygon_vertices.get())};
+                    if (use64) {
+                      bindings.push_back(gpu::bind_buffer(6, depth));
+                      bindings.push_back(gpu::bind_buffer(8, depth));
+                    }
+                    groups.push_back(gpu::create_bind_group(ctx, layout.get(), bindings));
+                  }
+                  auto pass = pc.begin_compute_pass();
+                  for (size_t s = 0; s < cloud.segments.size(); ++s)
+                    dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
+                                     cloud.segments[s].batch_count);
+                  wgpuComputePassEncoderEnd(pass.get());
+                })
       .write(depth_name);
 
   if (accumulate) {
@@ -410,7 +434,9 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                          gpu::bind_buffer(6, pc.buffer(depth_name)),
                          gpu::bind_buffer(7, pc.buffer(sums)),
                          gpu::bind_buffer(9, seg.attributes.get()),
-                         gpu::bind_buffer(10, cloud.shading.get())}));
+                         gpu::bind_buffer(10, cloud.shading.get()),
+                         gpu::bind_buffer(11, p.filter_uniforms.get()),
+                         gpu::bind_buffer(12, p.polygon_vertices.get())}));
                   auto pass = pc.begin_compute_pass();
                   for (size_t s = 0; s < cloud.segments.size(); ++s)
                     dispatch_batches(pass.get(), p.accumulate.get(), groups[s].get(),
@@ -460,7 +486,9 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                      gpu::bind_buffer(4, seg.batches.get()), gpu::bind_buffer(5, seg.coarse.get()),
                      gpu::bind_buffer(6, seg.medium.get()), gpu::bind_buffer(7, seg.fine.get()),
                      gpu::bind_buffer(9, seg.attributes.get()),
-                     gpu::bind_buffer(10, cloud.shading.get())}));
+                     gpu::bind_buffer(10, cloud.shading.get()),
+                     gpu::bind_buffer(11, p.filter_uniforms.get()),
+                     gpu::bind_buffer(12, p.polygon_vertices.get())}));
               auto pass = pc.begin_compute_pass();
               for (size_t s = 0; s < cloud.segments.size(); ++s)
                 gpu::dispatch(pass.get(), p.resolve.get(), {groups[s].get()}, groups_x, groups_y);

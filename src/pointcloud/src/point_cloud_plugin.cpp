@@ -163,6 +163,9 @@ void queue_point_clouds(Registry& render) {
       options.storage_target = (target.usage & WGPUTextureUsage_StorageBinding) != 0;
       options.shading = pc::point_shading(settings.render, r.cloud->attributes);
       options.shading.mode = pc::resolve_color_mode(r.cloud->attributes, options.shading.mode);
+      options.filter = settings.render.filter;
+      options.clip = settings.render.clip;
+      options.highlight = settings.render.highlight;
       pc::add_compute_raster_passes(fg.graph, *cache.raster, *r.batched, camera, options,
                                     target.width, target.height);
       stats.points_drawn += r.batched->point_count;

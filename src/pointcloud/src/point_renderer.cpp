@@ -6,6 +6,7 @@
 
 #include <glm/gtc/type_ptr.hpp>
 
+#include "filter_uniforms.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/renderer/shader_preprocessor.hpp"
 
@@ -65,30 +66,6 @@ struct ChunkUniforms {
   float gps_range[2];
 };
 static_assert(sizeof(ChunkUniforms) == 32);
-
-// Mirrors `Filter` in point_common.wgsl.
-struct FilterUniforms {
-  uint32_t classes[8];
-  uint32_t returns;
-  uint32_t flags;
-  uint32_t clip_mode;
-  uint32_t counts;
-  float intensity[2];
-  float point_source[2];
-  float highlight[4];
-  float boxes[kMaxGpuClipShapes][16];
-  float planes[kMaxGpuClipShapes][4];
-  uint32_t rings[32][4];
-  float polygons[kMaxGpuClipShapes][4];
-};
-static_assert(sizeof(FilterUniforms) == 1360);
-constexpr size_t kMaxGpuRings = 32;
-// Stand-in for an unbounded range in a float uniform (shaders may assume no infinities).
-constexpr double kFloatHuge = 3e38;
-
-float clamp_float(double v) {
-  return float(std::clamp(v, -kFloatHuge, kFloatHuge));
-}
 
 WGPUBindGroupLayout make_layout(gpu::Context& ctx,
                                 std::initializer_list<WGPUBindGroupLayoutEntry> e) {
@@ -243,7 +220,7 @@ PointPipelines create_point_pipelines(gpu::Context& ctx, WGPUTextureFormat color
   p.frame_layout = gpu::BindGroupLayout(make_layout(
       ctx, {buffer_entry(0, all, WGPUBufferBindingType_Uniform, sizeof(FrameUniforms)),
             buffer_entry(1, all, WGPUBufferBindingType_Uniform, sizeof(ChunkUniforms), true),
-            buffer_entry(2, all, WGPUBufferBindingType_Uniform, sizeof(FilterUniforms)),
+            buffer_entry(2, all, WGPUBufferBindingType_Uniform, sizeof(detail::FilterUniforms)),
             buffer_entry(3, all, WGPUBufferBindingType_ReadOnlyStorage, 8)}));
   p.points_layout = gpu::BindGroupLayout(make_layout(
       ctx, {buffer_entry(0, WGPUShaderStage_Vertex | WGPUShaderStage_Compute,
@@ -309,7 +286,7 @@ PointPipelines create_point_pipelines(gpu::Context& ctx, WGPUTextureFormat color
       gpu::create_buffer(ctx, sizeof(FrameUniforms),
                          WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "frame-uniforms");
   p.filter_uniforms =
-      gpu::create_buffer(ctx, sizeof(FilterUniforms),
+      gpu::create_buffer(ctx, sizeof(detail::FilterUniforms),
                          WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "filter-uniforms");
   p.polygon_vertices =
       gpu::create_buffer(ctx, kMaxGpuPolygonVertices * 8,
@@ -330,7 +307,7 @@ void ensure_chunk_capacity(gpu::Context& ctx, PointPipelines& p, uint32_t chunks
       ctx, p.frame_layout.get(),
       {gpu::bind_buffer(0, p.frame_uniforms.get(), 0, sizeof(FrameUniforms)),
        gpu::bind_buffer(1, p.chunk_uniforms.get(), 0, sizeof(ChunkUniforms)),
-       gpu::bind_buffer(2, p.filter_uniforms.get(), 0, sizeof(FilterUniforms)),
+       gpu::bind_buffer(2, p.filter_uniforms.get(), 0, sizeof(detail::FilterUniforms)),
        gpu::bind_buffer(3, p.polygon_vertices.get(), 0, kMaxGpuPolygonVertices * 8)});
 }
 
@@ -392,92 +369,12 @@ void ensure_cloud_groups(gpu::Context& ctx, const PointPipelines& p, GpuPointClo
 struct FrameSetup {
   PointRenderSettings settings;
   FrameUniforms frame{};
-  FilterUniforms filter{};
+  detail::FilterUniforms filter{};
   std::vector<float> polygon_vertices;  // x, y pairs
   glm::dvec2 elevation_range;
   bool clod = false;
   bool extras = false;  // GPS-time or point-source filters: the extras pipelines
 };
-
-// The filter and clip region as the shaders test them, camera-relative: every transform is made
-// in double with the camera position subtracted, then cast (seed 000, section 5).
-void make_filter(FrameSetup& f, const PointRenderSettings& settings, const Camera& camera) {
-  const PointFilter& filter = settings.filter;
-  const ClipRegion& clip = settings.clip;
-  FilterUniforms& u = f.filter;
-  std::copy(filter.classes.begin(), filter.classes.end(), u.classes);
-  u.returns = filter.returns;
-  u.flags = (filter.filters_classes() || filter.returns || filter.intensity ? 1u : 0u) |
-            (filter.needs_extras() ? 2u : 0u) | (clip.empty() ? 0u : 4u);
-  f.extras = filter.needs_extras();
-  const glm::dvec2 everything(-kFloatHuge, kFloatHuge);
-  const glm::dvec2 in = filter.intensity.value_or(everything);
-  const glm::dvec2 source = filter.point_source.value_or(everything);
-  u.intensity[0] = clamp_float(in.x);
-  u.intensity[1] = clamp_float(in.y);
-  u.point_source[0] = clamp_float(source.x);
-  u.point_source[1] = clamp_float(source.y);
-  for (int c = 0; c < 4; ++c) u.highlight[c] = settings.highlight[c];
-  u.clip_mode = uint32_t(clip.mode);
-  if (clip.boxes.size() > kMaxGpuClipShapes || clip.planes.size() > kMaxGpuClipShapes ||
-      clip.polygons.size() > kMaxGpuClipShapes)
-    fail("at most {} clip boxes, {} planes and {} polygons can be drawn at once", kMaxGpuClipShapes,
-         kMaxGpuClipShapes, kMaxGpuClipShapes);
-  // The camera in the source frame (Z up): world (x, y, z) is source (x, -z, y).
-  const glm::dvec3 cam = y_up_to_z_up(camera.position);
-  for (size_t i = 0; i < clip.boxes.size(); ++i) {
-    const ClipBox& b = clip.boxes[i];
-    const double c = std::cos(b.yaw), s = std::sin(b.yaw);
-    const glm::dvec3 inv(1.0 / std::max(b.half_size.x, 1e-12), 1.0 / std::max(b.half_size.y, 1e-12),
-                         1.0 / std::max(b.half_size.z, 1e-12));
-    // Rows of S * R on source offsets: box coordinates of (source - centre).
-    const double sr[3][3] = {{c * inv.x, s * inv.x, 0}, {-s * inv.y, c * inv.y, 0}, {0, 0, inv.z}};
-    // source = P * world with P's rows (1,0,0), (0,0,-1), (0,1,0): columns of S R P.
-    double a[3][3];
-    for (int r = 0; r < 3; ++r) {
-      a[r][0] = sr[r][0];
-      a[r][1] = sr[r][2];
-      a[r][2] = -sr[r][1];
-    }
-    const glm::dvec3 d = cam - b.center;
-    float* m = u.boxes[i];  // column-major
-    for (int r = 0; r < 3; ++r) {
-      for (int col = 0; col < 3; ++col) m[col * 4 + r] = float(a[r][col]);
-      m[12 + r] = float(sr[r][0] * d.x + sr[r][1] * d.y + sr[r][2] * d.z);
-    }
-    m[15] = 1.0f;
-  }
-  for (size_t i = 0; i < clip.planes.size(); ++i) {
-    const ClipPlane& pl = clip.planes[i];
-    const glm::dvec3 n = pl.normal;
-    u.planes[i][0] = float(n.x);
-    u.planes[i][1] = float(n.z);
-    u.planes[i][2] = float(-n.y);
-    u.planes[i][3] = float(pl.offset + glm::dot(n, cam));
-  }
-  size_t rings = 0;
-  for (size_t i = 0; i < clip.polygons.size(); ++i) {
-    const ClipPolygon& poly = clip.polygons[i];
-    u.polygons[i][0] = clamp_float(poly.min_z - cam.z);
-    u.polygons[i][1] = clamp_float(poly.max_z - cam.z);
-    for (const auto& ring : poly.rings) {
-      if (rings == kMaxGpuRings) fail("clip polygons have more than {} rings", kMaxGpuRings);
-      u.rings[rings][0] = uint32_t(f.polygon_vertices.size() / 2);
-      u.rings[rings][1] = uint32_t(ring.size());
-      u.rings[rings][2] = uint32_t(i);
-      ++rings;
-      for (const glm::dvec2& v : ring) {
-        f.polygon_vertices.push_back(float(v.x - cam.x));
-        f.polygon_vertices.push_back(float(v.y - cam.y));
-      }
-    }
-  }
-  if (f.polygon_vertices.size() / 2 > kMaxGpuPolygonVertices)
-    fail("clip polygons have {} vertices; at most {} can be drawn", f.polygon_vertices.size() / 2,
-         kMaxGpuPolygonVertices);
-  u.counts = uint32_t(clip.boxes.size()) | uint32_t(rings) << 8 |
-             uint32_t(clip.planes.size()) << 16 | uint32_t(clip.polygons.size()) << 24;
-}
 
 FrameSetup make_frame(const GpuPointCloud& cloud, const Camera& camera,
                       const PointRenderSettings& settings, uint32_t width, uint32_t height) {
@@ -525,7 +422,9 @@ FrameSetup make_frame(const GpuPointCloud& cloud, const Camera& camera,
     for (int c = 0; c < 3; ++c) u.palette[i][c] = palette[i][c];
     u.palette[i][3] = 1.0f;
   }
-  make_filter(f, settings, camera);
+  f.extras = settings.filter.needs_extras();
+  f.polygon_vertices =
+      make_filter_uniforms(settings.filter, settings.clip, settings.highlight, camera, f.filter);
   return f;
 }
 
@@ -538,7 +437,8 @@ void write_uniforms(gpu::Context& ctx, PointPipelines& p, const GpuPointCloud& c
   if (!f.polygon_vertices.empty())
     gpu::write_buffer(ctx, p.polygon_vertices.get(), 0, f.polygon_vertices.data(),
                       f.polygon_vertices.size() * sizeof(float));
-  const glm::dvec2 gps = f.settings.filter.gps_time.value_or(glm::dvec2(-kFloatHuge, kFloatHuge));
+  const glm::dvec2 gps =
+      f.settings.filter.gps_time.value_or(glm::dvec2(-detail::kFloatHuge, detail::kFloatHuge));
   // Camera-relative offsets: subtract in double, then cast (seed 000, eq. 5).
   std::vector<uint8_t> bytes(size_t(p.chunk_stride) * std::max<size_t>(1, cloud.chunks.size()));
   for (size_t i = 0; i < cloud.chunks.size(); ++i) {
@@ -552,8 +452,8 @@ void write_uniforms(gpu::Context& ctx, PointPipelines& p, const GpuPointCloud& c
     u.elevation = float(c.origin.y - f.elevation_range.x);
     u.count = c.count;
     // The GPS-time range relative to the chunk's own origin, in double, then cast.
-    u.gps_range[0] = clamp_float(gps.x - c.gps_origin);
-    u.gps_range[1] = clamp_float(gps.y - c.gps_origin);
+    u.gps_range[0] = detail::clamp_float(gps.x - c.gps_origin);
+    u.gps_range[1] = detail::clamp_float(gps.y - c.gps_origin);
     std::memcpy(bytes.data() + i * p.chunk_stride, &u, sizeof(u));
   }
   gpu::write_buffer(ctx, p.chunk_uniforms.get(), 0, bytes.data(), bytes.size());

@@ -412,6 +412,9 @@ void queue_virtual_cloud(Registry& render) {
   options.point_size = compute_point_size(style);
   options.shading = point_shading(style, v.attributes);
   options.shading.mode = resolve_color_mode(v.attributes, options.shading.mode);
+  options.filter = style.filter;
+  options.clip = style.clip;
+  options.highlight = style.highlight;
   options.storage_target = (target.usage & WGPUTextureUsage_StorageBinding) != 0;
   if (v.lod_due && gpu::readback_free(*v.lod_ring)) {
     const Camera camera = to_camera(*extracted);

@@ -324,6 +324,9 @@ void queue_tileset(Registry& render) {
     // The billboard path's colours: ramps over the root volume and the drawn tiles' intensities.
     options.shading = pc::point_shading(settings.render, list->attributes);
     options.shading.mode = pc::resolve_color_mode(list->attributes, options.shading.mode);
+    options.filter = settings.render.filter;
+    options.clip = settings.render.clip;
+    options.highlight = settings.render.highlight;
     pc::add_compute_raster_passes(fg.graph, *c->pipeline, drawn, to_camera(*extracted), options,
                                   target.width, target.height);
     auto& stats = render.resource<RenderStats>();

@@ -719,8 +719,9 @@ void filter_panel(Registry& main, ToolsRuntime& rt) {
   auto& settings = main.resource<pc::PointDrawSettings>();
   pc::PointFilter& f = settings.render.filter;
   if (!ImGui::TreeNode("filters and clipping")) return;
-  if (settings.compute) {
-    ImGui::TextColored(ImVec4(1, 0.6f, 0.3f, 1), "the compute rasterizer draws unfiltered");
+  if (settings.compute && f.needs_extras()) {
+    ImGui::TextColored(ImVec4(1, 0.6f, 0.3f, 1),
+                       "GPS-time and point-source filters: billboards only");
     if (ImGui::Button("draw with billboards")) settings.compute = false;
   }
   if (ImGui::TreeNode("classes")) {

@@ -56,8 +56,6 @@ struct SceneOptions {
 // Reads the clip polygons and puts the filters and clip region into options.render; throws
 // stipple::Error for a bad polygon file.
 void apply_filters(SceneOptions& options);
-// Whether filters or a clip region are set.
-bool filters_active(const SceneOptions& options);
 
 // Whether `options` take the virtualized path (for point-cloud inputs), and why.
 bool use_virtual_path(const SceneOptions& options, std::string* reason = nullptr);

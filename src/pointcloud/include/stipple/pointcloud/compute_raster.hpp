@@ -15,9 +15,11 @@
 #include <vector>
 
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/batches.hpp"
+#include "stipple/pointcloud/filters.hpp"
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/renderer/render_graph.hpp"
 
@@ -112,6 +114,8 @@ struct ComputeRasterPipeline {
   gpu::PipelineLayout dilate_pipeline_layout;
   gpu::ComputePipeline dilate;
   gpu::Buffer dilate_params;
+  // Filters and clip region (point_filter.wgsl), rewritten each frame.
+  gpu::Buffer filter_uniforms, polygon_vertices;
 };
 
 struct ComputeRasterOptions {
@@ -141,6 +145,12 @@ struct ComputeRasterOptions {
   // The colour target has WGPUTextureUsage_StorageBinding: the display runs as a compute pass
   // writing it (where the pipeline has one), else as a full-screen render pass.
   bool storage_target = false;
+  // Filters and clip regions (filters.hpp), as the billboard path draws them: hidden points are
+  // dropped in the geometry pass, highlighted ones tinted where they are shaded. GPS-time and
+  // point-source filters need the billboard path's extras and are not applied here.
+  PointFilter filter;
+  ClipRegion clip;
+  glm::vec4 highlight{1.0f, 0.85f, 0.1f, 0.65f};
 };
 
 // Which form the display pass takes. Auto: the compute form for RGBA8Unorm targets except on
