@@ -10,6 +10,7 @@
 #include "stipple/io/procedural.hpp"
 #include "stipple/pointcloud/batches.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
+#include "stipple/pointcloud/filters.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/renderer/gpu.hpp"
@@ -98,6 +99,36 @@ Framed load_framed(const std::filesystem::path& path, uint32_t w, uint32_t h) {
   f.camera = frame_box(f.cloud.world_bounds, double(w) / h);
   f.batched = pc::build_batches(f.cloud);
   return f;
+}
+
+// The kernel variants besides the default (compute_raster.hpp, RasterKernel): each spreads a
+// batch's points over its threads in its own way.
+std::vector<std::pair<std::string, pc::RasterKernel>> kernel_variants() {
+  std::vector<std::pair<std::string, pc::RasterKernel>> kernels;
+  pc::RasterKernel k;
+  k.plain_early = k.hqs_prefetch = k.hqs_merge = k.hqs_contiguous = false;
+  kernels.push_back({"scalar, atomic early test, no merging, strided", k});
+  k.plain_early = true;
+  kernels.push_back({"scalar, plain early test, no merging, strided", k});
+  k = {};
+  k.merge = true;
+  kernels.push_back({"merging", k});
+  k = {};
+  k.prefetch = true;
+  kernels.push_back({"prefetch", k});
+  k = {};
+  k.prefetch = k.contiguous = true;
+  k.hqs_contiguous = false;
+  kernels.push_back({"contiguous depth runs, strided sums", k});
+  k = {};
+  k.packed_hqs = false;
+  kernels.push_back({"unpacked HQS", k});
+  for (uint32_t size : {64u, 256u}) {
+    k = {};
+    k.workgroup = size;
+    kernels.push_back({"workgroup " + std::to_string(size), k});
+  }
+  return kernels;
 }
 
 void expect_similar(const gpu::Image& a, const gpu::Image& b, double coverage_tol, double mean_tol,
@@ -414,31 +445,7 @@ TEST_P(ComputeRaster, KernelVariantsDrawTheSameImage) {
     options.hqs = hqs;
     const auto reference = render_compute(*ctx, batched, camera, options, w, h);
     ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.05);
-    std::vector<std::pair<std::string, pc::RasterKernel>> kernels;
-    pc::RasterKernel k;
-    k.plain_early = k.hqs_prefetch = k.hqs_merge = k.hqs_contiguous = false;
-    kernels.push_back({"scalar, atomic early test, no merging, strided", k});
-    k.plain_early = true;
-    kernels.push_back({"scalar, plain early test, no merging, strided", k});
-    k = {};
-    k.merge = true;
-    kernels.push_back({"merging", k});
-    k = {};
-    k.prefetch = true;
-    kernels.push_back({"prefetch", k});
-    k = {};
-    k.prefetch = k.contiguous = true;
-    k.hqs_contiguous = false;
-    kernels.push_back({"contiguous depth runs, strided sums", k});
-    k = {};
-    k.packed_hqs = false;
-    kernels.push_back({"unpacked HQS", k});
-    for (uint32_t size : {64u, 256u}) {
-      k = {};
-      k.workgroup = size;
-      kernels.push_back({"workgroup " + std::to_string(size), k});
-    }
-    for (const auto& [name, kernel] : kernels) {
+    for (const auto& [name, kernel] : kernel_variants()) {
       const auto r = render_compute(*ctx, batched, camera, options, w, h, false, 0,
                                     pc::DisplayPass::Auto, kernel);
       const double differ = test::differing_fraction(reference.image, r.image, 0);
@@ -497,6 +504,125 @@ TEST_P(ComputeRaster, PackedHqsSumsPastTheOverflowExactly) {
     }
   EXPECT_TRUE(found) << "no pixel near the centre shows the mean colour (" << r / 1000 << ", "
                      << g / 1000 << ", " << b / 1000 << ")";
+}
+
+// Filters and clip regions hold in every kernel variant (each walks a batch's points its own way:
+// strided or four at a time, contiguous runs, merged writes, packed sums), with and without
+// HQS: the GPU's filter draws what the cloud kept by the CPU's test (chunk_point_shown) draws
+// unfiltered. Buildings hidden inside a rotated box, in every variant; first returns outside a
+// polygon with a hole, in the default one (the variants share the filter, not the loops).
+// Tolerance: 0.5% of the pixels (the kept cloud is batched anew: other boxes, other
+// quantization); measured at most 0.12% on both backends. Dawn always accumulates (no 64-bit
+// atomics), so HQS adds nothing there. Highlight keeps the coverage and tints the pixels whose
+// nearest point is in the box, in every variant alike.
+TEST_P(ComputeRaster, FiltersAndClipsHoldInEveryKernelVariant) {
+  auto ctx = context();
+  io::SceneParams scene;
+  scene.point_count = 100'000;
+  const pc::PointCloud cloud = pc::generate_scene_cloud(scene);
+  const uint32_t w = 320, h = 180;
+  const Camera camera = frame_box(cloud.world_bounds, double(w) / h);
+  // The scene's extent in source coordinates (Z up).
+  const glm::dvec3 a = y_up_to_z_up(cloud.world_bounds.min),
+                   b = y_up_to_z_up(cloud.world_bounds.max);
+  const glm::dvec3 lo = glm::min(a, b), hi = glm::max(a, b), mid = (lo + hi) * 0.5, size = hi - lo;
+
+  struct Case {
+    std::string name;
+    pc::PointFilter filter;
+    pc::ClipRegion clip;
+  };
+  std::vector<Case> cases(2);
+  cases[0].name = "no buildings, rotated box";
+  cases[0].filter.set_class(6, false);
+  cases[0].clip.boxes.push_back(
+      {mid, glm::dvec3(size.x * 0.3, size.y * 0.2, size.z), glm::radians(25.0)});
+  cases[1].name = "first returns outside a polygon with a hole";
+  cases[1].filter.returns = pc::kReturnFirst;
+  auto ring = [&](double r) {
+    std::vector<glm::dvec2> v;
+    for (int i = 0; i < 5; ++i) {
+      const double t = glm::radians(72.0 * i + 10.0);
+      v.push_back(glm::dvec2(mid) + glm::dvec2(std::cos(t) * size.x, std::sin(t) * size.y) * r);
+    }
+    return v;
+  };
+  cases[1].clip.polygons.push_back({{ring(0.35), ring(0.12)}, lo.z - 1, hi.z + 1});
+  cases[1].clip.mode = pc::ClipMode::Outside;
+
+  for (const Case& c : cases) {
+    pc::PointCloud kept = cloud;
+    size_t hidden = 0;
+    for (size_t k = 0; k < cloud.chunks.size(); ++k) {
+      const pc::PointChunk& from = cloud.chunks[k];
+      pc::PointChunk& to = kept.chunks[k];
+      to.vertices.clear();
+      to.extras.clear();
+      for (size_t i = 0; i < from.vertices.size(); ++i) {
+        if (!pc::chunk_point_shown(from, i, c.filter, c.clip)) {
+          ++hidden;
+          continue;
+        }
+        to.vertices.push_back(from.vertices[i]);
+        if (!from.extras.empty()) to.extras.push_back(from.extras[i]);
+      }
+    }
+    ASSERT_GT(hidden, cloud.point_count / 10) << c.name;  // the case hides a good part
+    const pc::BatchedCloud all = pc::build_batches(cloud), shown = pc::build_batches(kept);
+    for (bool hqs : {false, true}) {
+      if (hqs && GetParam() == "dawn") continue;
+      pc::ComputeRasterOptions options;
+      options.hqs = hqs;
+      options.shading = pc::PointShading{pc::ColorMode::Classification};
+      const auto reference = render_compute(*ctx, shown, camera, options, w, h);
+      ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.01) << c.name;
+      options.filter = c.filter;
+      options.clip = c.clip;
+      std::vector<std::pair<std::string, pc::RasterKernel>> kernels = {{"default", {}}};
+      if (&c == &cases[0]) {
+        const auto variants = kernel_variants();
+        kernels.insert(kernels.end(), variants.begin(), variants.end());
+      }
+      for (const auto& [name, kernel] : kernels) {
+        const auto r = render_compute(*ctx, all, camera, options, w, h, false, 0,
+                                      pc::DisplayPass::Auto, kernel);
+        const double differ = test::differing_fraction(reference.image, r.image, 0);
+        std::printf("%s, %s%s: %.4f%% of the pixels differ\n", c.name.c_str(), name.c_str(),
+                    hqs ? " (HQS)" : "", 100 * differ);
+        EXPECT_LE(differ, 0.005) << c.name << ", " << name << (hqs ? " HQS" : "");
+      }
+    }
+  }
+
+  // Highlight: every point stays; the pixels whose nearest point is in the box are tinted:
+  // about those the box alone covers (fewer: some of them show a nearer point outside it).
+  const pc::BatchedCloud all = pc::build_batches(cloud);
+  for (bool hqs : {false, true}) {
+    if (hqs && GetParam() == "dawn") continue;
+    pc::ComputeRasterOptions options;
+    options.hqs = hqs;
+    options.shading = pc::PointShading{pc::ColorMode::Classification};
+    const auto plain = render_compute(*ctx, all, camera, options, w, h);
+    options.clip = cases[0].clip;
+    const auto inside = render_compute(*ctx, all, camera, options, w, h);
+    options.clip.mode = pc::ClipMode::Highlight;
+    const auto lit = render_compute(*ctx, all, camera, options, w, h);
+    EXPECT_EQ(test::coverage_stats(lit.image, kBlack, 0).covered,
+              test::coverage_stats(plain.image, kBlack, 0).covered);
+    const double tinted = test::differing_fraction(plain.image, lit.image, 8);
+    const double in_box = test::coverage_stats(inside.image, kBlack, 0).coverage;
+    std::printf("highlight%s: %.4f of the pixels tinted, %.4f in the box\n", hqs ? " (HQS)" : "",
+                tinted, in_box);
+    EXPECT_GT(tinted, 0.8 * in_box) << (hqs ? "HQS" : "");
+    EXPECT_LT(tinted, 1.0 * in_box + 0.002) << (hqs ? "HQS" : "");
+    if (!hqs && lit.visibility64) continue;  // the resolve tints: no kernel variants there
+    for (const auto& [name, kernel] : kernel_variants()) {
+      const auto r =
+          render_compute(*ctx, all, camera, options, w, h, false, 0, pc::DisplayPass::Auto, kernel);
+      EXPECT_LE(test::differing_fraction(lit.image, r.image, 0), 0.001)
+          << "highlight, " << name << (hqs ? " HQS" : "");
+    }
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, ComputeRaster, ::testing::Values("dawn", "wgpu"),
