@@ -33,15 +33,16 @@ class FilterRender : public ::testing::Test {
 
   // Classification colours, opaque points without blending or EDL: a pixel shows exactly the
   // palette colour of the nearest point, so removing points changes only where they were.
+  // `view`: the camera flags (a tileset's frame is not the source's: it is framed by default).
   static gpu::Image render(const std::string& input, const std::string& name,
                            const std::string& extra, const std::string& backend = "wgpu",
-                           const std::string& renderer = "billboard") {
+                           const std::string& renderer = "billboard",
+                           const std::string& view = kSceneView) {
     const fs::path out = dir_ / name;
     const auto r = test::run_stipple(fmt::format(
-        "render {} -o {} --width 400 --height 260 --camera "
-        "500000,5099890,320,500000,5100000,200 --color classification --splat naive --no-edl "
-        "--point-size 2 --renderer {} --backend {} {}",
-        input, out.string(), renderer, backend, extra));
+        "render {} -o {} --width 400 --height 260 {} --color classification --splat naive "
+        "--no-edl --point-size 2 --renderer {} --backend {} {}",
+        input, out.string(), view, renderer, backend, extra));
     EXPECT_EQ(r.exit_code, 0) << r.output;
     return gpu::read_png(out);
   }
@@ -55,7 +56,11 @@ class FilterRender : public ::testing::Test {
 
   static std::string scene() { return (dir_ / "scene.las").string(); }
   static void expect_filters_match_clips(const std::string& renderer, bool with_gps);
-  static void expect_class_disappears(const std::string& renderer);
+  static void expect_class_disappears(const std::string& renderer,
+                                      const std::string& input = scene(),
+                                      const std::string& extra = "",
+                                      const std::string& view = kSceneView);
+  static constexpr const char* kSceneView = "--camera 500000,5099890,320,500000,5100000,200";
   static fs::path dir_;
 };
 fs::path FilterRender::dir_;
@@ -78,11 +83,68 @@ TEST_F(FilterRender, FilteredClassDisappearsOnTheComputePath) {
   expect_class_disappears("compute");
 }
 
-void FilterRender::expect_class_disappears(const std::string& renderer) {
-  const gpu::Image all = render(scene(), "all-" + renderer + ".png", "", "wgpu", renderer);
-  const gpu::Image no_buildings =
-      render(scene(), "no-buildings-" + renderer + ".png", "--classes 0-5,7-255", "wgpu", renderer);
+// The filters reach every source: a tileset streamed (both renderers) and the virtualized path
+// (a pointlet cache, compute), with the same assertions as the in-memory cloud. The virtualized
+// path's hole filling is off (it fills empty pixels from their neighbours, so hiding a class
+// would change pixels beside it), and it takes 2,000-point pointlets (the default 100,000 make
+// one pointlet of this small file).
+TEST_F(FilterRender, FilteredClassDisappearsOnTilesetsAndTheVirtualizedPath) {
+  const fs::path tiles = dir_ / "tiles";
+  const auto r = test::run_stipple(fmt::format("tile {} -o {}", scene(), tiles.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string tileset = (tiles / "tileset.json").string();
+  expect_class_disappears("billboard", tileset, "", "--azimuth 30 --elevation 40");
+  expect_class_disappears("compute", tileset, "", "--azimuth 30 --elevation 40");
+  expect_class_disappears("compute", scene(),
+                          fmt::format("--virtual --pointlets 2000 --fill-radius 0 --cache {}",
+                                      (dir_ / "cache").string()));
+}
+
+// A COPC file streamed by its hierarchy takes clip boxes too (lone-star holds class 0 only, so
+// a box it is): a box around everything drawn in outside mode leaves nothing; the west half
+// inside covers a part of the full view's pixels and none it left empty.
+TEST_F(FilterRender, ClipBoxReachesTheCopcStream) {
+  STIPPLE_REQUIRE_DATA(copc, "laz/lone-star.copc.laz");
+  const uint8_t bg[3] = {18, 20, 26};
+  for (const std::string renderer : {"billboard", "compute"}) {
+    SCOPED_TRACE(renderer);
+    const gpu::Image all =
+        render(copc.string(), "copc-all-" + renderer + ".png", "", "wgpu", renderer, "");
+    const gpu::Image none =
+        render(copc.string(), "copc-none-" + renderer + ".png",
+               "--clip-box 515300,4918300,2300,515500,4918500,2400 --clip-mode outside", "wgpu",
+               renderer, "");
+    const gpu::Image west =
+        render(copc.string(), "copc-west-" + renderer + ".png",
+               "--clip-box 515300,4918300,2300,515385,4918500,2400", "wgpu", renderer, "");
+    const auto full = test::coverage_stats(all, bg, 1);
+    EXPECT_GT(full.coverage, 0.05);
+    EXPECT_EQ(test::coverage_stats(none, bg, 1).covered, 0u);
+    const auto half = test::coverage_stats(west, bg, 1);
+    EXPECT_GT(half.covered, full.covered / 5);
+    EXPECT_LT(half.covered, full.covered * 4 / 5);
+    size_t new_pixels = 0;
+    for (size_t i = 0; i < size_t(all.width) * all.height; ++i) {
+      auto is_bg = [&](const gpu::Image& im) {
+        const uint8_t* p = &im.rgba[i * 4];
+        return std::abs(p[0] - bg[0]) <= 1 && std::abs(p[1] - bg[1]) <= 1 &&
+               std::abs(p[2] - bg[2]) <= 1;
+      };
+      new_pixels += is_bg(all) && !is_bg(west);
+    }
+    EXPECT_EQ(new_pixels, 0u);
+  }
+}
+
+void FilterRender::expect_class_disappears(const std::string& renderer, const std::string& input,
+                                           const std::string& extra, const std::string& view) {
+  const std::string tag = fs::path(input).stem().string() + "-" + renderer +
+                          (extra.empty() ? "" : "-" + extra.substr(2, 7));
+  const gpu::Image all = render(input, "all-" + tag + ".png", extra, "wgpu", renderer, view);
+  const gpu::Image no_buildings = render(input, "no-buildings-" + tag + ".png",
+                                         "--classes 0-5,7-255 " + extra, "wgpu", renderer, view);
   ASSERT_EQ(all.rgba.size(), no_buildings.rgba.size());
+  SCOPED_TRACE(tag);
   const uint8_t building[3] = {220, 80, 60};  // ASPRS class 6 in the palette
   size_t before = 0, after = 0, changed_elsewhere = 0, other = 0;
   const size_t n = size_t(all.width) * all.height;
