@@ -449,3 +449,85 @@ TEST(ViewTools, ExportsMatchTheCommandLine) {
   EXPECT_TRUE(fs::exists(dir / "profile.png"));
   if (!HasFailure()) fs::remove_all(dir);
 }
+
+// `view --measurements FILE`: plain GeoJSON from elsewhere (no "tool" properties) loads as
+// measurements in the source CRS, is drawn, can be edited, and is saved back: the line's
+// untouched vertex and the polygon and label keep their coordinates to the last bit, the
+// dragged vertex follows the cursor and the lengths follow it.
+TEST(ViewTools, LoadsMeasurementsDrawsEditsAndSavesThem) {
+  STIPPLE_REQUIRE_XVFB();
+  io::SceneParams params;
+  params.point_count = 150000;
+  const double ox = params.origin.x, oy = params.origin.y;
+  auto ground = [&](double x, double y) {
+    return glm::dvec3(x, y, io::scene_ground_height(params, x, y));
+  };
+  // Inside the free middle of the window from 120 m up (about 0.16 m a pixel).
+  const glm::dvec3 A = ground(ox - 25.125, oy - 15.5), B = ground(ox + 20.25, oy - 15.5),
+                   B2 = ground(ox + 20.25, oy + 8.0), label = ground(ox + 5.0625, oy + 20.0);
+  const double g = io::scene_ground_height(params, ox, oy);
+  const fs::path dir = temp_dir("load");
+  std::ofstream(dir / "in.geojson") << fmt::format(
+      R"({{"type": "FeatureCollection", "features": [
+  {{"type": "Feature", "properties": {{}},
+    "geometry": {{"type": "LineString", "coordinates": [[{:.17g}, {:.17g}, {:.17g}],
+                                                      [{:.17g}, {:.17g}, {:.17g}]]}}}},
+  {{"type": "Feature", "properties": {{"label": "yard"}},
+    "geometry": {{"type": "Polygon", "coordinates": [[[{}, {}, {g}], [{}, {}, {g}], [{}, {}, {g}],
+                                                    [{}, {}, {g}], [{}, {}, {g}]]]}}}},
+  {{"type": "Feature", "properties": {{"label": "Gate 3"}},
+    "geometry": {{"type": "Point", "coordinates": [{:.17g}, {:.17g}, {:.17g}]}}}}]}})",
+      A.x, A.y, A.z, B.x, B.y, B.z, ox - 20, oy + 5, ox, oy + 5, ox, oy + 15, ox - 20, oy + 15,
+      ox - 20, oy + 5, label.x, label.y, label.z, fmt::arg("g", g));
+
+  const View view(glm::dvec3(ox, oy - 8, g + 120), glm::dvec3(ox, oy, g));
+  Script s;
+  s.tap("0"), s.drag(view.pixel(B), view.pixel(B2));
+  const auto r = run_view(dir, s,
+                          fmt::format("--scene-points {} --measurements in.geojson --camera "
+                                      "{},{},{},{},{},{}",
+                                      params.point_count, ox, oy - 8, g + 120, ox, oy, g));
+  if (r.exit_code != 0 && r.output.find("cannot open a window") != std::string::npos)
+    GTEST_SKIP() << "no X display could be made: " << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const io::GeoDocument doc = io::read_geojson(dir / "measured.geojson");
+  EXPECT_EQ(doc.crs_name, "urn:ogc:def:crs:EPSG::32633");
+
+  const auto* line = feature(doc, "distance");
+  ASSERT_TRUE(line) << r.output;
+  ASSERT_EQ(line->parts[0].size(), 2u);
+  EXPECT_EQ(line->parts[0][0], A);  // untouched: exact
+  const glm::dvec3 moved = line->parts[0][1];
+  // The dragged vertex snaps to the point under the cursor: within 0.5 m of B2 horizontally
+  // (3 pixels of pick cone, nearly straight down).
+  EXPECT_LT(glm::distance(glm::dvec2(moved), glm::dvec2(B2)), 0.5);
+  EXPECT_NEAR(line->number("length_horizontal", 0), glm::distance(glm::dvec2(A), glm::dvec2(moved)),
+              1e-9);
+  EXPECT_NEAR(line->number("length_3d", 0), glm::distance(A, moved), 1e-9);
+
+  const auto* area = feature(doc, "area");
+  ASSERT_TRUE(area);
+  EXPECT_EQ(area->text("label"), "yard");
+  EXPECT_NEAR(area->number("area_horizontal", 0), 200.0, 1e-6);  // 20 m by 10 m
+  EXPECT_NEAR(area->number("area_3d", 0), 200.0, 1e-6);          // flat: every vertex at g
+  ASSERT_GE(area->parts[0].size(), 4u);
+  EXPECT_EQ(area->parts[0][0], glm::dvec3(ox - 20, oy + 5, g));
+
+  const auto* note = feature(doc, "annotation");
+  ASSERT_TRUE(note);
+  EXPECT_EQ(note->text("label"), "Gate 3");
+  EXPECT_EQ(note->parts[0][0], label);
+
+  // Drawn: the distance's colour (255, 217, 51) along the edited line in the screenshot.
+  const gpu::Image shot = gpu::read_png(dir / "shot.png");
+  size_t yellow = 0;
+  const glm::dvec2 a = view.pixel(A), b = view.pixel(moved);
+  for (int k = 5; k < 95; ++k) {
+    const glm::dvec2 p = a + (b - a) * (k / 100.0);
+    const uint8_t* q =
+        &shot.rgba[(size_t(std::lround(p.y)) * shot.width + size_t(std::lround(p.x))) * 4];
+    yellow += q[0] > 200 && q[1] > 170 && q[2] < 110;
+  }
+  EXPECT_GT(yellow, 60u);
+  if (!HasFailure()) fs::remove_all(dir);
+}
