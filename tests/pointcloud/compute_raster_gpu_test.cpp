@@ -121,6 +121,9 @@ std::vector<std::pair<std::string, pc::RasterKernel>> kernel_variants() {
   k.hqs_contiguous = false;
   kernels.push_back({"contiguous depth runs, strided sums", k});
   k = {};
+  k.hqs_prefetch = true;
+  kernels.push_back({"contiguous sums", k});
+  k = {};
   k.packed_hqs = false;
   kernels.push_back({"unpacked HQS", k});
   for (uint32_t size : {64u, 256u}) {

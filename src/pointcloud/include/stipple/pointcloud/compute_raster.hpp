@@ -82,10 +82,11 @@ struct RasterKernel {
   bool merge = false;       // a thread's points in a row on one pixel: one write for them
   bool plain_early = true;  // the early depth test as a plain load, as in Listing 1
   bool packed_hqs = true;   // HQS: two packed 32-bit atomics a point, not four (3.6)
-  // The HQS accumulation's own choices: there merging and contiguous ranges pay (the sums of a
-  // run go out in one atomic each), while in the depth passes they cost more than they save
+  // The HQS accumulation's (and the 32-bit fallback's second pass's) own choices: merging pays
+  // there (the sums of a run go out in one atomic each), while in the depth passes it costs more
+  // than it saves; contiguous ranges need prefetch, which some H200 instances ran 2-3.6x slower
   // (H200, 1G points: bench/RESULTS.md).
-  bool hqs_prefetch = true;
+  bool hqs_prefetch = false;
   bool hqs_contiguous = true;
   bool hqs_merge = true;
 };
