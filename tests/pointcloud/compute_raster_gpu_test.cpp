@@ -124,8 +124,8 @@ std::vector<std::pair<std::string, pc::RasterKernel>> kernel_variants() {
   k.hqs_prefetch = true;
   kernels.push_back({"contiguous sums", k});
   k = {};
-  k.packed_hqs = false;
-  kernels.push_back({"unpacked HQS", k});
+  k.packed_hqs = true;
+  kernels.push_back({"packed HQS", k});
   for (uint32_t size : {64u, 256u}) {
     k = {};
     k.workgroup = size;
@@ -491,7 +491,10 @@ TEST_P(ComputeRaster, PackedHqsSumsPastTheOverflowExactly) {
   options.hqs = true;
   pc::RasterKernel four;
   four.packed_hqs = false;
-  const auto packed = render_compute(*ctx, batched, camera, options, w, h);
+  pc::RasterKernel two;
+  two.packed_hqs = true;
+  const auto packed =
+      render_compute(*ctx, batched, camera, options, w, h, false, 0, pc::DisplayPass::Auto, two);
   const auto plain =
       render_compute(*ctx, batched, camera, options, w, h, false, 0, pc::DisplayPass::Auto, four);
   EXPECT_EQ(test::differing_fraction(packed.image, plain.image, 0), 0.0);

@@ -205,9 +205,9 @@ void run_raster_bench(const RasterArgs& args) {
       v.options.hqs = true;
       v.kernel.hqs_prefetch = true;
     });
-    add("hqs-unpacked", [](Variant& v) {
+    add("hqs-packed", [](Variant& v) {
       v.options.hqs = true;
-      v.kernel.packed_hqs = false;
+      v.kernel.packed_hqs = true;
     });
     add("hqs-no-merge", [](Variant& v) {
       v.options.hqs = true;
@@ -365,7 +365,7 @@ void add_bench_raster_command(CLI::App& bench) {
   cmd->add_option("--variants", args->variants,
                   "Only these variants (compute-basic, compute-precision, merge, contiguous, "
                   "prefetch, atomic-early, wg256, compute-hqs, "
-                  "hqs-contiguous, hqs-strided, hqs-unpacked, "
+                  "hqs-contiguous, hqs-strided, hqs-packed, "
                   "hqs-no-merge, compute-fallback32, fallback32-contiguous, fallback32-merge, "
                   "dilate-3px, billboard-1px)")
       ->delimiter(',');
