@@ -68,6 +68,21 @@ TEST(Camera, CameraRelativeMatchesFullTransform) {
   for (int i = 0; i < 4; ++i) EXPECT_NEAR(full[i], relative[i], 1e-6);
 }
 
+// One point (or every point at one location): framed as a few metres around it, not from a
+// thousandth of a millimetre (where nothing showed).
+TEST(Camera, FrameBoxOfAPointFramesAFewMetres) {
+  Aabb box;
+  box.extend(glm::dvec3(512345.5, 321.0, -5123456.5));
+  Camera camera = frame_box(box, 16.0 / 9.0);
+  const double distance = glm::length(camera.position - box.center());
+  EXPECT_GT(distance, 2.0);
+  EXPECT_LT(distance, 20.0);
+  glm::dvec4 c = camera.view_projection(16.0 / 9.0) * glm::dvec4(box.center(), 1.0);
+  EXPECT_NEAR(c.x / c.w, 0.0, 1e-6);
+  EXPECT_NEAR(c.y / c.w, 0.0, 1e-6);
+  EXPECT_GT(c.z / c.w, 0.0);  // in front of the near plane (reverse Z: 0 at infinity)
+}
+
 TEST(Camera, FrameBoxKeepsBoxInView) {
   Aabb box;
   box.min = {-100, 0, -50};

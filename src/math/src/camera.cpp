@@ -36,8 +36,17 @@ glm::dmat4 Camera::view_projection(double aspect) const {
   return projection(aspect) * view_rotation() * glm::translate(glm::dmat4(1.0), -position);
 }
 
-Camera frame_box(const Aabb& box, double aspect, double azimuth_deg, double elevation_deg,
+Aabb framed_extent(const Aabb& box) {
+  if (box.empty()) return box;
+  const glm::dvec3 size = box.size();
+  if (std::max({size.x, size.y, size.z}) >= kDegenerateExtent) return box;
+  const glm::dvec3 c = box.center(), half(kDegenerateFrame * 0.5);
+  return {c - half, c + half};
+}
+
+Camera frame_box(const Aabb& data_box, double aspect, double azimuth_deg, double elevation_deg,
                  double fov_y_deg) {
+  const Aabb box = framed_extent(data_box);
   Camera camera;
   camera.fov_y = glm::radians(fov_y_deg);
   glm::dvec3 center = box.center();

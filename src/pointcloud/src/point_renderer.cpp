@@ -680,6 +680,8 @@ float auto_point_size(const Aabb& bounds, uint64_t point_count, const Camera& ca
                       uint32_t height) {
   if (point_count == 0 || bounds.empty()) return 2.0f;
   glm::dvec3 size = bounds.size();
+  // Every point at one location (framed_extent): no spacing to follow; a marker that shows.
+  if (std::max({size.x, size.y, size.z}) < kDegenerateExtent) return 8.0f;
   // Airborne data covers the horizontal plane (x, -z in world space).
   double area = std::max(size.x * size.z, 1e-9);
   double spacing = std::sqrt(area / double(point_count));

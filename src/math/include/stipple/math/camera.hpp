@@ -35,6 +35,13 @@ struct Camera {
   glm::dmat4 view_projection(double aspect) const;
 };
 
+// A box whose every side is under kDegenerateExtent (a single point, or every point at one
+// location) has nothing to fit a view to: it is framed as a cube of kDegenerateFrame (metres,
+// in the usual data units) around its centre instead, so the points show up mid-image.
+inline constexpr double kDegenerateExtent = 1e-3;
+inline constexpr double kDegenerateFrame = 5.0;
+Aabb framed_extent(const Aabb& box);
+
 // A camera that shows the whole world-space (Y-up) box from an oblique angle: azimuth and
 // elevation in degrees, measured in the data's Z-up frame (azimuth 0 = looking north from the
 // south), with the box's bounding sphere inside the view.
