@@ -4,14 +4,19 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <filesystem>
+#include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 
 #include "las_bytes.hpp"
 #include "stipple/renderer/png.hpp"
 #include "test_util.hpp"
+#include "tiles_fixtures.hpp"
 
 using namespace stipple;
 namespace fs = std::filesystem;
@@ -52,6 +57,85 @@ Covered covered(const gpu::Image& image, int tolerance = 2) {
   return c;
 }
 
+size_t occurrences(const std::string& text, const std::string& what) {
+  size_t n = 0;
+  for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+// A b3dm (batched 3D model) tile around a glb of one triangle: meshes, no points.
+test::Bytes triangle_glb() {
+  std::vector<float> positions = {0, 0, 0, 10, 0, 0, 0, 10, 0};
+  test::Bytes bin;
+  test::append(bin, positions);
+  nlohmann::json j = {
+      {"asset", {{"version", "2.0"}}},
+      {"buffers", {{{"byteLength", bin.size()}}}},
+      {"bufferViews", {{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", bin.size()}}}},
+      {"accessors", {{{"bufferView", 0}, {"componentType", 5126}, {"count", 3}, {"type", "VEC3"}}}},
+      {"meshes", {{{"primitives", {{{"attributes", {{"POSITION", 0}}}, {"mode", 4}}}}}}},
+      {"nodes", {{{"mesh", 0}}}},
+      {"scenes", {{{"nodes", {0}}}}},
+      {"scene", 0}};
+  return test::make_glb(j, bin);
+}
+
+test::Bytes b3dm_tile() {
+  test::Bytes glb = triangle_glb();
+  test::Bytes ftj = test::json_bytes({{"BATCH_LENGTH", 0}});
+  while ((28 + ftj.size()) % 8) ftj.push_back(' ');
+  test::Bytes out = {'b', '3', 'd', 'm'};
+  test::put_u32(out, 1);
+  test::put_u32(out, uint32_t(28 + ftj.size() + glb.size()));
+  test::put_u32(out, uint32_t(ftj.size()));
+  for (int i = 0; i < 3; ++i) test::put_u32(out, 0);
+  out.insert(out.end(), ftj.begin(), ftj.end());
+  out.insert(out.end(), glb.begin(), glb.end());
+  return out;
+}
+
+// A pnts tile of n points on a 10 x 10 grid from (x0, 0, 0), one colour, the feature table
+// extended with `extra` semantics.
+test::Bytes grid_tile(uint32_t n, float x0, std::array<uint8_t, 3> rgb,
+                      const nlohmann::json& extra = nlohmann::json::object()) {
+  std::vector<float> pos;
+  test::Bytes colours;
+  for (uint32_t i = 0; i < n; ++i) {
+    pos.insert(pos.end(), {x0 + float(i % 10), float(i / 10 % 10), 0.0f});
+    colours.insert(colours.end(), rgb.begin(), rgb.end());
+  }
+  test::Bytes bin;
+  test::append(bin, pos);
+  const size_t rgb_at = bin.size();
+  bin.insert(bin.end(), colours.begin(), colours.end());
+  nlohmann::json ft = {
+      {"POINTS_LENGTH", n}, {"POSITION", {{"byteOffset", 0}}}, {"RGB", {{"byteOffset", rgb_at}}}};
+  ft.update(extra);
+  return test::make_pnts(ft, bin);
+}
+
+// tileset.json with one child per content, side by side along x (20 m apart, 10 m boxes).
+void write_flat_tileset(const fs::path& dir,
+                        const std::vector<std::pair<std::string, test::Bytes>>& contents) {
+  nlohmann::json children = nlohmann::json::array();
+  for (size_t i = 0; i < contents.size(); ++i) {
+    test::write_file(dir / contents[i].first, contents[i].second);
+    const double x = 5.0 + 20.0 * double(i);
+    children.push_back({{"boundingVolume", {{"box", {x, 5, 0, 5, 0, 0, 0, 5, 0, 0, 0, 1}}}},
+                        {"geometricError", 0},
+                        {"content", {{"uri", contents[i].first}}}});
+  }
+  const double half = 10.0 * double(contents.size());
+  test::write_json(dir / "tileset.json",
+                   {{"asset", {{"version", "1.0"}}},
+                    {"geometricError", 1000},
+                    {"root",
+                     {{"boundingVolume", {{"box", {half, 5, 0, half, 0, 0, 0, 5, 0, 0, 0, 1}}}},
+                      {"geometricError", 1000},  // always refined to the children
+                      {"refine", "ADD"},
+                      {"children", children}}}});
+}
+
 }  // namespace
 
 // Item 1: zero extent (one point, or every point at one location) used to give a blank image
@@ -85,4 +169,30 @@ TEST(OtherWriters, ZeroExtentCloudIsFramedAndDrawn) {
     const auto stats = test::coverage_stats(image, kBackground);
     EXPECT_GT(stats.mean[0], 2.0 * stats.mean[1]) << n;
   }
+}
+
+// Item 6: a tile's problem used to be printed twice (by the streamer and by the plugin), and once
+// per tile; each kind is printed once now, with a count of the tiles not named.
+TEST(OtherWriters, TileProblemsAreReportedOnce) {
+  const fs::path dir = temp_dir();
+  const nlohmann::json unknown = {{"FOO", {{"byteOffset", 0}}}};
+  write_flat_tileset(dir, {{"m0.b3dm", b3dm_tile()},
+                           {"m1.b3dm", b3dm_tile()},
+                           {"m2.b3dm", b3dm_tile()},
+                           {"p0.pnts", grid_tile(100, 60.0f, {200, 50, 50}, unknown)},
+                           {"p1.pnts", grid_tile(100, 80.0f, {200, 50, 50}, unknown)}});
+  const fs::path png = dir / "out.png";
+  auto r = test::run_stipple(fmt::format("render {} -o {} --width 160 --height 100",
+                                         (dir / "tileset.json").string(), png.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("rendered 200 points"), std::string::npos) << r.output;
+  EXPECT_EQ(occurrences(r.output, "content type 'b3dm'"), 1u) << r.output;
+  EXPECT_EQ(occurrences(r.output, "unknown semantic FOO ignored"), 1u) << r.output;
+  EXPECT_NE(r.output.find("3 more tiles had the problems above"), std::string::npos) << r.output;
+
+  r = test::run_stipple("info " + (dir / "tileset.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(occurrences(r.output, "content type 'b3dm'"), 1u) << r.output;
+  EXPECT_NE(r.output.find("(and 2 more tiles)"), std::string::npos) << r.output;
+  EXPECT_EQ(occurrences(r.output, "unknown semantic FOO ignored"), 1u) << r.output;
 }

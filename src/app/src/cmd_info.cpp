@@ -205,6 +205,18 @@ nlohmann::json tileset_json(const std::string& uri, size_t max_tiles) {
   j["points_selected_for_default_view"] = loaded.cloud.point_count;
   j["tiles_selected_for_default_view"] = loaded.tiles_rendered;
   j["tile_errors"] = loaded.errors.size();
+  // Each kind of tile problem once, with how many tiles had it.
+  nlohmann::json problems = nlohmann::json::array();
+  std::map<std::string, size_t> index;
+  auto add = [&](const tiles3d::TileError& e, const char* severity) {
+    const std::string kind(tiles3d::tile_problem_kind(e.message));
+    auto [it, fresh] = index.try_emplace(kind, problems.size());
+    if (fresh) problems.push_back({{"severity", severity}, {"message", e.message}, {"tiles", 0}});
+    problems[it->second]["tiles"] = problems[it->second]["tiles"].get<size_t>() + 1;
+  };
+  for (const auto& e : loaded.errors) add(e, "error");
+  for (const auto& w : loaded.warnings) add(w, "warning");
+  j["tile_problems"] = problems;
   return j;
 }
 
@@ -319,6 +331,12 @@ void run_info(const InfoArgs& args) {
             "  points in the default view: %llu (%u tiles)\n",
             static_cast<unsigned long long>(j["points_selected_for_default_view"].get<uint64_t>()),
             j["tiles_selected_for_default_view"].get<uint32_t>());
+        for (const auto& p : j["tile_problems"]) {
+          const size_t tiles = p["tiles"].get<size_t>();
+          std::printf("  %s: %s%s\n", p["severity"].get<std::string>().c_str(),
+                      p["message"].get<std::string>().c_str(),
+                      tiles > 1 ? fmt::format(" (and {} more tiles)", tiles - 1).c_str() : "");
+        }
       }
       continue;
     }

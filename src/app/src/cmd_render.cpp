@@ -196,7 +196,12 @@ void run_render(const RenderArgs& args) {
       virtualized ? "rgb"  // the pointlet cache keeps RGB
                   : pc::color_mode_name(pc::resolve_color_mode(
                         engine.main().resource<pc::SceneInfo>().attributes, settings.render.color));
-  if (tileset) point_size = engine.main().resource<pc::PointDrawSettings>().render.point_size;
+  if (tileset) {
+    point_size = engine.main().resource<pc::PointDrawSettings>().render.point_size;
+    if (const uint64_t more =
+            tiles3d::unreported_tile_problems(engine.main().resource<tiles3d::TilesetStream>()))
+      STIPPLE_WARN("{} more tiles had the problems above (each kind is reported once)", more);
+  }
   const auto& stats = engine.render().resource<RenderStats>();
   const auto& description = engine.main().resource<GpuContext>()->description;
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -214,6 +214,7 @@ RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoa
     streamer.wait_for_progress();
   }
   for (auto& e : streamer.take_errors()) out.errors.push_back(std::move(e));
+  for (auto& w : streamer.take_warnings()) out.warnings.push_back(std::move(w));
   out.camera = view.camera;
   out.stats = streamer.stats();
   out.budget_limited = selection->budget_limited;

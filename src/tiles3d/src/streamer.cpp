@@ -5,6 +5,8 @@
 #include <cstring>
 #include <optional>
 
+#include <fmt/format.h>
+
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
 #include "stipple/io/content_summary.hpp"
@@ -27,7 +29,8 @@ io::PointContent decode_content(const std::vector<uint8_t>& bytes, const std::st
   std::string magic;
   for (size_t i = 0; i < 4 && i < bytes.size(); ++i)
     magic += std::isprint(bytes[i]) ? char(bytes[i]) : '?';
-  // Valid 3D Tiles content that is not points: no points, and a warning (once, by the streamer).
+  // Valid 3D Tiles content that is not points: no points, and a warning (once per kind, handed
+  // out by the streamer).
   if (magic == "b3dm" || magic == "i3dm" || magic == "cmpt" || magic == "vctr" || magic == "geom") {
     io::PointContent c;
     c.format = magic;
@@ -37,6 +40,14 @@ io::PointContent decode_content(const std::vector<uint8_t>& bytes, const std::st
   fail("{}: content type '{}' is not supported (pnts and glb point tiles are)", uri, magic);
 }
 
+std::string_view tile_problem_kind(std::string_view message) {
+  const size_t colon = message.find(": ");
+  if (colon != std::string_view::npos &&
+      message.substr(0, colon).find(' ') == std::string_view::npos)
+    message.remove_prefix(colon + 2);
+  return message;
+}
+
 struct TileStreamer::Job {
   uint32_t tile;
   std::atomic<bool> cancelled{false};
@@ -44,6 +55,7 @@ struct TileStreamer::Job {
   PreparedTile prepared;
   std::optional<io::Expansion> expansion;  // a read of pending children, not content
   std::string error;
+  std::vector<std::string> warnings;  // the contents' own, "uri: text", taken before prepare
   bool complete = false;  // every content fetched and decoded (even if cancelled meanwhile)
   std::vector<std::string> not_drawn;  // what its contents hold that is not drawn
   uint64_t points = 0;                 // decoded (counted before prepare may consume the contents)
@@ -81,6 +93,7 @@ void TileStreamer::grow() {
   states_.resize(n);
   contents_.resize(n);
   jobs_.resize(n);
+  warned_.resize(n);
 }
 
 void TileStreamer::evict(uint32_t e) {
@@ -116,10 +129,16 @@ void TileStreamer::integrate() {
       continue;
     }
     jobs_[t].reset();
+    // Content that is not drawn: once per kind, as a warning of the first tile that has it.
     for (const auto& what : job->not_drawn)
       if (not_drawn_.insert(what).second)
-        STIPPLE_WARN("{}: tile {} holds {}, which stipple does not draw (points only)",
-                     tileset_->uri, t, what);
+        new_warnings_.push_back(
+            {t, fmt::format("holds {}, which stipple does not draw (points only)", what)});
+    // A tile's content warnings are reported once, whatever reloads follow an eviction.
+    if (!job->warnings.empty() && !warned_[t]) {
+      warned_[t] = true;
+      for (auto& w : job->warnings) new_warnings_.push_back({t, std::move(w)});
+    }
     // Resident size of the result (0 for a failed load: its result and preparation are cleared).
     uint64_t bytes = job->prepared.bytes;
     for (const auto& c : job->result) bytes += c.memory_bytes();
@@ -139,9 +158,9 @@ void TileStreamer::integrate() {
     }
     if (!job->error.empty()) {
       states_[t].state = LoadState::Failed;
+      // Reported by whoever takes the errors (take_errors), once.
       new_errors_.push_back({t, job->error});
       all_errors_.push_back({t, job->error});
-      STIPPLE_WARN("tile {}: {}", t, job->error);
       continue;
     }
     // Results arrive before this frame's selection: the previous frame's tiles (being drawn,
@@ -248,9 +267,12 @@ void TileStreamer::start_jobs() {
                                          : decode_content(bytes, uri, limits, fetch));
         }
         job->complete = job->result.size() == uris.size();
-        for (const auto& c : job->result)
-          if (!c.not_drawn.empty()) job->not_drawn.push_back(c.not_drawn);
-        for (const auto& c : job->result) job->points += c.point_count;
+        for (size_t i = 0; i < job->result.size(); ++i) {
+          job->points += job->result[i].point_count;
+          if (!job->result[i].not_drawn.empty()) job->not_drawn.push_back(job->result[i].not_drawn);
+          for (const auto& w : job->result[i].warnings)
+            job->warnings.push_back(fmt::format("{}: {}", uris[i], w));
+        }
         // Prepared even when cancelled meanwhile, like the decode: the result may be kept.
         if (prepare && job->complete) job->prepared = prepare(job->tile, transform, job->result);
       } catch (const std::exception& e) {
@@ -295,6 +317,12 @@ void TileStreamer::release_prepared(uint32_t tile) {
 std::vector<TileError> TileStreamer::take_errors() {
   std::vector<TileError> out;
   out.swap(new_errors_);
+  return out;
+}
+
+std::vector<TileError> TileStreamer::take_warnings() {
+  std::vector<TileError> out;
+  out.swap(new_warnings_);
   return out;
 }
 

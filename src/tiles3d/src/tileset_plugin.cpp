@@ -4,6 +4,7 @@
 #include <limits>
 #include <optional>
 #include <set>
+#include <string_view>
 #include <unordered_map>
 
 #include "stipple/core/error.hpp"
@@ -71,6 +72,19 @@ std::optional<pc::PickHit> pick_tileset_point(const TilesetStream& stream, const
   return best;
 }
 
+bool report_tile_problem(TilesetStream& stream, const TileError& problem) {
+  if (stream.problems[std::string(tile_problem_kind(problem.message))]++ > 0) return false;
+  STIPPLE_WARN("tile {}: {}", problem.tile, problem.message);
+  if (stream.first_problem.empty()) stream.first_problem = problem.message;
+  return true;
+}
+
+uint64_t unreported_tile_problems(const TilesetStream& stream) {
+  uint64_t n = 0;
+  for (const auto& [kind, count] : stream.problems) n += count - 1;
+  return n;
+}
+
 namespace {
 
 std::optional<pc::PickHit> pick_tileset(Registry& main, const pc::PickRay& ray) {
@@ -100,9 +114,10 @@ void update_tileset(Registry& main) {
   view.world_from_tileset = s.world_from_tileset;
   const Selection& selection = s.streamer->update(view);
   for (const auto& e : s.streamer->take_errors()) {
-    STIPPLE_WARN("tile {}: {}", e.tile, e.message);
+    report_tile_problem(s, e);
     ++stats.errors;
   }
+  for (const auto& w : s.streamer->take_warnings()) report_tile_problem(s, w);
 
   // Evicted (or failed) tiles disappear; loaded ones come with the chunks their worker made.
   const auto& states = s.streamer->states();

@@ -43,6 +43,7 @@ struct RenderLoadResult {
   pc::PointCloud cloud;
   Camera camera;
   std::vector<TileError> errors;
+  std::vector<TileError> warnings;  // the loaded contents' (TileStreamer::take_warnings)
   uint32_t tiles_rendered = 0;
   // The memory budget limited detail: tiles were drawn at this screen-space error instead of
   // max_sse (infinite: not even the root fitted).

@@ -14,6 +14,7 @@
 #include <mutex>
 #include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "stipple/core/thread_pool.hpp"
@@ -59,6 +60,10 @@ struct TileError {
   std::string message;
 };
 
+// A tile problem's text without the content URI it starts with ("tiles/r12.pnts: ..."): what
+// tells one kind of problem from another, so that each kind is reported once per tileset.
+std::string_view tile_problem_kind(std::string_view message);
+
 struct StreamerStats {
   uint64_t resident_bytes = 0;
   uint64_t peak_resident_bytes = 0;
@@ -96,7 +101,12 @@ class TileStreamer {
   // What StreamerOptions::prepare made of a Loaded tile; nullptr otherwise (or without a hook).
   const PreparedTile* prepared(uint32_t tile) const;
   const std::vector<TileState>& states() const { return states_; }
+  // Failed tiles since the last call; the streamer prints nothing itself, so each is reported
+  // once, by the caller.
   std::vector<TileError> take_errors();
+  // The decoders' warnings on loaded tiles' contents ("uri: text": skipped primitives, unknown
+  // semantics), each tile's once, since the last call.
+  std::vector<TileError> take_warnings();
   const std::vector<TileError>& errors() const { return all_errors_; }
   StreamerStats stats() const;
   // Takes effect from the next update(): a lower memory budget evicts unused tiles down to it, a
@@ -122,7 +132,8 @@ class TileStreamer {
   Selection selection_;
   uint64_t frame_ = 0;
   StreamerStats stats_;
-  std::vector<TileError> new_errors_, all_errors_;
+  std::vector<TileError> new_errors_, all_errors_, new_warnings_;
+  std::vector<bool> warned_;          // by tile: its content warnings were handed out
   std::set<std::string> not_drawn_;  // content kinds warned about (once each)
   uint32_t in_flight_ = 0;
 

@@ -20,6 +20,7 @@
 // so the viewer's plugins work over either.
 #include <array>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -53,7 +54,18 @@ struct TilesetStream {
   std::vector<std::shared_ptr<const TileChunks>> chunks;
   std::vector<uint32_t> draw;  // this frame's tiles to draw (ids with chunks), traversal order
   uint64_t intensity_signature = 0;  // of the drawn tiles the intensity ramp was computed from
+  // Tile errors and content warnings by their text without the tile's URI, with how many tiles
+  // had each: each is printed for its first tile only (a tileset of b3dm tiles would otherwise
+  // print one line per tile).
+  std::map<std::string, uint32_t> problems;
+  std::string first_problem;  // the first printed, as printed
 };
+
+// Prints a tile's error or content warning unless another tile had the same one (see
+// TilesetStream::problems); returns whether it was printed.
+bool report_tile_problem(TilesetStream& stream, const TileError& problem);
+// Tiles whose problem was not printed because an earlier tile had the same.
+uint64_t unreported_tile_problems(const TilesetStream& stream);
 
 // The nearest point of this frame's drawn tiles within the ray's cone (TilesetPlugin registers it
 // in ScenePickers for double-click focus). Chunks whose bounds miss the cone are not read.
