@@ -196,3 +196,51 @@ TEST(OtherWriters, TileProblemsAreReportedOnce) {
   EXPECT_NE(r.output.find("(and 2 more tiles)"), std::string::npos) << r.output;
   EXPECT_EQ(occurrences(r.output, "unknown semantic FOO ignored"), 1u) << r.output;
 }
+
+// Item 2: a tileset without point content (a triangle-only glb, or b3dm) used to give a fully
+// transparent PNG and "rendered 0 points" with exit 0, and `info` saw no problem. It is an
+// error now, as for LAS, with the reason; a view with nothing in it is the background colour.
+TEST(OtherWriters, TilesetWithoutPointsIsAnError) {
+  const fs::path dir = temp_dir();
+  struct Case {
+    std::string name;
+    test::Bytes bytes;
+    std::string reason;
+  };
+  for (const Case& c : {Case{"mesh.glb", triangle_glb(), "only 1 TRIANGLES primitive"},
+                        Case{"mesh.b3dm", b3dm_tile(), "content type 'b3dm'"}}) {
+    SCOPED_TRACE(c.name);
+    const fs::path tiles = dir / c.name;
+    write_flat_tileset(tiles, {{c.name, c.bytes}});
+    const fs::path png = dir / (c.name + ".png");
+    auto r = test::run_stipple(fmt::format("render {} -o {} --width 160 --height 100",
+                                           (tiles / "tileset.json").string(), png.string()));
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find((tiles / "tileset.json").string() +
+                            ": nothing to render: the tiles in view hold no points"),
+              std::string::npos)
+        << r.output;
+    EXPECT_NE(r.output.find(c.reason), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(png));
+
+    r = test::run_stipple("info " + (tiles / "tileset.json").string());
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("problem: nothing to render"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(c.reason), std::string::npos) << r.output;
+  }
+
+  // Points, but none in view: the background colour (it was transparent), and a warning.
+  const fs::path tiles = dir / "points";
+  write_flat_tileset(tiles, {{"p.pnts", grid_tile(100, 0.0f, {255, 0, 0})}});
+  const fs::path png = dir / "away.png";
+  auto r = test::run_stipple(
+      fmt::format("render {} -o {} --width 64 --height 48 --camera 0,0,1000,0,0,2000",
+                  (tiles / "tileset.json").string(), png.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("no tile with points is in view"), std::string::npos) << r.output;
+  const gpu::Image image = gpu::read_png(png);
+  for (size_t i = 0; i < size_t(image.width) * image.height; ++i) {
+    ASSERT_EQ(image.rgba[i * 4 + 3], 255) << i;
+    for (int k = 0; k < 3; ++k) ASSERT_NEAR(image.rgba[i * 4 + k], kBackground[k], 1) << i;
+  }
+}

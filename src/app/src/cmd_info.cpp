@@ -217,6 +217,18 @@ nlohmann::json tileset_json(const std::string& uri, size_t max_tiles) {
   for (const auto& e : loaded.errors) add(e, "error");
   for (const auto& w : loaded.warnings) add(w, "warning");
   j["tile_problems"] = problems;
+  // What `render` would refuse: a default view whose tiles hold no points.
+  if (loaded.cloud.point_count == 0) {
+    const bool read = loaded.stats.loads_completed > 0 || !loaded.errors.empty();
+    const std::string why = !loaded.errors.empty()     ? loaded.errors.front().message
+                            : !loaded.warnings.empty() ? loaded.warnings.front().message
+                                                       : std::string();
+    j["problem"] = read ? fmt::format(
+                              "nothing to render: the tiles in the default view hold no "
+                              "points{}",
+                              why.empty() ? "" : fmt::format(" ({})", why))
+                        : "nothing to render: no tile with content is in the default view";
+  }
   return j;
 }
 
@@ -331,6 +343,8 @@ void run_info(const InfoArgs& args) {
             "  points in the default view: %llu (%u tiles)\n",
             static_cast<unsigned long long>(j["points_selected_for_default_view"].get<uint64_t>()),
             j["tiles_selected_for_default_view"].get<uint32_t>());
+        if (j.contains("problem"))
+          std::printf("  problem: %s\n", j["problem"].get<std::string>().c_str());
         for (const auto& p : j["tile_problems"]) {
           const size_t tiles = p["tiles"].get<size_t>();
           std::printf("  %s: %s%s\n", p["severity"].get<std::string>().c_str(),

@@ -123,8 +123,8 @@ void run_render(const RenderArgs& args) {
         MainStage::Update,
         [settled = uint64_t(0), frames = uint64_t(args.frames), max_frames = args.max_frames,
          output = args.output, height = args.height, memory_mb = args.scene.memory_mb,
-         max_sse = max_sse_for(args.scene), point_budget = args.scene.budget,
-         auto_size](Registry& r) mutable {
+         max_sse = max_sse_for(args.scene), point_budget = args.scene.budget, auto_size,
+         uri = scene_options.inputs[0]](Registry& r) mutable {
           auto& s = r.resource<tiles3d::TilesetStream>();
           const auto& stats = r.resource<tiles3d::TilesetStats>();
           bool capped = stats.frames >= max_frames;
@@ -147,6 +147,15 @@ void run_render(const RenderArgs& args) {
                 "of {:.1f} px instead of --max-sse {} (raise them for more detail)",
                 memory_mb, point_budget ? fmt::format(" and --budget {}", point_budget) : "",
                 stats.sse_threshold, max_sse);
+          else if (settled == 0 && stats.drawn_points == 0) {
+            // Content was read and none of it is points (meshes, an empty pnts): an input with
+            // no points is an error, as for LAS. Nothing read: no tile is in view.
+            if ((stats.loads_completed > 0 || stats.errors > 0) && stats.resident_points == 0)
+              fail("{}: nothing to render: the tiles in view hold no points{}", uri,
+                   s.first_problem.empty() ? "" : fmt::format(" ({})", s.first_problem));
+            STIPPLE_WARN("{}: no tile with points is in view: the image shows the background only",
+                         uri);
+          }
           if (settled++ == 0 && auto_size && stats.drawn_points > 0) {
             Aabb drawn;
             for (uint32_t t : s.draw)

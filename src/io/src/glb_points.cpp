@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <set>
 
 #include <meshoptimizer.h>
@@ -454,7 +455,7 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
   std::vector<glm::vec3> normals;
   std::vector<uint32_t> batch;
   bool any_color = false, any_normal = false, any_batch = false;
-  size_t skipped_primitives = 0;
+  std::map<std::string, size_t> skipped;  // primitives that are not points, by mode
   const glm::dmat4 y_up_to_z_up(1, 0, 0, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 0, 0, 1);
 
   struct Item {
@@ -484,8 +485,11 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
     glm::dmat4 to_tile = y_up_to_z_up * m;
     glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(to_tile)));
     for (const auto& prim : mesh.value("primitives", json::array())) {
-      if (prim.value("mode", 4) != 0) {
-        ++skipped_primitives;
+      if (const int64_t mode = prim.value("mode", int64_t(4)); mode != 0) {
+        static constexpr const char* kModes[] = {"POINTS",      "LINES",     "LINE_LOOP",
+                                                 "LINE_STRIP",  "TRIANGLES", "TRIANGLE_STRIP",
+                                                 "TRIANGLE_FAN"};
+        ++skipped[mode > 0 && mode < 7 ? kModes[mode] : fmt::format("mode {}", mode)];
         continue;
       }
       const json& attrs = prim.value("attributes", json::object());
@@ -580,9 +584,15 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
       }
     }
   }
-  if (skipped_primitives)
-    c.warnings.push_back(fmt::format("{} non-point primitives skipped", skipped_primitives));
-  if (skipped_primitives && points.empty()) c.not_drawn = "glb meshes";
+  if (!skipped.empty() && points.empty()) {
+    c.not_drawn = "glb meshes";  // said once per kind by the streamer, and by info
+  } else if (!skipped.empty()) {
+    std::string list;
+    for (const auto& [mode, count] : skipped)
+      list += fmt::format("{}{} {} primitive{}", list.empty() ? "" : ", ", count, mode,
+                          count > 1 ? "s" : "");
+    c.warnings.push_back(fmt::format("{} skipped (only points are drawn)", list));
+  }
   c.point_count = points.size();
   if (any_color) rgba.resize(points.size(), 0xffffffffu);
   if (any_normal) normals.resize(points.size(), glm::vec3(0, 0, 1));

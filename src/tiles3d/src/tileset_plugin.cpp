@@ -383,7 +383,26 @@ void queue_tileset(Registry& render) {
   drawn.attributes = list->attributes;
   auto& stats = render.resource<RenderStats>();
   stats.points_total = render.resource<TilesetGpuStats>().gpu_points;
-  if (drawn.chunks.empty()) return;  // nothing resident yet: the target keeps its clear
+  if (drawn.chunks.empty()) {
+    // Nothing resident (yet), or nothing in view: the frame is the background.
+    const glm::vec3 bg = settings.render.background;
+    fg.graph
+        .add_pass("clear", gpu::PassKind::Render,
+                  [bg](gpu::PassContext& pc) {
+                    WGPURenderPassColorAttachment color = WGPU_RENDER_PASS_COLOR_ATTACHMENT_INIT;
+                    color.view = pc.view("color");
+                    color.loadOp = WGPULoadOp_Clear;
+                    color.storeOp = WGPUStoreOp_Store;
+                    color.clearValue = {bg.r, bg.g, bg.b, 1.0};
+                    WGPURenderPassDescriptor desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
+                    desc.colorAttachmentCount = 1;
+                    desc.colorAttachments = &color;
+                    gpu::RenderPassEncoder pass = pc.begin_render_pass(desc);
+                    wgpuRenderPassEncoderEnd(pass.get());
+                  })
+        .write("color");
+    return;
+  }
   Camera camera = to_camera(*extracted);
   pc::add_point_cloud_passes(fg.graph, *g.pipelines, drawn, camera, settings.render, target.width,
                              target.height);
