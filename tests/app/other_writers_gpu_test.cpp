@@ -244,3 +244,31 @@ TEST(OtherWriters, TilesetWithoutPointsIsAnError) {
     for (int k = 0; k < 3; ++k) ASSERT_NEAR(image.rgba[i * 4 + k], kBackground[k], 1) << i;
   }
 }
+
+// Item 7: "nothing to render: the input holds no points" named no file (the README promises
+// that errors name the file); render and tile name every input now.
+TEST(OtherWriters, NoPointsErrorNamesTheFiles) {
+  const fs::path dir = temp_dir();
+  test::LasFile f;  // a valid header, no points
+  const fs::path a = dir / "empty-a.las", b = dir / "empty-b.las";
+  test::write_las(a, f);
+  test::write_las(b, f);
+  const fs::path png = dir / "out.png";
+  auto r = test::run_stipple(fmt::format("render {} -o {}", a.string(), png.string()));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find(a.string() + ": nothing to render: the input holds no points"),
+            std::string::npos)
+      << r.output;
+  r = test::run_stipple(fmt::format("render {} {} -o {}", a.string(), b.string(), png.string()));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find(a.string() + ", " + b.string() +
+                          ": nothing to render: the inputs hold no points"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(png));
+  r = test::run_stipple(
+      fmt::format("tile {} --crs EPSG:32633 -o {}", a.string(), (dir / "tiles").string()));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find(a.string() + ": nothing to tile"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "tiles" / "tileset.json"));
+}

@@ -283,7 +283,12 @@ std::optional<PickHit> pick_point_clouds(Registry& main, const PickRay& ray) {
 void PointCloudPlugin::build(Engine& engine) {
   Registry& main = engine.main();
   pc::PointCloud cloud = load_inputs(inputs);
-  if (cloud.point_count == 0) fail("nothing to render: the input holds no points");
+  if (cloud.point_count == 0) {
+    std::string names;
+    for (const auto& f : inputs.files) names += (names.empty() ? "" : ", ") + f.string();
+    fail("{}: nothing to render: the {} no points", names,
+         inputs.files.size() > 1 ? "inputs hold" : "input holds");
+  }
   SceneInfo info;
   info.world_bounds = cloud.world_bounds;
   info.points = cloud.point_count;

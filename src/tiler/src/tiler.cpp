@@ -270,7 +270,12 @@ void Tiler::open_inputs() {
     total_points_ += in.header.point_count;
     inputs_.push_back(std::move(in));
   }
-  if (total_points_ == 0) fail("the inputs hold no points");
+  if (total_points_ == 0) {
+    std::string names;
+    for (const auto& in : inputs_) names += (names.empty() ? "" : ", ") + in.path;
+    fail("{}: nothing to tile: the {} no points", names,
+         inputs_.size() > 1 ? "inputs hold" : "input holds");
+  }
   if (opt_.compression == "meshopt") {
     if (opt_.format != Format::Glb)
       fail("--compress meshopt is for glb output (EXT_meshopt_compression); pnts takes draco");
