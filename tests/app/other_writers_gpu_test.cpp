@@ -272,3 +272,55 @@ TEST(OtherWriters, NoPointsErrorNamesTheFiles) {
   EXPECT_NE(r.output.find(a.string() + ": nothing to tile"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "tiles" / "tileset.json"));
 }
+
+namespace {
+
+// LAS 1.4 format 6 with 3 extra bytes a point, described by `vlrs` Extra Bytes VLRs.
+test::LasFile extra_bytes_file(const std::vector<std::vector<uint8_t>>& vlrs) {
+  test::LasFile f;
+  f.version_minor = 4;
+  f.point_format = 6;
+  f.extra_bytes_per_point = 3;
+  for (const auto& payload : vlrs) f.vlrs.push_back({"LASF_Spec", 4, payload, "Extra Bytes"});
+  f.points = test::grid_points(400, 1000.0, 2000.0, 20.0);
+  for (size_t i = 0; i < f.points.size(); ++i)
+    f.points[i].extra = {uint8_t(i), uint8_t(i >> 8), uint8_t(i % 7)};
+  return f;
+}
+
+}  // namespace
+
+// Item 5: two Extra Bytes VLRs (a uint16 and a uint8) described one attribute only, and a
+// warning that the descriptors cover 1 byte of 3 was printed (twice by render). All such VLRs
+// together describe the record now; a header warning is printed once per run.
+TEST(OtherWriters, SeveralExtraBytesVlrsDescribeTheRecordTogether) {
+  const fs::path dir = temp_dir();
+  const fs::path las = dir / "two-vlrs.las";
+  test::write_las(las, extra_bytes_file({test::extra_bytes_descriptor(3, "amplitude"),
+                                         test::extra_bytes_descriptor(1, "flags")}));
+  auto r = test::run_stipple("info " + las.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("extra bytes: amplitude (uint16), flags (uint8)"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("warning"), std::string::npos) << r.output;
+  r = test::run_stipple("info --json " + las.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto j = nlohmann::json::parse(r.output.substr(r.output.find('{')));
+  ASSERT_EQ(j["extra_bytes"].size(), 2u) << r.output;
+  EXPECT_EQ(j["extra_bytes"][1]["name"], "flags");
+  const fs::path png = dir / "two-vlrs.png";
+  r = test::run_stipple(
+      fmt::format("render {} -o {} --width 64 --height 48", las.string(), png.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("warning"), std::string::npos) << r.output;
+
+  // Descriptors that really do not cover the record: said once, though render reads the
+  // header several times.
+  const fs::path short_las = dir / "short.las";
+  test::write_las(short_las, extra_bytes_file({test::extra_bytes_descriptor(3, "amplitude")}));
+  r = test::run_stipple(
+      fmt::format("render {} -o {} --width 64 --height 48", short_las.string(), png.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(occurrences(r.output, "the Extra Bytes VLRs describe 2 bytes but records carry 3"), 1u)
+      << r.output;
+}

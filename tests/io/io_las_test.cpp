@@ -14,6 +14,7 @@
 
 #include <unistd.h>
 
+#include "las_bytes.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/io/las.hpp"
 
@@ -701,5 +702,33 @@ TEST(LasRead, SeekThenReadMatchesSequentialReading) {
       }
     }
     EXPECT_THROW(r.seek(110001), Error);
+  }
+}
+
+// Writers that add attributes one at a time write one Extra Bytes VLR per attribute: all of
+// them together describe the record (a uint16, then a uint8: 3 bytes).
+TEST(LasRead, SeveralExtraBytesVlrsDescribeTheRecordTogether) {
+  stipple::test::LasFile f;
+  f.version_minor = 4;
+  f.point_format = 6;
+  f.extra_bytes_per_point = 3;
+  f.vlrs.push_back({"LASF_Spec", 4, stipple::test::extra_bytes_descriptor(3, "amplitude"), ""});
+  f.vlrs.push_back({"LASF_Spec", 4, stipple::test::extra_bytes_descriptor(1, "flags"), ""});
+  f.points = stipple::test::grid_points(10, 0.0, 0.0, 1.0);
+  for (size_t i = 0; i < f.points.size(); ++i) f.points[i].extra = {uint8_t(i), 1, uint8_t(7 * i)};
+  const std::vector<uint8_t> bytes = stipple::test::las_bytes(f);
+  LasReader reader(bytes, "two-extra-bytes-vlrs.las");
+  const LasHeader& h = reader.header();
+  ASSERT_EQ(h.extra_bytes.size(), 2u);
+  EXPECT_EQ(h.extra_bytes[0].name, "amplitude");
+  EXPECT_EQ(h.extra_bytes[0].size, 2u);
+  EXPECT_EQ(h.extra_bytes[1].name, "flags");
+  EXPECT_EQ(h.extra_bytes[1].size, 1u);
+  EXPECT_EQ(h.extra_bytes_per_point, 3u);
+  const PointBatch b = read_all(reader);
+  ASSERT_EQ(b.extra_bytes.size(), 30u);
+  for (size_t i = 0; i < 10; ++i) {
+    EXPECT_EQ(b.extra_bytes[i * 3] | (b.extra_bytes[i * 3 + 1] << 8), int(i) + 256);
+    EXPECT_EQ(b.extra_bytes[i * 3 + 2], uint8_t(7 * i));
   }
 }

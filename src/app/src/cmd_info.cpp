@@ -30,6 +30,17 @@ struct InfoArgs {
   size_t max_tiles = 1'000'000;  // tilesets: the whole tree is read up to this many tiles
 };
 
+// An Extra Bytes descriptor's type (LAS 1.4 R15 table 25), e.g. "uint16", "float64[3]".
+std::string extra_bytes_type_name(const io::ExtraBytesDescriptor& e) {
+  static constexpr const char* kScalars[10] = {"uint8", "int8",   "uint16", "int16",   "uint32",
+                                               "int32", "uint64", "int64",  "float32", "float64"};
+  if (e.data_type == 0) return fmt::format("{} bytes", e.options);
+  if (e.data_type > 30) return fmt::format("type {}", e.data_type);
+  const int count = (e.data_type - 1) / 10 + 1;
+  const char* scalar = kScalars[(e.data_type - 1) % 10];
+  return count == 1 ? std::string(scalar) : fmt::format("{}[{}]", scalar, count);
+}
+
 nlohmann::json header_json(const io::LasHeader& h) {
   nlohmann::json j;
   j["file"] = h.path;
@@ -74,7 +85,10 @@ nlohmann::json header_json(const io::LasHeader& h) {
   j["vlrs"] = vlrs;
   nlohmann::json extra = nlohmann::json::array();
   for (const auto& e : h.extra_bytes)
-    extra.push_back({{"name", e.name}, {"data_type", e.data_type}, {"bytes", e.size}});
+    extra.push_back({{"name", e.name},
+                     {"data_type", e.data_type},
+                     {"type", extra_bytes_type_name(e)},
+                     {"bytes", e.size}});
   j["extra_bytes"] = extra;
   return j;
 }
@@ -95,7 +109,22 @@ void print_header(const io::LasHeader& h, bool vlrs) {
   if (h.has_rgb) attrs += fmt::format(", RGB ({}-bit values)", h.rgb_bits);
   if (h.has_nir) attrs += ", NIR";
   if (h.has_waveform) attrs += ", waveform packets";
-  if (h.extra_bytes_per_point) attrs += fmt::format(", {} extra bytes", h.extra_bytes_per_point);
+  if (h.extra_bytes_per_point) {
+    std::string described;
+    size_t covered = 0;
+    for (const auto& e : h.extra_bytes) {
+      described += fmt::format("{}{} ({})", described.empty() ? "" : ", ",
+                               e.name.empty() ? "unnamed" : e.name, extra_bytes_type_name(e));
+      covered += e.size;
+    }
+    if (h.extra_bytes.empty())
+      attrs += fmt::format(", {} extra bytes (undescribed)", h.extra_bytes_per_point);
+    else if (covered != h.extra_bytes_per_point)
+      attrs += fmt::format(", {} extra bytes (described: {}, {} bytes)", h.extra_bytes_per_point,
+                           described, covered);
+    else
+      attrs += ", extra bytes: " + described;
+  }
   std::printf("  attributes: %s\n", attrs.c_str());
   std::printf("  software:   %s / %s\n", h.system_identifier.c_str(),
               h.generating_software.c_str());

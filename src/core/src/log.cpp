@@ -1,6 +1,9 @@
 #include "stipple/core/log.hpp"
 
 #include <cstdlib>
+#include <mutex>
+#include <string>
+#include <unordered_set>
 
 #include <spdlog/sinks/stdout_color_sinks.h>
 
@@ -16,6 +19,16 @@ void init_logging(int verbosity) {
   constexpr spdlog::level::level_enum levels[] = {spdlog::level::warn, spdlog::level::info,
                                                   spdlog::level::debug, spdlog::level::trace};
   logger->set_level(levels[verbosity < 0 ? 0 : verbosity > 3 ? 3 : verbosity]);
+}
+
+void warn_once(const std::string& message) {
+  static std::mutex mutex;
+  static std::unordered_set<std::string> said;
+  {
+    std::lock_guard lock(mutex);
+    if (!said.insert(message).second) return;
+  }
+  spdlog::warn("{}", message);
 }
 
 void assert_failed(const char* expr, const char* file, int line, const char* message) {

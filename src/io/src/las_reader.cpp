@@ -101,7 +101,8 @@ struct Parser {
   std::vector<ExtraBytesDescriptor> parse_extra_bytes(const Vlr& vlr) {
     std::vector<ExtraBytesDescriptor> out;
     if (vlr.data.size() % 192 != 0) {
-      STIPPLE_WARN("{}: Extra Bytes VLR size {} is not a multiple of 192", name, vlr.data.size());
+      STIPPLE_WARN_ONCE("{}: Extra Bytes VLR size {} is not a multiple of 192", name,
+                        vlr.data.size());
     }
     for (size_t at = 0; at + 192 <= vlr.data.size(); at += 192) {
       const uint8_t* d = vlr.data.data() + at;
@@ -189,8 +190,8 @@ struct Parser {
       // The 64-bit fields are authoritative in 1.4; the legacy ones may be zero (formats 6-10).
       if (count64 != 0 || legacy_count == 0) {
         if (legacy_count != 0 && count64 != legacy_count) {
-          STIPPLE_WARN("{}: legacy point count {} differs from the 64-bit count {}", name,
-                       legacy_count, count64);
+          STIPPLE_WARN_ONCE("{}: legacy point count {} differs from the 64-bit count {}", name,
+                            legacy_count, count64);
         }
         h.point_count = count64;
         for (int i = 0; i < 15; ++i) h.points_by_return[i] = load<uint64_t>(p + 255 + 8 * i);
@@ -285,13 +286,13 @@ struct Parser {
         }
       }
       if (v.user_id == "copc" && v.record_id == 1) h.copc = true;
-      if (v.user_id == "LASF_Spec" && v.record_id == 4) h.extra_bytes = parse_extra_bytes(v);
     }
-    for (const Vlr& v : h.evlrs) {
-      if (v.user_id == "LASF_Spec" && v.record_id == 4 && h.extra_bytes.empty()) {
-        h.extra_bytes = parse_extra_bytes(v);
-      }
-    }
+    // Writers that add attributes one at a time write one Extra Bytes VLR each (a uint16, then
+    // a uint8): the descriptors of all of them, in file order, describe the record together.
+    for (const auto* list : {&h.vlrs, &h.evlrs})
+      for (const Vlr& v : *list)
+        if (v.user_id == "LASF_Spec" && v.record_id == 4)
+          for (auto& e : parse_extra_bytes(v)) h.extra_bytes.push_back(std::move(e));
     if (h.compressed && !laszip_vlr) {
       fail("{}: point format byte {} marks the file compressed but it has no LASzip VLR", name,
            format_byte);
@@ -301,8 +302,8 @@ struct Parser {
     size_t described = 0;
     for (const ExtraBytesDescriptor& e : h.extra_bytes) described += e.size;
     if (!h.extra_bytes.empty() && described != h.extra_bytes_per_point) {
-      STIPPLE_WARN("{}: Extra Bytes VLR describes {} bytes but records carry {}", name, described,
-                   h.extra_bytes_per_point);
+      STIPPLE_WARN_ONCE("{}: the Extra Bytes VLRs describe {} bytes but records carry {}", name,
+                        described, h.extra_bytes_per_point);
     }
 
     if (!h.compressed) {
