@@ -114,15 +114,17 @@ test::Bytes grid_tile(uint32_t n, float x0, std::array<uint8_t, 3> rgb,
   return test::make_pnts(ft, bin);
 }
 
-// tileset.json with one child per content, side by side along x (20 m apart, 10 m boxes).
+// tileset.json with one child per content, side by side along x (20 m apart, 10 m boxes); a
+// content without bytes is not written (a missing file).
 void write_flat_tileset(const fs::path& dir,
                         const std::vector<std::pair<std::string, test::Bytes>>& contents) {
   nlohmann::json children = nlohmann::json::array();
   for (size_t i = 0; i < contents.size(); ++i) {
-    test::write_file(dir / contents[i].first, contents[i].second);
+    if (!contents[i].second.empty()) test::write_file(dir / contents[i].first, contents[i].second);
     const double x = 5.0 + 20.0 * double(i);
     children.push_back({{"boundingVolume", {{"box", {x, 5, 0, 5, 0, 0, 0, 5, 0, 0, 0, 1}}}},
-                        {"geometricError", 0},
+                        // An external tileset is read only where the view refines into it.
+                        {"geometricError", contents[i].first.ends_with(".json") ? 100 : 0},
                         {"content", {{"uri", contents[i].first}}}});
   }
   const double half = 10.0 * double(contents.size());
@@ -180,7 +182,8 @@ TEST(OtherWriters, TileProblemsAreReportedOnce) {
                            {"m1.b3dm", b3dm_tile()},
                            {"m2.b3dm", b3dm_tile()},
                            {"p0.pnts", grid_tile(100, 60.0f, {200, 50, 50}, unknown)},
-                           {"p1.pnts", grid_tile(100, 80.0f, {200, 50, 50}, unknown)}});
+                           {"p1.pnts", grid_tile(100, 80.0f, {200, 50, 50}, unknown)},
+                           {"missing.json", {}}});
   const fs::path png = dir / "out.png";
   auto r = test::run_stipple(fmt::format("render {} -o {} --width 160 --height 100",
                                          (dir / "tileset.json").string(), png.string()));
@@ -189,12 +192,15 @@ TEST(OtherWriters, TileProblemsAreReportedOnce) {
   EXPECT_EQ(occurrences(r.output, "content type 'b3dm'"), 1u) << r.output;
   EXPECT_EQ(occurrences(r.output, "unknown semantic FOO ignored"), 1u) << r.output;
   EXPECT_NE(r.output.find("3 more tiles had the problems above"), std::string::npos) << r.output;
+  // A broken external tileset: recorded by the reader, printed by the plugin, once.
+  EXPECT_EQ(occurrences(r.output, "missing.json: cannot open"), 1u) << r.output;
 
   r = test::run_stipple("info " + (dir / "tileset.json").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(occurrences(r.output, "content type 'b3dm'"), 1u) << r.output;
   EXPECT_NE(r.output.find("(and 2 more tiles)"), std::string::npos) << r.output;
   EXPECT_EQ(occurrences(r.output, "unknown semantic FOO ignored"), 1u) << r.output;
+  EXPECT_EQ(occurrences(r.output, "missing.json: cannot open"), 1u) << r.output;
 }
 
 // Item 2: a tileset without point content (a triangle-only glb, or b3dm) used to give a fully

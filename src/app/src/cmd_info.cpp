@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -374,7 +375,17 @@ void run_info(const InfoArgs& args) {
             j["tiles_selected_for_default_view"].get<uint32_t>());
         if (j.contains("problem"))
           std::printf("  problem: %s\n", j["problem"].get<std::string>().c_str());
+        // The tree's own problems (external tilesets, subtrees), then the default view's tiles'
+        // (which repeat the tree's problems the view ran into).
+        std::set<std::string> said;
+        for (const char* kind : {"warnings", "errors"})
+          for (const auto& m : j[kind]) {
+            std::printf("  %s: %s\n", kind[0] == 'w' ? "warning" : "error",
+                        m.get<std::string>().c_str());
+            said.insert(m.get<std::string>());
+          }
         for (const auto& p : j["tile_problems"]) {
+          if (said.count(p["message"].get<std::string>())) continue;
           const size_t tiles = p["tiles"].get<size_t>();
           std::printf("  %s: %s%s\n", p["severity"].get<std::string>().c_str(),
                       p["message"].get<std::string>().c_str(),

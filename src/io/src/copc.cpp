@@ -410,8 +410,8 @@ Tileset load_copc_tileset(const std::string& uri, const Fetcher& fetcher,
   pending->copc = file;
   for (auto& t : e.tiles)
     if (t.pending) std::const_pointer_cast<PendingChildren>(t.pending)->copc = file;
-  for (auto& [tile, message] : attach_children(ts, std::move(e), options))
-    STIPPLE_WARN("{}", message);
+  // Its errors are the tileset's (ts.errors), for the reader to report.
+  attach_children(ts, std::move(e), options);
   return ts;
 }
 

@@ -262,9 +262,9 @@ class Builder {
     visit(im, s, root_tile, 0, level, x, y, z);
   }
 
-  // A failure that costs one tile (-1: the expanded one), recorded on it.
+  // A failure that costs one tile (-1: the expanded one), recorded on it. Not logged: whoever
+  // reads the tileset reports it (once).
   void tile_error(int32_t index, const std::string& text) {
-    STIPPLE_WARN("{}", text);
     if (index >= 0) {
       auto& error = out_.tiles[size_t(index)].error;
       if (!error.empty()) error += "; ";
@@ -280,10 +280,7 @@ class Builder {
   size_t tiles_now_;                // tiles the tileset has besides out_.tiles
   std::vector<std::string> chain_;  // external tilesets from the root down (cycle detection)
 
-  void warn(std::string text) {
-    STIPPLE_WARN("{}", text);
-    out_.warnings.push_back(std::move(text));
-  }
+  void warn(std::string text) { out_.warnings.push_back(std::move(text)); }
   int32_t add_tile(Tile t) {
     if (tiles_now_ + out_.tiles.size() >= options_.max_tiles) {
       out_.over_limit = true;
@@ -610,7 +607,6 @@ std::vector<std::pair<uint32_t, std::string>> attach_children(Tileset& ts, Expan
     e.errors.assign(1, {-1, fmt::format("the tile limit is reached: {} tiles are materialised "
                                         "(TilesetOptions::max_tiles); children not read",
                                         base)});
-    STIPPLE_WARN("tile {}: {}", e.tile, e.errors[0].second);
   }
   ts.external_tilesets += e.external_tilesets;
   ts.subtrees += e.subtrees;

@@ -187,6 +187,7 @@ RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoa
   RenderLoadResult out;
   StreamerOptions streamer_options = options.streamer;
   for (const auto& e : tileset->errors) out.errors.push_back({0, e});
+  for (const auto& w : tileset->warnings) out.warnings.push_back({0, w});
   View view;
   view.width = options.width;
   view.height = options.height;

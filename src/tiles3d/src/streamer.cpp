@@ -120,6 +120,7 @@ void TileStreamer::integrate() {
       // A cancelled read (shutdown) is never attached: the tile stays pending.
       if (job->cancelled) continue;
       ++stats_.expansions;
+      for (const auto& w : job->expansion->warnings) new_warnings_.push_back({t, w});
       auto errors = io::attach_children(*tileset_, std::move(*job->expansion), options_.tileset);
       grow();
       for (auto& [tile, message] : errors) {

@@ -419,7 +419,8 @@ void TilesetPlugin::build(Engine& engine) {
   std::set<std::string> not_drawn;
   auto tileset = std::make_shared<io::Tileset>(io::load_tileset(uri, ts_options));
   s.tileset = tileset;
-  for (const auto& e : s.tileset->errors) STIPPLE_WARN("{}: {}", uri, e);
+  for (const auto& w : s.tileset->warnings) report_tile_problem(s, {0, w});
+  for (const auto& e : s.tileset->errors) report_tile_problem(s, {0, e});
   if (s.tileset->tiles.empty()) fail("{}: the tileset has no tiles", uri);
   s.world_from_tileset = world_from_tileset(*s.tileset);
   {
