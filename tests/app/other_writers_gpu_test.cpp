@@ -330,3 +330,38 @@ TEST(OtherWriters, SeveralExtraBytesVlrsDescribeTheRecordTogether) {
   EXPECT_EQ(occurrences(r.output, "the Extra Bytes VLRs describe 2 bytes but records carry 3"), 1u)
       << r.output;
 }
+
+// Item 8: info printed scales with 6 significant digits (0.001 and 0.0010000001 alike), a zero
+// offset stored as -0 as "-0.000000", an empty system identifier as "   / Software", and kept
+// the spaces some writers pad strings with.
+TEST(OtherWriters, InfoPrintsHeaderFieldsExactly) {
+  const fs::path dir = temp_dir();
+  test::LasFile f;
+  f.scale = {0.001, 0.0010000001, 0.01};
+  f.offset = {-0.0, 250000.5, 0.0};
+  f.system_identifier = "";
+  f.generating_software = "Writer 2.1      ";  // padded with spaces, not NULs
+  f.vlrs.push_back({"LASF_Projection ", 9999, {1, 2, 3}, "padded user id  "});
+  f.points = test::grid_points(16, 1000.0, 2000.0, 10.0);
+  f.offset[1] = 0.0;  // the points need an offset they fit with
+  const fs::path las = dir / "fields.las";
+  test::write_las(las, f);
+  auto r = test::run_stipple("info --vlrs " + las.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("  scale:      0.001 0.0010000001 0.01\n"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("  offset:     0 0 0\n"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("-0"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("  software:   Writer 2.1\n"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("    VLR  LASF_Projection   9999       3 bytes  padded user id\n"),
+            std::string::npos)
+      << r.output;
+  r = test::run_stipple("info --json " + las.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto j = nlohmann::json::parse(r.output.substr(r.output.find('{')));
+  EXPECT_EQ(j["generating_software"], "Writer 2.1");
+  EXPECT_EQ(j["system_identifier"], "");
+  EXPECT_EQ(j["scale"][1].get<double>(), 0.0010000001);
+  EXPECT_FALSE(std::signbit(j["offset"][0].get<double>()));
+  EXPECT_EQ(j["vlrs"][0]["user_id"], "LASF_Projection");
+}

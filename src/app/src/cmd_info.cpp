@@ -42,6 +42,13 @@ std::string extra_bytes_type_name(const io::ExtraBytesDescriptor& e) {
   return count == 1 ? std::string(scalar) : fmt::format("{}[{}]", scalar, count);
 }
 
+// -0 (some writers store it for a zero offset) printed as 0.
+glm::dvec3 no_negative_zero(glm::dvec3 v) {
+  for (int i = 0; i < 3; ++i)
+    if (v[i] == 0.0) v[i] = 0.0;
+  return v;
+}
+
 nlohmann::json header_json(const io::LasHeader& h) {
   nlohmann::json j;
   j["file"] = h.path;
@@ -52,10 +59,11 @@ nlohmann::json header_json(const io::LasHeader& h) {
   j["copc"] = h.copc;
   j["point_count"] = h.point_count;
   j["points_by_return"] = h.points_by_return;
-  j["scale"] = {h.scale.x, h.scale.y, h.scale.z};
-  j["offset"] = {h.offset.x, h.offset.y, h.offset.z};
-  j["min"] = {h.min.x, h.min.y, h.min.z};
-  j["max"] = {h.max.x, h.max.y, h.max.z};
+  for (auto [key, v] : {std::pair{"scale", h.scale}, std::pair{"offset", h.offset},
+                        std::pair{"min", h.min}, std::pair{"max", h.max}}) {
+    v = no_negative_zero(v);
+    j[key] = {v.x, v.y, v.z};
+  }
   j["system_identifier"] = h.system_identifier;
   j["generating_software"] = h.generating_software;
   j["creation"] = {{"day", h.creation_day}, {"year", h.creation_year}};
@@ -100,10 +108,14 @@ void print_header(const io::LasHeader& h, bool vlrs) {
               h.version_minor, h.point_format, h.point_record_length,
               h.compressed ? ", LAZ compressed" : "", h.copc ? ", COPC" : "");
   std::printf("  points:     %llu\n", static_cast<unsigned long long>(h.point_count));
-  std::printf("  bounds min: %.6f %.6f %.6f\n", h.min.x, h.min.y, h.min.z);
-  std::printf("  bounds max: %.6f %.6f %.6f\n", h.max.x, h.max.y, h.max.z);
-  std::printf("  scale:      %g %g %g\n", h.scale.x, h.scale.y, h.scale.z);
-  std::printf("  offset:     %.6f %.6f %.6f\n", h.offset.x, h.offset.y, h.offset.z);
+  const glm::dvec3 lo = no_negative_zero(h.min), hi = no_negative_zero(h.max);
+  std::printf("  bounds min: %.6f %.6f %.6f\n", lo.x, lo.y, lo.z);
+  std::printf("  bounds max: %.6f %.6f %.6f\n", hi.x, hi.y, hi.z);
+  // Exactly (the shortest text that reads back as the same double): 6 significant digits made
+  // X and Y scales of 0.001 and 0.0010000001 look the same.
+  const glm::dvec3 scale = no_negative_zero(h.scale), offset = no_negative_zero(h.offset);
+  std::printf("  scale:      %s\n", fmt::format("{} {} {}", scale.x, scale.y, scale.z).c_str());
+  std::printf("  offset:     %s\n", fmt::format("{} {} {}", offset.x, offset.y, offset.z).c_str());
   std::printf("  CRS:        %s\n", h.crs.empty() ? "none" : h.crs.describe().c_str());
   std::string attrs = "intensity, returns, classification, scan angle";
   if (h.has_gps_time) attrs += ", GPS time";
@@ -127,8 +139,11 @@ void print_header(const io::LasHeader& h, bool vlrs) {
       attrs += ", extra bytes: " + described;
   }
   std::printf("  attributes: %s\n", attrs.c_str());
-  std::printf("  software:   %s / %s\n", h.system_identifier.c_str(),
-              h.generating_software.c_str());
+  // System identifier and generating software, whichever are filled in.
+  std::string software = h.system_identifier;
+  if (!h.generating_software.empty())
+    software += (software.empty() ? "" : " / ") + h.generating_software;
+  std::printf("  software:   %s\n", software.empty() ? "(not given)" : software.c_str());
   std::printf("  VLRs:       %zu, EVLRs: %zu\n", h.vlrs.size(), h.evlrs.size());
   if (vlrs) {
     for (const auto& v : h.vlrs)

@@ -76,9 +76,12 @@ class MemorySource : public ByteSource {
   std::span<const uint8_t> bytes_;
 };
 
+// A NUL-padded char[n] field. Some writers pad with spaces instead: trailing spaces are not
+// part of the value either (a user ID "LASF_Projection " is LASF_Projection).
 std::string fixed_string(const uint8_t* p, size_t n) {
   size_t len = 0;
   while (len < n && p[len] != 0) ++len;
+  while (len > 0 && p[len - 1] == ' ') --len;
   return std::string(reinterpret_cast<const char*>(p), len);
 }
 
