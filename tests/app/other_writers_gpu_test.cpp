@@ -365,3 +365,118 @@ TEST(OtherWriters, InfoPrintsHeaderFieldsExactly) {
   EXPECT_FALSE(std::signbit(j["offset"][0].get<double>()));
   EXPECT_EQ(j["vlrs"][0]["user_id"], "LASF_Projection");
 }
+
+namespace {
+
+const char* kUtm33Wkt =
+    "PROJCS[\"WGS 84 / UTM zone 33N\",GEOGCS[\"WGS 84\",DATUM[\"WGS_1984\",SPHEROID[\"WGS 84\","
+    "6378137,298.257223563]],PRIMEM[\"Greenwich\",0],UNIT[\"degree\",0.0174532925199433]],"
+    "PROJECTION[\"Transverse_Mercator\"],PARAMETER[\"latitude_of_origin\",0],PARAMETER["
+    "\"central_meridian\",15],PARAMETER[\"scale_factor\",0.9996],PARAMETER[\"false_easting\","
+    "500000],PARAMETER[\"false_northing\",0],UNIT[\"metre\",1],AUTHORITY[\"EPSG\",\"32633\"]]";
+
+// As some writers put it: the VERTCS nested inside the PROJCS (not valid WKT1; PROJ reads the
+// projected part without its id), the PROJCS's own AUTHORITY before it.
+const char* kNestedVertcsWkt =
+    "PROJCS[\"NAD83(HARN) / New Mexico Central (ftUS)\",GEOGCS[\"NAD83(HARN)\",DATUM["
+    "\"NAD83_High_Accuracy_Reference_Network\",SPHEROID[\"GRS 1980\",6378137,298.257222101,"
+    "AUTHORITY[\"EPSG\",\"7019\"]],TOWGS84[0,0,0,0,0,0,0],AUTHORITY[\"EPSG\",\"6152\"]],PRIMEM["
+    "\"Greenwich\",0,AUTHORITY[\"EPSG\",\"8901\"]],UNIT[\"degree\",0.0174532925199433,AUTHORITY["
+    "\"EPSG\",\"9122\"]],AUTHORITY[\"EPSG\",\"4152\"]],PROJECTION[\"Transverse_Mercator\"],"
+    "PARAMETER[\"latitude_of_origin\",31],PARAMETER[\"central_meridian\",-106.25],PARAMETER["
+    "\"scale_factor\",0.9999],PARAMETER[\"false_easting\",1640416.667],PARAMETER["
+    "\"false_northing\",0],UNIT[\"US survey foot\",0.3048006096012192,AUTHORITY[\"EPSG\","
+    "\"9003\"]],AXIS[\"X\",EAST],AXIS[\"Y\",NORTH],AUTHORITY[\"EPSG\",\"2903\"],VERTCS[\"North "
+    "American Vertical Datum of 1988\",VERT_DATUM[\"North American Vertical Datum 1988\",2005,"
+    "AUTHORITY[\"EPSG\",\"5103\"]],UNIT[\"US survey foot\",1.0],AXIS[\"Gravity-related height\","
+    "UP],AUTHORITY[\"EPSG\",\"5703\"]]]";
+
+const char* kWgs84Wkt =
+    "GEOGCS[\"WGS 84\",DATUM[\"WGS_1984\",SPHEROID[\"WGS 84\",6378137,298.257223563]],PRIMEM["
+    "\"Greenwich\",0],UNIT[\"degree\",0.0174532925199433],AUTHORITY[\"EPSG\",\"4326\"]]";
+
+test::LasVlr wkt_vlr(const std::string& wkt) {
+  std::vector<uint8_t> bytes(wkt.begin(), wkt.end());
+  bytes.push_back(0);
+  return {"LASF_Projection", 2112, bytes, "OGC WKT"};
+}
+
+// LAS 1.4 format 6 with the WKT bit set as given, the VLRs given, 16 points near (x, y).
+fs::path crs_file(const fs::path& path, bool wkt_bit, std::vector<test::LasVlr> vlrs,
+                  double x = 500000.0, double y = 4500000.0) {
+  test::LasFile f;
+  f.version_minor = 4;
+  f.point_format = 6;
+  f.global_encoding = wkt_bit ? 16 : 0;
+  f.vlrs = std::move(vlrs);
+  f.points = test::grid_points(16, x, y, 10.0);
+  test::write_las(path, f);
+  return path;
+}
+
+}  // namespace
+
+// Item 9: CRS labels. With a WKT and GeoTIFF keys the EPSG code came from the keys while the
+// name and unit came from the WKT; a blank WKT was a "custom CRS"; a WKT that PROJ reads only in
+// part lost its EPSG code; latitudes of millions passed as degrees.
+TEST(OtherWriters, CrsLabelsComeFromOneSource) {
+  const fs::path dir = temp_dir();
+  const test::LasVlr keys = {"LASF_Projection", 34735,
+                             test::geokey_directory({{1024, 1}, {3072, 2903}}), "GeoTIFF"};
+  // WKT bit set: the WKT (UTM 33N, metres) decides; the keys (New Mexico, US feet) disagree.
+  auto r = test::run_stipple(
+      "info " + crs_file(dir / "both-bit.las", true, {wkt_vlr(kUtm33Wkt), keys}).string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("CRS:        EPSG:32633 (WGS 84 / UTM zone 33N), unit metre\n"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("the WKT says EPSG:32633 and the GeoTIFF keys EPSG:2903: the WKT is "
+                          "used (the header's WKT bit is set)"),
+            std::string::npos)
+      << r.output;
+  // WKT bit clear: the keys decide, name and unit with them.
+  r = test::run_stipple(
+      "info " + crs_file(dir / "both-nobit.las", false, {wkt_vlr(kUtm33Wkt), keys}).string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("CRS:        EPSG:2903 (NAD83(HARN) / New Mexico Central (ftUS)), unit "
+                          "US survey foot (from the GeoTIFF keys)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("the GeoTIFF keys are used (the header's WKT bit is clear)"),
+            std::string::npos)
+      << r.output;
+
+  // A WKT VLR of blanks: no CRS, said so.
+  r = test::run_stipple("info " + crs_file(dir / "blank.las", true, {wkt_vlr("  \n ")}).string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("CRS:        none (the WKT VLR holds no text)\n"), std::string::npos)
+      << r.output;
+
+  // The nested VERTCS: the PROJCS's AUTHORITY, the VERTCS's, the unit of the PROJCS.
+  r = test::run_stipple("info " +
+                        crs_file(dir / "nested.las", true, {wkt_vlr(kNestedVertcsWkt)}).string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("CRS:        EPSG:2903 (NAD83(HARN) / New Mexico Central (ftUS)) + "
+                          "vertical EPSG:5703, unit US survey foot\n"),
+            std::string::npos)
+      << r.output;
+
+  // Geographic by its WKT, projected by its numbers: info says so, render and tile refuse it.
+  const fs::path lonlat = crs_file(dir / "not-degrees.las", true, {wkt_vlr(kWgs84Wkt)});
+  r = test::run_stipple("info " + lonlat.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string problem =
+      lonlat.string() + ": the CRS (EPSG:4326) is geographic, but the coordinates reach latitude";
+  EXPECT_NE(r.output.find("problem:    " + problem), std::string::npos) << r.output;
+  r = test::run_stipple(fmt::format("render {} -o {}", lonlat.string(), (dir / "x.png").string()));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("error: " + problem), std::string::npos) << r.output;
+  r = test::run_stipple(fmt::format("tile {} -o {}", lonlat.string(), (dir / "t").string()));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("error: " + problem), std::string::npos) << r.output;
+  // Real degrees pass.
+  r = test::run_stipple(
+      "info " + crs_file(dir / "degrees.las", true, {wkt_vlr(kWgs84Wkt)}, 15.5, 47.25).string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("problem"), std::string::npos) << r.output;
+}

@@ -732,3 +732,33 @@ TEST(LasRead, SeveralExtraBytesVlrsDescribeTheRecordTogether) {
     EXPECT_EQ(b.extra_bytes[i * 3 + 2], uint8_t(7 * i));
   }
 }
+
+// WKT from the file is untrusted text: broken brackets, unterminated quotes and deep nesting
+// leave the CRS without a code, never crash or hang; a readable one still names its code.
+TEST(LasRead, CrsFromMalformedWktIsBestEffort) {
+  const std::vector<std::string> texts = {
+      "PROJCS[\"x\",AUTHORITY[\"EPSG\",\"32633\"]",        // unclosed
+      "PROJCS[\"unterminated,AUTHORITY[\"EPSG\",\"1\"]]",  // a quote never closed
+      std::string(100000, '[') + std::string(100000, ']'),
+      "PROJCS(\"paren style\",UNIT(\"metre\",1),AUTHORITY(\"EPSG\",\"32633\"))",
+      "]]]]",
+  };
+  for (size_t i = 0; i < texts.size(); ++i) {
+    SCOPED_TRACE(i);
+    stipple::test::LasFile f;
+    f.version_minor = 4;
+    f.point_format = 6;
+    f.global_encoding = 16;
+    std::vector<uint8_t> wkt(texts[i].begin(), texts[i].end());
+    wkt.resize(std::min<size_t>(wkt.size(), 65000));
+    f.vlrs.push_back({"LASF_Projection", 2112, wkt, ""});
+    f.points = stipple::test::grid_points(4, 0.0, 0.0, 1.0);
+    const std::vector<uint8_t> bytes = stipple::test::las_bytes(f);
+    LasReader reader(bytes, "wkt.las");
+    if (i == 3) {
+      EXPECT_EQ(reader.header().crs.epsg, 32633);
+      EXPECT_EQ(reader.header().crs.linear_unit, "metre");
+    }
+    EXPECT_EQ(reader.header().crs.source, Crs::Source::Wkt);
+  }
+}

@@ -78,6 +78,14 @@ nlohmann::json header_json(const io::LasHeader& h) {
   crs["geographic"] = h.crs.geographic;
   crs["wkt"] = h.crs.wkt;
   crs["geokeys"] = h.crs.geokeys.size();
+  crs["source"] = h.crs.source == io::Crs::Source::Wkt       ? "wkt"
+                  : h.crs.source == io::Crs::Source::GeoTiff ? "geotiff"
+                                                             : "none";
+  crs["linear_unit"] = h.crs.linear_unit;
+  crs["description"] = h.crs.describe();
+  if (!h.crs.conflict.empty()) crs["conflict"] = h.crs.conflict;
+  if (const std::string problem = io::geographic_bounds_problem(h); !problem.empty())
+    crs["problem"] = problem;
   j["crs"] = crs;
   nlohmann::json vlrs = nlohmann::json::array();
   for (const auto& v : h.vlrs)
@@ -116,7 +124,9 @@ void print_header(const io::LasHeader& h, bool vlrs) {
   const glm::dvec3 scale = no_negative_zero(h.scale), offset = no_negative_zero(h.offset);
   std::printf("  scale:      %s\n", fmt::format("{} {} {}", scale.x, scale.y, scale.z).c_str());
   std::printf("  offset:     %s\n", fmt::format("{} {} {}", offset.x, offset.y, offset.z).c_str());
-  std::printf("  CRS:        %s\n", h.crs.empty() ? "none" : h.crs.describe().c_str());
+  std::printf("  CRS:        %s\n", h.crs.describe().c_str());
+  if (const std::string problem = io::geographic_bounds_problem(h); !problem.empty())
+    std::printf("  problem:    %s\n", problem.c_str());
   std::string attrs = "intensity, returns, classification, scan angle";
   if (h.has_gps_time) attrs += ", GPS time";
   if (h.has_rgb) attrs += fmt::format(", RGB ({}-bit values)", h.rgb_bits);

@@ -3,8 +3,13 @@
 #include <proj.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <initializer_list>
+#include <optional>
+#include <string_view>
 
 #include <fmt/format.h>
 
@@ -13,7 +18,7 @@
 namespace stipple::io {
 
 std::string Crs::describe() const {
-  if (empty()) return "no CRS";
+  if (empty()) return blank_wkt ? "none (the WKT VLR holds no text)" : "none";
   std::string s = epsg ? fmt::format("EPSG:{}", epsg) : std::string("custom CRS");
   if (!name.empty()) s += fmt::format(" ({})", name);
   if (vertical_epsg) s += fmt::format(" + vertical EPSG:{}", vertical_epsg);
@@ -22,7 +27,22 @@ std::string Crs::describe() const {
   } else if (!linear_unit.empty()) {
     s += fmt::format(", unit {}", linear_unit);
   }
+  if (source == Source::GeoTiff && !wkt.empty()) s += " (from the GeoTIFF keys)";
   return s;
+}
+
+std::string geographic_bounds_problem(const LasHeader& h) {
+  if (!h.crs.geographic) return {};
+  const double lat = std::max(std::abs(h.min.y), std::abs(h.max.y));
+  const double lon = std::max(std::abs(h.min.x), std::abs(h.max.x));
+  // A hair past the limits is rounding of a scaled integer; anything more is not degrees.
+  if (lat <= 90.0 + 1e-6 && lon <= 360.0 + 1e-6) return {};
+  return fmt::format(
+      "{}: the CRS ({}) is geographic, but the coordinates reach {} {:.7g}, beyond +-{}: they "
+      "are not longitude/latitude (is the CRS wrong?)",
+      h.path, h.crs.epsg ? fmt::format("EPSG:{}", h.crs.epsg) : h.crs.name,
+      lat > 90.0 + 1e-6 ? "latitude" : "longitude", lat > 90.0 + 1e-6 ? lat : lon,
+      lat > 90.0 + 1e-6 ? 90 : 360);
 }
 
 namespace detail {
@@ -82,46 +102,230 @@ bool is_geographic(PJ_TYPE t) {
          t == PJ_TYPE_GEOGRAPHIC_CRS;
 }
 
-void resolve_with_proj(Crs& crs) {
+// What one source (the WKT or the GeoTIFF keys) says about the CRS.
+struct CrsFacts {
+  int epsg = 0, vertical_epsg = 0;
+  bool geographic = false;
+  std::string name, linear_unit;
+  bool readable = false;  // PROJ read the definition
+};
+
+// A CRS definition ("EPSG:n" or WKT) through PROJ.
+CrsFacts facts_from_proj(const std::string& definition) {
+  CrsFacts f;
   Proj p;
-  if (!p.ctx) return;
-  PJ* obj = nullptr;
-  if (!crs.wkt.empty()) obj = p.keep(proj_create(p.ctx, crs.wkt.c_str()));
-  if (!obj && crs.epsg > 0) {
-    obj = p.keep(proj_create(p.ctx, fmt::format("EPSG:{}", crs.epsg).c_str()));
-  }
-  if (!obj) return;
+  if (!p.ctx) return f;
+  PJ* obj = p.keep(proj_create(p.ctx, definition.c_str()));
+  if (!obj) return f;
+  f.readable = true;
   PJ* horizontal = obj;
   if (proj_get_type(obj) == PJ_TYPE_COMPOUND_CRS) {
     horizontal = p.keep(proj_crs_get_sub_crs(p.ctx, obj, 0));
-    PJ* vertical = p.keep(proj_crs_get_sub_crs(p.ctx, obj, 1));
-    if (vertical && crs.vertical_epsg == 0) crs.vertical_epsg = id_code(vertical);
+    if (PJ* vertical = p.keep(proj_crs_get_sub_crs(p.ctx, obj, 1)))
+      f.vertical_epsg = id_code(vertical);
     if (!horizontal) horizontal = obj;
   }
-  if (const char* name = proj_get_name(horizontal)) crs.name = name;
-  if (crs.epsg == 0) crs.epsg = id_code(horizontal);
-  if (is_geographic(proj_get_type(horizontal))) crs.geographic = true;
-  if (crs.linear_unit.empty() && !crs.geographic) {
+  if (const char* name = proj_get_name(horizontal)) f.name = name;
+  f.epsg = id_code(horizontal);
+  f.geographic = is_geographic(proj_get_type(horizontal));
+  if (!f.geographic) {
     PJ* cs = p.keep(proj_crs_get_coordinate_system(p.ctx, horizontal));
     const char* unit = nullptr;
     if (cs &&
         proj_cs_get_axis_info(p.ctx, cs, 0, nullptr, nullptr, nullptr, nullptr, &unit, nullptr,
                               nullptr) &&
         unit) {
-      crs.linear_unit = unit;
+      f.linear_unit = unit;
     }
   }
+  return f;
+}
+
+// WKT1 as a tree of KEYWORD[values, children], enough to read the top-level name, AUTHORITY and
+// UNIT of a WKT that PROJ cannot read as a whole (a VERTCS nested inside the PROJCS, as some
+// writers put it). Untrusted text: depth and node count are bounded.
+struct WktNode {
+  std::string keyword;
+  std::vector<std::string> values;  // quoted strings (unquoted) and bare words, in order
+  std::vector<WktNode> children;
+};
+
+class WktReader {
+ public:
+  explicit WktReader(std::string_view text) : s_(text) {}
+  std::optional<WktNode> read() {
+    WktNode top;
+    if (!node(top, 0)) return std::nullopt;
+    return top;
+  }
+
+ private:
+  std::string_view s_;
+  size_t at_ = 0, nodes_ = 0;
+
+  void space() {
+    while (at_ < s_.size() && std::isspace(static_cast<unsigned char>(s_[at_]))) ++at_;
+  }
+  bool node(WktNode& n, int depth) {
+    if (depth > 32 || ++nodes_ > 10000) return false;
+    space();
+    const size_t start = at_;
+    while (at_ < s_.size() && (std::isalnum(static_cast<unsigned char>(s_[at_])) || s_[at_] == '_'))
+      ++at_;
+    n.keyword.assign(s_.substr(start, at_ - start));
+    for (char& c : n.keyword) c = char(std::toupper(static_cast<unsigned char>(c)));
+    space();
+    if (n.keyword.empty() || at_ >= s_.size() || (s_[at_] != '[' && s_[at_] != '(')) return false;
+    const char close = s_[at_++] == '[' ? ']' : ')';
+    for (;;) {
+      space();
+      if (at_ >= s_.size()) return false;
+      if (s_[at_] == close) {
+        ++at_;
+        return true;
+      }
+      if (s_[at_] == '"') {
+        std::string value;
+        for (++at_;; ++at_) {
+          if (at_ >= s_.size()) return false;
+          if (s_[at_] == '"') {
+            if (at_ + 1 < s_.size() && s_[at_ + 1] == '"') {  // "" is a quote inside
+              value += '"';
+              ++at_;
+              continue;
+            }
+            ++at_;
+            break;
+          }
+          value += s_[at_];
+        }
+        n.values.push_back(std::move(value));
+      } else {
+        // A number or an enumeration word, or a child node (a word followed by a bracket).
+        const size_t word = at_;
+        while (at_ < s_.size() && s_[at_] != ',' && s_[at_] != close && s_[at_] != '[' &&
+               s_[at_] != '(' && s_[at_] != ']' && s_[at_] != ')')
+          ++at_;
+        if (at_ < s_.size() && (s_[at_] == '[' || s_[at_] == '(')) {
+          at_ = word;
+          n.children.emplace_back();
+          if (!node(n.children.back(), depth + 1)) return false;
+        } else {
+          std::string_view v = s_.substr(word, at_ - word);
+          while (!v.empty() && std::isspace(static_cast<unsigned char>(v.back())))
+            v.remove_suffix(1);
+          n.values.emplace_back(v);
+        }
+      }
+      space();
+      if (at_ < s_.size() && s_[at_] == ',') ++at_;
+    }
+  }
+};
+
+const WktNode* wkt_child(const WktNode& n, std::initializer_list<std::string_view> keywords) {
+  for (const WktNode& c : n.children)
+    for (std::string_view k : keywords)
+      if (c.keyword == k) return &c;
+  return nullptr;
+}
+
+// AUTHORITY["EPSG","n"] (WKT1) or ID["EPSG",n] (WKT2) directly under a node.
+int wkt_epsg(const WktNode* n) {
+  if (!n) return 0;
+  const WktNode* a = wkt_child(*n, {"AUTHORITY", "ID"});
+  if (!a || a->values.size() < 2 || a->values[0] != "EPSG") return 0;
+  return std::atoi(a->values[1].c_str());
+}
+
+CrsFacts facts_from_wkt_tree(const WktNode& top) {
+  CrsFacts f;
+  const WktNode* horizontal = &top;
+  // Nested in the horizontal CRS is not valid WKT1, but some writers put it there.
+  const WktNode* vertical = wkt_child(top, {"VERT_CS", "VERTCS", "VERTCRS", "VERTICALCRS"});
+  if (top.keyword == "COMPD_CS" || top.keyword == "COMPOUNDCRS") {
+    horizontal = wkt_child(top, {"PROJCS", "GEOGCS", "GEOCCS", "PROJCRS", "PROJECTEDCRS", "GEOGCRS",
+                                 "GEOGRAPHICCRS", "GEODCRS", "GEODETICCRS"});
+    if (!horizontal) return f;
+  }
+  if (!horizontal->values.empty()) f.name = horizontal->values[0];
+  f.epsg = wkt_epsg(horizontal);
+  f.vertical_epsg = wkt_epsg(vertical);
+  const std::string& k = horizontal->keyword;
+  f.geographic = k == "GEOGCS" || k == "GEOGCRS" || k == "GEOGRAPHICCRS";
+  if (!f.geographic)
+    if (const WktNode* unit = wkt_child(*horizontal, {"UNIT", "LENGTHUNIT"});
+        unit && !unit->values.empty())
+      f.linear_unit = unit->values[0];
+  return f;
+}
+
+CrsFacts wkt_facts(const std::string& wkt, bool resolve) {
+  CrsFacts f = resolve ? facts_from_proj(wkt) : CrsFacts{};
+  // What PROJ left unsaid (it reads some WKT in part, or not at all), from the text itself.
+  if (f.epsg && f.name.size() && (f.geographic || f.linear_unit.size())) return f;
+  if (const auto tree = WktReader(wkt).read()) {
+    const CrsFacts t = facts_from_wkt_tree(*tree);
+    if (!f.epsg) f.epsg = t.epsg;
+    if (!f.vertical_epsg) f.vertical_epsg = t.vertical_epsg;
+    if (f.name.empty()) f.name = t.name;
+    if (!f.readable) f.geographic = t.geographic;
+    if (f.linear_unit.empty() && !f.geographic) f.linear_unit = t.linear_unit;
+  }
+  return f;
+}
+
+CrsFacts geotiff_facts(const std::vector<std::array<uint16_t, 4>>& geokeys, bool resolve) {
+  CrsFacts f;
+  int projected = 0, geographic = 0;
+  for (const auto& k : geokeys) {
+    // Only values stored inline (TIFFTagLocation 0) are codes; 32767 means user-defined.
+    if (k[1] != 0 || k[3] == 32767) continue;
+    switch (k[0]) {
+      case 1024:
+        f.geographic = f.geographic || k[3] == 2;
+        break;
+      case 2048:
+        geographic = k[3];
+        break;
+      case 3072:
+        projected = k[3];
+        break;
+      case 3076:
+        f.linear_unit = unit_name(k[3]);
+        break;
+      case 4096:
+        f.vertical_epsg = k[3];
+        break;
+      default:
+        break;
+    }
+  }
+  f.epsg = projected ? projected : geographic;
+  if (resolve && f.epsg > 0) {
+    const CrsFacts p = facts_from_proj(fmt::format("EPSG:{}", f.epsg));
+    f.name = p.name;
+    f.geographic = f.geographic || p.geographic;
+    if (f.linear_unit.empty()) f.linear_unit = p.linear_unit;
+  }
+  return f;
 }
 
 }  // namespace
 
-Crs parse_crs(const std::vector<Vlr>& vlrs, const std::vector<Vlr>& evlrs, bool resolve_names) {
+Crs parse_crs(const std::vector<Vlr>& vlrs, const std::vector<Vlr>& evlrs, uint16_t global_encoding,
+              bool resolve_names) {
   Crs crs;
   const Vlr* wkt = find(vlrs, "LASF_Projection", 2112);
   if (!wkt) wkt = find(evlrs, "LASF_Projection", 2112);
   if (wkt) {
     crs.wkt.assign(wkt->data.begin(), wkt->data.end());
     crs.wkt.erase(std::find(crs.wkt.begin(), crs.wkt.end(), '\0'), crs.wkt.end());
+    const size_t first = crs.wkt.find_first_not_of(" \t\r\n");
+    crs.wkt.erase(0, first == std::string::npos ? crs.wkt.size() : first);
+    while (!crs.wkt.empty() && std::isspace(static_cast<unsigned char>(crs.wkt.back())))
+      crs.wkt.pop_back();
+    crs.blank_wkt = crs.wkt.empty();
   }
   if (const Vlr* keys = find(vlrs, "LASF_Projection", 34735)) {
     const size_t words = keys->data.size() / 2;
@@ -143,56 +347,36 @@ Crs parse_crs(const std::vector<Vlr>& vlrs, const std::vector<Vlr>& evlrs, bool 
     crs.geo_ascii.assign(a->data.begin(), a->data.end());
     while (!crs.geo_ascii.empty() && crs.geo_ascii.back() == '\0') crs.geo_ascii.pop_back();
   }
-  int projected = 0, geographic = 0;
-  for (const auto& k : crs.geokeys) {
-    // Only values stored inline (TIFFTagLocation 0) are codes; 32767 means user-defined.
-    if (k[1] != 0 || k[3] == 32767) continue;
-    switch (k[0]) {
-      case 1024:
-        crs.geographic = crs.geographic || k[3] == 2;
-        break;
-      case 2048:
-        geographic = k[3];
-        break;
-      case 3072:
-        projected = k[3];
-        break;
-      case 3076:
-        crs.linear_unit = unit_name(k[3]);
-        break;
-      case 4096:
-        crs.vertical_epsg = k[3];
-        break;
-      default:
-        break;
-    }
+
+  // One source decides; the other is only compared with it.
+  const bool wkt_bit = (global_encoding & 16) != 0;
+  const CrsFacts keys =
+      crs.geokeys.empty() ? CrsFacts{} : geotiff_facts(crs.geokeys, resolve_names);
+  const bool keys_decide = !crs.geokeys.empty() && (crs.wkt.empty() || (!wkt_bit && keys.epsg > 0));
+  CrsFacts chosen;
+  if (keys_decide) {
+    crs.source = Crs::Source::GeoTiff;
+    chosen = keys;
+  } else if (!crs.wkt.empty()) {
+    crs.source = Crs::Source::Wkt;
+    chosen = wkt_facts(crs.wkt, resolve_names);
+    crs.wkt_readable = chosen.readable;
   }
-  crs.epsg = projected ? projected : geographic;
-  if (!crs.wkt.empty()) {
-    // WKT1 GEOGCS / WKT2 GEOGCRS or GEOGRAPHICCRS at the top level means degrees.
-    const size_t start = crs.wkt.find_first_not_of(" \t\r\n");
-    if (start != std::string::npos) {
-      const std::string head = crs.wkt.substr(start, 14);
-      if (head.rfind("GEOGCS", 0) == 0 || head.rfind("GEOGCRS", 0) == 0 ||
-          head.rfind("GEOGRAPHICCRS", 0) == 0) {
-        crs.geographic = true;
-      }
-    }
+  if (!crs.wkt.empty() && keys.epsg > 0) {
+    const CrsFacts other = keys_decide ? wkt_facts(crs.wkt, resolve_names) : keys;
+    const int wkt_epsg = keys_decide ? other.epsg : chosen.epsg;
+    if (wkt_epsg > 0 && wkt_epsg != keys.epsg)
+      crs.conflict = fmt::format(
+          "the WKT says EPSG:{} and the GeoTIFF keys EPSG:{}: the {} used (the header's WKT bit "
+          "is {})",
+          wkt_epsg, keys.epsg, keys_decide ? "GeoTIFF keys are" : "WKT is",
+          wkt_bit ? "set" : "clear");
   }
-  if (crs.geographic) crs.linear_unit = "degree";
-  if (resolve_names && (!crs.wkt.empty() || crs.epsg > 0)) resolve_with_proj(crs);
-  if (crs.epsg == 0 && !crs.wkt.empty()) {
-    // Fallback when PROJ cannot help: WKT1 ending in its own AUTHORITY["EPSG","n"]].
-    const size_t at = crs.wkt.rfind("AUTHORITY[\"EPSG\",\"");
-    if (at != std::string::npos) {
-      const size_t close = crs.wkt.find("\"]", at + 18);
-      if (close != std::string::npos &&
-          crs.wkt.find_first_not_of(" \t\r\n]", close + 2) == std::string::npos &&
-          std::count(crs.wkt.begin() + close + 2, crs.wkt.end(), ']') == 1) {
-        crs.epsg = std::atoi(crs.wkt.c_str() + at + 18);
-      }
-    }
-  }
+  crs.epsg = chosen.epsg;
+  crs.vertical_epsg = chosen.vertical_epsg;
+  crs.geographic = chosen.geographic;
+  crs.name = chosen.name;
+  crs.linear_unit = crs.geographic ? "degree" : chosen.linear_unit;
   return crs;
 }
 

@@ -74,6 +74,8 @@ std::unique_ptr<LazEncoder> open_laz_encoder(const std::filesystem::path& path,
 
 // CRS from the (E)VLRs: WKT, GeoTIFF keys, EPSG codes, then names and units via PROJ (PROJ
 // failures leave them empty, never throw).
-Crs parse_crs(const std::vector<Vlr>& vlrs, const std::vector<Vlr>& evlrs, bool resolve_names);
+// `global_encoding` is the header's: its WKT bit says which source decides (see Crs).
+Crs parse_crs(const std::vector<Vlr>& vlrs, const std::vector<Vlr>& evlrs, uint16_t global_encoding,
+              bool resolve_names);
 
 }  // namespace stipple::io::detail

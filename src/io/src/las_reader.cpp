@@ -85,6 +85,12 @@ std::string fixed_string(const uint8_t* p, size_t n) {
   return std::string(reinterpret_cast<const char*>(p), len);
 }
 
+// What the CRS fields cannot say: the WKT and GeoTIFF keys disagree. (Geographic bounds that
+// are not degrees are refused by what converts them, and shown by info.)
+void warn_about_crs(const LasHeader& h) {
+  if (!h.crs.conflict.empty()) STIPPLE_WARN_ONCE("{}: {}", h.path, h.crs.conflict);
+}
+
 struct Parser {
   ByteSource& src;
   const std::string& name;
@@ -372,7 +378,8 @@ struct LasReader::Impl {
     Parser parser{*src, name};
     header = parser.parse();
     check_scale(header);
-    header.crs = detail::parse_crs(header.vlrs, header.evlrs, true);
+    header.crs = detail::parse_crs(header.vlrs, header.evlrs, header.global_encoding, true);
+    warn_about_crs(header);
     layout = detail::record_layout(header.point_format, header.point_record_length);
     if (header.compressed) {
       if (!decode_laz) fail("{}: LAZ decoding is disabled for this reader", header.path);
@@ -490,7 +497,8 @@ LasHeader read_las_header(const std::filesystem::path& path) {
   Parser parser{src, name};
   LasHeader h = parser.parse();
   check_scale(h);
-  h.crs = detail::parse_crs(h.vlrs, h.evlrs, true);
+  h.crs = detail::parse_crs(h.vlrs, h.evlrs, h.global_encoding, true);
+  warn_about_crs(h);
   return h;
 }
 

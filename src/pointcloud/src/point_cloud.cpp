@@ -268,6 +268,9 @@ PointCloud load_point_cloud(const std::vector<std::filesystem::path>& files,
   bool any_geographic = false, any_projected = false;
   Aabb header_box;
   for (const auto& h : headers) {
+    // Degrees are turned into metres below: "degrees" that are not would make nonsense.
+    if (const std::string problem = io::geographic_bounds_problem(h); !problem.empty())
+      fail("{}", problem);
     (h.crs.geographic ? any_geographic : any_projected) = true;
     header_box.extend(h.min);
     header_box.extend(h.max);

@@ -334,6 +334,9 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
     io::LasReader reader(path);
     headers.push_back(reader.header());
     const io::LasHeader& h = headers.back();
+    // Lon/lat is turned into metres below: "degrees" that are not would make nonsense.
+    if (const std::string problem = io::geographic_bounds_problem(h); !problem.empty())
+      fail("{}", problem);
     if (headers.size() > 1 && h.crs.geographic != headers.front().crs.geographic)
       fail("{}: {} coordinates, but {} has {}: one cache holds one kind", path.string(),
            h.crs.geographic ? "lon/lat" : "projected", sources.front().string(),

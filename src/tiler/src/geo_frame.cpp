@@ -16,8 +16,11 @@ namespace stipple::tiler {
 
 std::string source_crs_definition(const io::LasHeader& header, const std::string& crs_override) {
   if (!crs_override.empty()) return crs_override;
-  if (!header.crs.wkt.empty()) return header.crs.wkt;
-  if (header.crs.epsg > 0) return fmt::format("EPSG:{}", header.crs.epsg);
+  // The source that decides the file's CRS (io::Crs); a WKT that PROJ cannot read as a whole
+  // by its AUTHORITY code.
+  const io::Crs& crs = header.crs;
+  if (crs.source == io::Crs::Source::Wkt && (crs.wkt_readable || crs.epsg == 0)) return crs.wkt;
+  if (crs.epsg > 0) return fmt::format("EPSG:{}", crs.epsg);
   if (!header.crs.geokeys.empty())
     fail(
         "{}: its GeoTIFF keys describe a CRS without an EPSG code, which stipple cannot "

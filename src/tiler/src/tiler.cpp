@@ -263,6 +263,9 @@ void Tiler::open_inputs() {
     Input in;
     in.path = path;
     in.header = io::read_las_header(path);
+    if (const std::string problem = io::geographic_bounds_problem(in.header);
+        !problem.empty() && opt_.crs.empty())
+      fail("{}", problem);
     // The reader detects 8-bit colour stored in 16-bit fields from the first points
     // (read_las_header cannot): make_records scales by it.
     if (in.header.has_rgb) in.header.rgb_bits = io::LasReader(path).header().rgb_bits;

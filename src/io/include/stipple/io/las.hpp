@@ -46,22 +46,31 @@ struct ExtraBytesDescriptor {
 // Byte size of one attribute of the given data type (for type 0: options); 0 if unknown.
 size_t extra_bytes_type_size(uint8_t data_type, uint8_t options);
 
+// The CRS of a LAS file. A file may carry both an OGC WKT and GeoTIFF keys; one of them
+// decides every field below (`source`): the WKT when the header's WKT bit (global encoding bit
+// 4) is set, as LAS 1.4 says, or when the keys name no CRS code; the GeoTIFF keys otherwise.
 struct Crs {
-  std::string wkt;  // OGC WKT from LASF_Projection 2112 (VLR or EVLR)
+  enum class Source : uint8_t { None, Wkt, GeoTiff };
+  std::string wkt;         // OGC WKT from LASF_Projection 2112 (VLR or EVLR), trimmed
+  bool blank_wkt = false;  // a WKT VLR is there but holds no text
   // GeoTIFF: GeoKeyDirectoryTag entries (34735, without its header row), doubles (34736) and
   // ASCII params (34737).
   std::vector<std::array<uint16_t, 4>> geokeys;
   std::vector<double> geo_doubles;
   std::string geo_ascii;
+  Source source = Source::None;
   int epsg = 0;  // horizontal: ProjectedCSTypeGeoKey (3072) or GeographicTypeGeoKey (2048), or
-                 // the WKT's authority code
-  int vertical_epsg = 0;    // VerticalCSTypeGeoKey (4096) or the WKT's vertical part
-  bool geographic = false;  // coordinates are degrees lon/lat
-  std::string name;         // from PROJ, e.g. "NAD83 / Oregon GIC Lambert (ft)"; may be empty
-  std::string linear_unit;  // e.g. "metre", "foot", "US survey foot"; empty if unknown
+                 // the WKT's id (from PROJ, else its top-level AUTHORITY)
+  int vertical_epsg = 0;      // VerticalCSTypeGeoKey (4096) or the WKT's vertical part
+  bool geographic = false;    // coordinates are degrees lon/lat
+  std::string name;           // e.g. "NAD83 / Oregon GIC Lambert (ft)" (PROJ); may be empty
+  std::string linear_unit;    // e.g. "metre", "foot", "US survey foot"; empty if unknown
+  bool wkt_readable = false;  // PROJ reads the WKT as a whole (else its AUTHORITY was used)
+  // Both sources present and naming different CRSs: what each says and which one is used.
+  std::string conflict;
 
   bool empty() const { return wkt.empty() && geokeys.empty() && epsg == 0; }
-  std::string describe() const;  // one line for logs and `stipple info`
+  std::string describe() const;  // one line for logs and `stipple info` ("none" when empty)
 };
 
 // Longitude and latitude (degrees, WGS 84) of coordinates in a CRS, through PROJ; invalid
@@ -145,6 +154,12 @@ class LasReader {
 
 // Header, VLRs, EVLRs and CRS only; no points are decoded.
 LasHeader read_las_header(const std::filesystem::path& path);
+
+// A geographic CRS (degrees) whose bounds go past latitude +-90 or longitude +-360: the
+// coordinates are not longitude/latitude (a projected file labelled with the wrong CRS). The
+// problem as a sentence naming the file, or empty: what converts degrees to metres (render,
+// tile, pointlets) refuses such a file, and info shows it.
+std::string geographic_bounds_problem(const LasHeader& header);
 
 struct LasWriteOptions {
   uint8_t version_minor = 4;  // 2, 3 or 4; formats 6-10 need 4
