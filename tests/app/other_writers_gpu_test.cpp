@@ -157,8 +157,9 @@ TEST(OtherWriters, ZeroExtentCloudIsFramedAndDrawn) {
     const fs::path las = dir / fmt::format("at-one-place-{}.las", n);
     const fs::path png = dir / fmt::format("at-one-place-{}.png", n);
     test::write_las(las, f);
-    auto r = test::run_stipple(
-        fmt::format("render {} -o {} --width 160 --height 100", las.string(), png.string()));
+    // (One colour for every point is no colour for --color auto: ask for it.)
+    auto r = test::run_stipple(fmt::format("render {} -o {} --width 160 --height 100 --color rgb",
+                                           las.string(), png.string()));
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_NE(r.output.find(fmt::format("rendered {} points", n)), std::string::npos) << r.output;
     const gpu::Image image = gpu::read_png(png);
@@ -479,4 +480,48 @@ TEST(OtherWriters, CrsLabelsComeFromOneSource) {
       "info " + crs_file(dir / "degrees.las", true, {wkt_vlr(kWgs84Wkt)}, 15.5, 47.25).string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(r.output.find("problem"), std::string::npos) << r.output;
+}
+
+// Item 4: RGB fields present but all 0 (some writers fill them so): `auto` took RGB and drew a
+// black cloud on the dark background. A sample of one colour is taken as no colour now, said
+// so, and auto falls back to elevation; --color rgb still shows it.
+TEST(OtherWriters, UniformRgbIsNotTakenForColour) {
+  const fs::path dir = temp_dir();
+  for (uint16_t value : {uint16_t(0), uint16_t(65535)}) {
+    SCOPED_TRACE(value);
+    test::LasFile f;
+    f.points = test::grid_points(2500, 1000.0, 2000.0, 50.0);
+    for (auto& p : f.points) p.r = p.g = p.b = value;
+    const fs::path las = dir / fmt::format("rgb-{}.las", value);
+    test::write_las(las, f);
+    const fs::path png = dir / fmt::format("rgb-{}.png", value);
+    auto r = test::run_stipple(
+        fmt::format("render {} -o {} --width 160 --height 100", las.string(), png.string()));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find(fmt::format("the RGB of the first 2500 points is {0},{0},{0} for "
+                                        "every one: --color auto colours by elevation",
+                                        value)),
+              std::string::npos)
+        << r.output;
+    EXPECT_NE(r.output.find("(elevation colour"), std::string::npos) << r.output;
+    // The elevation ramp: coloured, neither black nor grey.
+    const auto ramp = test::coverage_stats(gpu::read_png(png), kBackground);
+    EXPECT_GT(ramp.coverage, 0.2);
+    const double spread = std::max({ramp.mean[0], ramp.mean[1], ramp.mean[2]}) -
+                          std::min({ramp.mean[0], ramp.mean[1], ramp.mean[2]});
+    EXPECT_GT(spread, 20.0);
+
+    r = test::run_stipple(fmt::format("render {} -o {} --width 160 --height 100 --color rgb",
+                                      las.string(), png.string()));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("(rgb colour"), std::string::npos) << r.output;
+    const auto rgb = test::coverage_stats(gpu::read_png(png), kBackground);
+    EXPECT_NEAR(rgb.mean[0], rgb.mean[2], 2.0);  // grey: black or white, shaded by EDL
+
+    r = test::run_stipple("info " + las.string());
+    EXPECT_NE(r.output.find(
+                  fmt::format("RGB (one colour, {0},{0},{0}, in the first 2500 points)", value)),
+              std::string::npos)
+        << r.output;
+  }
 }

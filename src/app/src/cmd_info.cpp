@@ -129,7 +129,12 @@ void print_header(const io::LasHeader& h, bool vlrs) {
     std::printf("  problem:    %s\n", problem.c_str());
   std::string attrs = "intensity, returns, classification, scan angle";
   if (h.has_gps_time) attrs += ", GPS time";
-  if (h.has_rgb) attrs += fmt::format(", RGB ({}-bit values)", h.rgb_bits);
+  if (h.has_rgb && h.rgb_uniform)
+    attrs +=
+        fmt::format(", RGB (one colour, {},{},{}, in the first {} points)", (*h.rgb_uniform)[0],
+                    (*h.rgb_uniform)[1], (*h.rgb_uniform)[2], h.rgb_probed);
+  else if (h.has_rgb)
+    attrs += fmt::format(", RGB ({}-bit values)", h.rgb_bits);
   if (h.has_nir) attrs += ", NIR";
   if (h.has_waveform) attrs += ", waveform packets";
   if (h.extra_bytes_per_point) {

@@ -392,13 +392,19 @@ struct LasReader::Impl {
       prefix.resize(n * layout.record_length);
       fetch(prefix.data(), n);
       prefix_points = n;
-      bool eight = true;
-      for (size_t i = 0; i < n && eight; ++i) {
+      bool eight = true, uniform = true;
+      const uint8_t* first = prefix.data() + layout.rgb;
+      for (size_t i = 0; i < n && (eight || uniform); ++i) {
         const uint8_t* c = prefix.data() + i * layout.record_length + layout.rgb;
-        eight = load<uint16_t>(c) <= 255 && load<uint16_t>(c + 2) <= 255 &&
+        eight = eight && load<uint16_t>(c) <= 255 && load<uint16_t>(c + 2) <= 255 &&
                 load<uint16_t>(c + 4) <= 255;
+        uniform = uniform && std::memcmp(c, first, 6) == 0;
       }
       header.rgb_bits = eight ? 8 : 16;
+      header.rgb_probed = n;
+      if (uniform)
+        header.rgb_uniform = {load<uint16_t>(first), load<uint16_t>(first + 2),
+                              load<uint16_t>(first + 4)};
     }
   }
 

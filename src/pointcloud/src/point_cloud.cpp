@@ -83,7 +83,8 @@ const std::array<glm::vec3, 32>& classification_palette() {
 }
 
 ColorMode resolve_color_mode(const CloudAttributes& cloud, ColorMode mode) {
-  if (mode == ColorMode::Auto) mode = cloud.has_rgb ? ColorMode::Rgb : ColorMode::Elevation;
+  if (mode == ColorMode::Auto)
+    mode = cloud.has_rgb && !cloud.rgb_uniform ? ColorMode::Rgb : ColorMode::Elevation;
   if ((mode == ColorMode::Rgb && !cloud.has_rgb) ||
       (mode == ColorMode::Intensity && !cloud.has_intensity) ||
       (mode == ColorMode::Classification && !cloud.has_classification) ||
@@ -288,11 +289,20 @@ PointCloud load_point_cloud(const std::vector<std::filesystem::path>& files,
 
   Progress progress("reading", total);
   io::PointBatch batch;
+  bool all_uniform = true;
   for (size_t f = 0; f < files.size(); ++f) {
     cloud.files.push_back(files[f]);
     cloud.file_first_point.push_back(cloud.point_count);
     io::LasReader reader(files[f]);
     const io::LasHeader& header = reader.header();
+    if (header.has_rgb && header.rgb_uniform) {
+      const auto& c = *header.rgb_uniform;
+      STIPPLE_WARN_ONCE(
+          "{}: the RGB of the first {} points is {},{},{} for every one: --color auto colours by "
+          "elevation instead (--color rgb shows it)",
+          files[f].string(), header.rgb_probed, c[0], c[1], c[2]);
+    }
+    all_uniform = all_uniform && header.has_rgb && header.rgb_uniform.has_value();
     while (true) {
       batch.clear();
       size_t n = reader.read(batch, options.chunk_points);
@@ -307,6 +317,7 @@ PointCloud load_point_cloud(const std::vector<std::filesystem::path>& files,
                    reader.points_read());
   }
   progress.finish();
+  cloud.attributes.rgb_uniform = cloud.attributes.has_rgb && all_uniform;
   finish_cloud(cloud);
   return cloud;
 }

@@ -120,6 +120,10 @@ struct LasHeader {
   // if every R, G and B of the first chunk (up to 65536 points) is <= 255, the file is taken to
   // store 8-bit colour. read_las_header() does not look at points and leaves it at 16.
   int rgb_bits = 16;
+  // The same probe: how many points it looked at, and their one colour when every one of them
+  // had the same RGB (some writers fill the fields with 0: such RGB says nothing).
+  uint64_t rgb_probed = 0;
+  std::optional<std::array<uint16_t, 3>> rgb_uniform;
 };
 
 // Bytes of a point record of the given format (0-10) without extra bytes; 0 if unknown.

@@ -67,6 +67,9 @@ uint32_t batch_attributes(const io::PointBatch& batch, size_t i);
 struct CloudAttributes {
   // Which attributes the source has (a colour mode without its attribute falls back).
   bool has_rgb = false, has_intensity = false, has_classification = false, has_returns = false;
+  // Every source's RGB is one colour (io::LasHeader::rgb_uniform: all 0, as some writers fill
+  // the fields): Auto does not take it for colour; an explicit RGB mode still shows it.
+  bool rgb_uniform = false;
   // 2nd and 98th percentiles over a sample of the points (finish_cloud): default ramp ranges
   // that ignore outliers (a stray bird or a pit would otherwise flatten the ramp).
   glm::dvec2 elevation_percentiles{0.0, 1.0};  // source Z (= world Y)
@@ -87,8 +90,9 @@ struct PointCloud {
   std::vector<uint64_t> file_first_point;
 };
 
-// The colour mode actually shown for this cloud: Auto becomes RGB when the source has colours,
-// elevation otherwise; modes whose attribute is missing fall back to elevation.
+// The colour mode actually shown for this cloud: Auto becomes RGB when the source has colours
+// (not one colour everywhere), elevation otherwise; modes whose attribute is missing fall back
+// to elevation.
 ColorMode resolve_color_mode(const CloudAttributes& attributes, ColorMode requested);
 
 struct LoadOptions {
