@@ -525,3 +525,36 @@ TEST(OtherWriters, UniformRgbIsNotTakenForColour) {
         << r.output;
   }
 }
+
+// Item 3: the summary line named "elevation colour" for every tileset while the image showed
+// RGB. It names the mode the tiles were drawn in, on both renderers.
+TEST(OtherWriters, TilesetSummaryNamesTheColourDrawn) {
+  const fs::path dir = temp_dir();
+  const fs::path rgb = dir / "rgb", plain = dir / "plain";
+  write_flat_tileset(rgb, {{"a.pnts", grid_tile(100, 0.0f, {255, 0, 0})},
+                           {"b.pnts", grid_tile(100, 20.0f, {255, 0, 0})}});
+  // No colour: positions only.
+  std::vector<float> pos;
+  for (int i = 0; i < 100; ++i) pos.insert(pos.end(), {float(i % 10), float(i / 10), float(i % 3)});
+  test::Bytes bin;
+  test::append(bin, pos);
+  write_flat_tileset(
+      plain, {{"c.pnts",
+               test::make_pnts({{"POINTS_LENGTH", 100}, {"POSITION", {{"byteOffset", 0}}}}, bin)}});
+  for (const char* renderer : {"billboard", "compute"}) {
+    SCOPED_TRACE(renderer);
+    const fs::path png = dir / (std::string(renderer) + ".png");
+    auto r =
+        test::run_stipple(fmt::format("render {} -o {} --width 160 --height 100 --renderer {}",
+                                      (rgb / "tileset.json").string(), png.string(), renderer));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("rendered 200 points (rgb colour"), std::string::npos) << r.output;
+    const auto stats = test::coverage_stats(gpu::read_png(png), kBackground);
+    EXPECT_GT(stats.mean[0], 3.0 * stats.mean[1]);  // red, as the summary says
+    r = test::run_stipple(fmt::format("render {} -o {} --width 160 --height 100 --renderer {}",
+                                      (plain / "tileset.json").string(), png.string(), renderer));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("rendered 100 points (elevation colour"), std::string::npos)
+        << r.output;
+  }
+}
