@@ -558,3 +558,125 @@ TEST(OtherWriters, TilesetSummaryNamesTheColourDrawn) {
         << r.output;
   }
 }
+
+namespace {
+
+// A pnts tile of 100 points on a 10 x 10 grid from (x0, 0, 0), coloured per point by `rgba`
+// (RGBA semantic) or by one CONSTANT_RGBA.
+test::Bytes rgba_tile(float x0, const std::function<std::array<uint8_t, 4>(int)>& rgba,
+                      bool constant) {
+  std::vector<float> pos;
+  test::Bytes colours;
+  for (int i = 0; i < 100; ++i) {
+    pos.insert(pos.end(), {x0 + float(i % 10), float(i / 10), 0.0f});
+    const auto c = rgba(i);
+    colours.insert(colours.end(), c.begin(), c.end());
+  }
+  test::Bytes bin;
+  test::append(bin, pos);
+  nlohmann::json ft = {{"POINTS_LENGTH", 100}, {"POSITION", {{"byteOffset", 0}}}};
+  if (constant) {
+    const auto c = rgba(0);
+    ft["CONSTANT_RGBA"] = {c[0], c[1], c[2], c[3]};
+  } else {
+    ft["RGBA"] = {{"byteOffset", bin.size()}};
+    bin.insert(bin.end(), colours.begin(), colours.end());
+  }
+  return test::make_pnts(ft, bin);
+}
+
+// A glb of one POINTS primitive (100 points from (x0, 0, 0)) with COLOR_0 VEC4 `rgba` (floats)
+// and a material of the given alphaMode (none: glTF's default, OPAQUE).
+test::Bytes rgba_glb(float x0, std::array<float, 4> rgba, const std::string& alpha_mode) {
+  std::vector<float> pos, col;
+  for (int i = 0; i < 100; ++i) {
+    // glTF is Y-up: the grid lies in x/-z (the tile's x/y).
+    pos.insert(pos.end(), {x0 + float(i % 10), 0.0f, -float(i / 10)});
+    col.insert(col.end(), rgba.begin(), rgba.end());
+  }
+  test::Bytes bin;
+  test::append(bin, pos);
+  test::append(bin, col);
+  nlohmann::json prim = {{"attributes", {{"POSITION", 0}, {"COLOR_0", 1}}}, {"mode", 0}};
+  nlohmann::json j = {
+      {"asset", {{"version", "2.0"}}},
+      {"buffers", {{{"byteLength", bin.size()}}}},
+      {"bufferViews",
+       {{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", 1200}},
+        {{"buffer", 0}, {"byteOffset", 1200}, {"byteLength", 1600}}}},
+      {"accessors",
+       {{{"bufferView", 0},
+         {"componentType", 5126},
+         {"count", 100},
+         {"type", "VEC3"},
+         {"min", {x0, 0, -9}},
+         {"max", {x0 + 9, 0, 0}}},
+        {{"bufferView", 1}, {"componentType", 5126}, {"count", 100}, {"type", "VEC4"}}}},
+      {"nodes", {{{"mesh", 0}}}},
+      {"scenes", {{{"nodes", {0}}}}},
+      {"scene", 0}};
+  if (!alpha_mode.empty()) {
+    j["materials"] = {{{"alphaMode", alpha_mode}}};
+    prim["material"] = 0;
+  }
+  j["meshes"] = {{{"primitives", {prim}}}};
+  return test::make_glb(j, bin);
+}
+
+}  // namespace
+
+// Item 10: pnts RGBA and CONSTANT_RGBA alpha was dropped (every point drawn opaque). Alpha is a
+// threshold at 0.5 now, as glTF's MASK mode: points under it are not drawn, the others are
+// drawn opaque, and the output says so; a glb's COLOR_0 alpha counts only under a BLEND or MASK
+// material (glTF ignores it for OPAQUE).
+TEST(OtherWriters, AlphaIsAThresholdAtHalf) {
+  const fs::path dir = temp_dir();
+  auto halves = [](int i) -> std::array<uint8_t, 4> {
+    return i % 10 < 5 ? std::array<uint8_t, 4>{255, 0, 0, 0}     // red, transparent
+                      : std::array<uint8_t, 4>{0, 255, 0, 255};  // green, opaque
+  };
+  write_flat_tileset(dir, {{"halves.pnts", rgba_tile(0.0f, halves, false)},
+                           {"blue.pnts", rgba_tile(
+                                             20.0f,
+                                             [](int) {
+                                               return std::array<uint8_t, 4>{0, 0, 255, 200};
+                                             },
+                                             true)},
+                           {"yellow.pnts", rgba_tile(
+                                               40.0f,
+                                               [](int) {
+                                                 return std::array<uint8_t, 4>{255, 255, 0, 100};
+                                               },
+                                               true)},
+                           {"magenta.glb", rgba_glb(60.0f, {1, 0, 1, 0.2f}, "")},
+                           {"cyan.glb", rgba_glb(80.0f, {0, 1, 1, 0.2f}, "BLEND")}});
+  const fs::path png = dir / "alpha.png";
+  auto r = test::run_stipple(fmt::format("render {} -o {} --width 320 --height 120 --no-edl",
+                                         (dir / "tileset.json").string(), png.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  // Drawn: 50 green, 100 blue, 100 magenta (OPAQUE ignores alpha).
+  EXPECT_NE(r.output.find("rendered 250 points"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("RGBA alpha: points under half opacity are not drawn (alpha is a "
+                          "threshold at 0.5, not blended"),
+            std::string::npos)
+      << r.output;
+  const gpu::Image image = gpu::read_png(png);
+  size_t red = 0, green = 0, blue = 0, yellow = 0, magenta = 0, cyan = 0;
+  for (size_t i = 0; i < size_t(image.width) * image.height; ++i) {
+    const int p[3] = {image.rgba[i * 4], image.rgba[i * 4 + 1], image.rgba[i * 4 + 2]};
+    const bool hi[3] = {p[0] > 100, p[1] > 100, p[2] > 100};
+    const bool lo[3] = {p[0] < 60, p[1] < 60, p[2] < 60};
+    red += hi[0] && lo[1] && lo[2];
+    green += lo[0] && hi[1] && lo[2];
+    blue += lo[0] && lo[1] && hi[2];
+    yellow += hi[0] && hi[1] && lo[2];
+    magenta += hi[0] && lo[1] && hi[2];
+    cyan += lo[0] && hi[1] && hi[2];
+  }
+  EXPECT_GT(green, 50u);
+  EXPECT_GT(blue, 50u);
+  EXPECT_GT(magenta, 50u);
+  EXPECT_EQ(red, 0u);
+  EXPECT_EQ(yellow, 0u);
+  EXPECT_EQ(cyan, 0u);
+}

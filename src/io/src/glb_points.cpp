@@ -1,5 +1,6 @@
 #include "stipple/io/glb_points.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -429,6 +430,7 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
 
   const json nodes = j.value("nodes", json::array());
   const json meshes = j.value("meshes", json::array());
+  const json materials = j.value("materials", json::array());
   const size_t accessor_count = j.value("accessors", json::array()).size();
   // Roots: the scene's nodes, else every node that is nobody's child.
   std::vector<size_t> roots;
@@ -528,6 +530,29 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
                    ((k == 4 ? to_byte(v[3]) : 255u) << 24);
           },
           any_color);
+      // Alpha counts only where the material blends or masks (glTF: OPAQUE ignores it). MASK is
+      // applied here at its cutoff; what remains is a threshold at 0.5 (PointContent::alpha).
+      if (any_color && rgba.size() == first + n) {
+        std::string mode = "OPAQUE";
+        double cutoff = 0.5;
+        if (prim.contains("material") && prim["material"].is_number_unsigned() &&
+            prim["material"].get<uint64_t>() < materials.size() &&
+            materials[prim["material"].get<size_t>()].is_object()) {
+          const json& m = materials[prim["material"].get<size_t>()];
+          if (m.contains("alphaMode") && m["alphaMode"].is_string()) mode = m["alphaMode"];
+          if (m.contains("alphaCutoff") && m["alphaCutoff"].is_number())
+            cutoff = m["alphaCutoff"].get<double>();
+        }
+        const uint32_t cut = uint32_t(std::clamp(cutoff, 0.0, 1.0) * 255.0 + 0.5);
+        for (size_t i = first; i < first + n; ++i) {
+          const uint32_t a = rgba[i] >> 24;
+          const uint32_t kept = mode == "BLEND"  ? a
+                                : mode == "MASK" ? (a >= cut ? 255u : 0u)
+                                                 : 255u;
+          rgba[i] = (rgba[i] & 0x00ffffffu) | (kept << 24);
+        }
+        c.alpha = c.alpha || mode == "BLEND" || mode == "MASK";
+      }
       per_point(
           "NORMAL", normals,
           [&](const double* v, int k) {

@@ -416,6 +416,7 @@ static PointContent decode_pnts_unchecked(std::span<const uint8_t> data, const s
     auto v = draco_values<uint8_t>(a, n, 4, name, "RGBA");
     c.rgba.resize(n);
     std::memcpy(c.rgba.data(), v.data(), n * 4);
+    c.alpha = true;
   } else if (const auto* a3 = from_draco("RGB")) {
     auto v = draco_values<uint8_t>(a3, n, 3, name, "RGB");
     c.rgba.resize(n);
@@ -425,6 +426,7 @@ static PointContent decode_pnts_unchecked(std::span<const uint8_t> data, const s
     const uint8_t* p = table.bytes(*it, "RGBA", 4, n);
     c.rgba.resize(n);
     std::memcpy(c.rgba.data(), p, n * 4);
+    c.alpha = true;
   } else if (auto rgb = ft.find("RGB"); rgb != ft.end()) {
     const uint8_t* p = table.bytes(*rgb, "RGB", 3, n);
     c.rgba.resize(n);
@@ -445,6 +447,7 @@ static PointContent decode_pnts_unchecked(std::span<const uint8_t> data, const s
         uint32_t(k[0]) | (uint32_t(k[1]) << 8) | (uint32_t(k[2]) << 16) | (uint32_t(k[3]) << 24);
     c.rgba.assign(n, packed);
     c.constant_color = true;
+    c.alpha = true;
   }
 
   // Normals.

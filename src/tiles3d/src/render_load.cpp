@@ -136,9 +136,9 @@ uint32_t clamp_to(double v, uint32_t max) {
 
 }  // namespace
 
-void append_content(pc::PointCloud& cloud, const io::PointContent& content,
-                    const glm::dmat4& tile_transform, const glm::dmat4& world_from_tileset) {
-  if (content.point_count == 0) return;
+uint64_t append_content(pc::PointCloud& cloud, const io::PointContent& content,
+                        const glm::dmat4& tile_transform, const glm::dmat4& world_from_tileset) {
+  if (content.point_count == 0) return 0;
   // LAS attributes carried by the tile drive the intensity, classification and return colour
   // modes, as for LAS input.
   const auto* intensity =
@@ -154,9 +154,15 @@ void append_content(pc::PointCloud& cloud, const io::PointContent& content,
   chunk.origin = glm::dvec3(m * glm::dvec4(content.center, 1.0));
   glm::dmat3 linear(m);  // offsets from the centre only need the linear part
   chunk.vertices.reserve(content.point_count);
+  uint64_t transparent = 0;
   for (size_t i = 0; i < content.point_count; ++i) {
-    glm::dvec3 p = linear * glm::dvec3(content.positions[i]);
     uint32_t rgba = content.rgba.empty() ? pc::pack_rgba(220, 220, 220) : content.rgba[i];
+    // Alpha is a threshold at 0.5, not blended (PointContent::alpha).
+    if (content.alpha && (rgba >> 24) < 128) {
+      ++transparent;
+      continue;
+    }
+    glm::dvec3 p = linear * glm::dvec3(content.positions[i]);
     const uint32_t attributes =
         pc::pack_attributes(uint16_t(intensity ? clamp_to((*intensity)[i], 65535) : 0),
                             uint8_t(classification ? clamp_to((*classification)[i], 255) : 0),
@@ -169,13 +175,14 @@ void append_content(pc::PointCloud& cloud, const io::PointContent& content,
     cloud.source_bounds.extend(glm::dvec3(
         tile_transform * glm::dvec4(content.center + glm::dvec3(content.positions[i]), 1.0)));
   }
-  cloud.point_count += content.point_count;
+  cloud.point_count += chunk.vertices.size();
   pc::CloudAttributes& a = cloud.attributes;
   a.has_rgb = a.has_rgb || !content.rgba.empty();
   a.has_intensity = a.has_intensity || intensity;
   a.has_classification = a.has_classification || classification;
   a.has_returns = a.has_returns || returns;
-  cloud.chunks.push_back(std::move(chunk));
+  if (!chunk.vertices.empty()) cloud.chunks.push_back(std::move(chunk));
+  return transparent;
 }
 
 RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoadOptions& options) {

@@ -21,10 +21,13 @@ std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dma
                                                    const std::vector<io::PointContent>& contents,
                                                    bool batches) {
   pc::PointCloud cloud;
-  for (const auto& c : contents) append_content(cloud, c, tile_transform, world_from_tileset);
+  uint64_t transparent = 0;
+  for (const auto& c : contents)
+    transparent += append_content(cloud, c, tile_transform, world_from_tileset);
   pc::finish_cloud(cloud);  // per-chunk spacing (CLOD, adaptive sizes)
   auto out = std::make_shared<TileChunks>();
   out->tile = tile;
+  out->transparent_points = transparent;
   out->points = cloud.point_count;
   out->attributes = cloud.attributes;
   out->chunks = std::move(cloud.chunks);

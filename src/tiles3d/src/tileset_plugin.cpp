@@ -130,7 +130,17 @@ void update_tileset(Registry& main) {
       s.chunks[t].reset();
       continue;
     }
-    if (s.chunks[t] != prepared->chunks) s.chunks[t] = prepared->chunks;
+    if (s.chunks[t] != prepared->chunks) {
+      s.chunks[t] = prepared->chunks;
+      if (prepared->chunks->transparent_points > 0) {
+        const auto& contents = s.tileset->tiles[t].contents;
+        report_tile_problem(
+            s, {uint32_t(t), fmt::format("{}: RGBA alpha: points under half opacity are not drawn "
+                                         "(alpha is a threshold at 0.5, not blended; the others "
+                                         "are drawn opaque)",
+                                         contents.empty() ? std::string("?") : contents[0])});
+      }
+    }
     ++stats.resident_tiles;
     stats.resident_points += s.chunks[t]->points;
   }

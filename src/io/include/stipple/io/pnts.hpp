@@ -27,6 +27,10 @@ struct PointContent {
   bool constant_color = false;       // rgba came from CONSTANT_RGBA
   std::vector<glm::vec3> normals;    // empty when absent
   std::vector<uint32_t> batch_ids;   // empty when absent
+  // rgba's alpha means something (pnts RGBA and CONSTANT_RGBA; glb COLOR_0 under a BLEND or MASK
+  // material, MASK already applied at its cutoff). Points are not blended: those under 0.5
+  // (alpha < 128) are not drawn, the others are drawn opaque.
+  bool alpha = false;
   uint32_t batch_length = 0;
   std::map<std::string, PointAttribute> attributes;
   std::vector<std::string> warnings;  // unknown semantics and extensions, skipped properties
