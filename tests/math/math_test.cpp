@@ -1,5 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <vector>
+
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "stipple/math/camera.hpp"
@@ -96,5 +99,78 @@ TEST(Camera, FrameBoxKeepsBoxInView) {
     ASSERT_GT(c.w, 0.0);
     EXPECT_LE(std::abs(c.x / c.w), 1.0);
     EXPECT_LE(std::abs(c.y / c.w), 1.0);
+  }
+}
+
+namespace {
+
+// Each point's normalized device coordinates under `camera` (w > 0 asserted by the caller).
+glm::dvec4 clip(const Camera& camera, double aspect, const glm::dvec3& p) {
+  return camera.view_projection(aspect) * glm::dvec4(p, 1.0);
+}
+
+}  // namespace
+
+// ViewFit: every point lands inside the view less the margin (5% of each side for a 320x180
+// image), the binding pair of sides is touched exactly (to 1e-9 of the half-width) and the
+// data's projected extent is centred on both axes; the result does not depend on the order.
+TEST(Camera, ViewFitFillsTheViewToTheMargin) {
+  const uint32_t w = 320, h = 180;
+  const double aspect = double(w) / h;
+  std::vector<glm::dvec3> points;
+  uint32_t seed = 12345;
+  auto next = [&] { return (seed = seed * 1664525u + 1013904223u) / 4294967296.0; };
+  // A flat scan far from the origin (a UTM-like offset), with a few tall points.
+  for (int i = 0; i < 2000; ++i)
+    points.push_back(z_up_to_y_up({500000.0 + 300.0 * next(), 5000000.0 + 120.0 * next(),
+                                   100.0 + (i % 97 == 0 ? 40.0 : 3.0) * next()}));
+  for (bool reversed : {false, true}) {
+    ViewFit fit(w, h, 30.0, 40.0, 50.0);
+    if (reversed)
+      for (auto it = points.rbegin(); it != points.rend(); ++it) fit.add(*it);
+    else
+      for (const auto& p : points) fit.add(p);
+    const Camera camera = fit.camera();
+    double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
+    for (const auto& p : points) {
+      const glm::dvec4 c = clip(camera, aspect, p);
+      ASSERT_GT(c.w, 0.0);
+      x0 = std::min(x0, c.x / c.w), x1 = std::max(x1, c.x / c.w);
+      y0 = std::min(y0, c.y / c.w), y1 = std::max(y1, c.y / c.w);
+    }
+    const double limit = 0.9;  // 1 - 2 * 5%
+    EXPECT_GE(x0, -limit - 1e-9);
+    EXPECT_LE(x1, limit + 1e-9);
+    EXPECT_GE(y0, -limit - 1e-9);
+    EXPECT_LE(y1, limit + 1e-9);
+    // As close as the margin allows: one axis spans the full 90%.
+    EXPECT_NEAR(std::max(x1 - x0, y1 - y0), 2.0 * limit, 1e-9);
+    EXPECT_NEAR(x0 + x1, 0.0, 1e-9);
+    EXPECT_NEAR(y0 + y1, 0.0, 1e-9);
+  }
+}
+
+// A box whose corners cannot widen the fit holds no point that can; one that reaches far past
+// the fitted data can (a point just outside a face may still project inside the silhouette).
+TEST(Camera, ViewFitSkipsBoxesInside) {
+  ViewFit fit(200, 200);
+  fit.add_corners({{-10, -10, -10}, {10, 10, 10}});
+  EXPECT_FALSE(fit.could_widen({{-1, -1, -1}, {1, 1, 1}}));
+  EXPECT_FALSE(fit.could_widen({{-10, -10, -10}, {10, 10, 10}}));
+  EXPECT_TRUE(fit.could_widen({{-1, -1, -1}, {100, 1, 1}}));
+  EXPECT_TRUE(fit.could_widen({{-1, -100, -1}, {1, 1, 1}}));
+  EXPECT_FALSE(fit.could_widen(Aabb{}));
+}
+
+// Points on a line along the view direction (seen end-on): the eye stays in front of them all,
+// not on the nearest one.
+TEST(Camera, ViewFitOfALineSeenEndOnKeepsEveryPointInFront) {
+  ViewFit fit(100, 100, 0.0, 90.0);  // looking straight down: a vertical line is seen end-on
+  for (int i = 0; i < 10; ++i) fit.add(z_up_to_y_up({5.0, 7.0, 10.0 * i}));
+  const Camera camera = fit.camera();
+  for (int i = 0; i < 10; ++i) {
+    const glm::dvec3 p = z_up_to_y_up({5.0, 7.0, 10.0 * i});
+    const double depth = glm::dot(camera.forward(), p - camera.position);
+    EXPECT_GT(depth, camera.near_plane) << i;
   }
 }
