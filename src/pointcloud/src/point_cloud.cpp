@@ -256,6 +256,31 @@ PointCloud generate_scene_cloud(const io::SceneParams& params, size_t chunk_poin
   return cloud;
 }
 
+void fit_chunks(ViewFit& fit, std::span<const PointChunk* const> chunks) {
+  Aabb all;
+  for (const PointChunk* c : chunks) all.extend(c->bounds);
+  if (all.empty()) return;
+  // Outermost first: the extremes are found early, and inner chunks are then skipped whole.
+  std::vector<std::pair<double, const PointChunk*>> order;
+  order.reserve(chunks.size());
+  for (const PointChunk* c : chunks)
+    if (!c->bounds.empty() && !c->vertices.empty())
+      order.emplace_back(glm::length(c->bounds.center() - all.center()), c);
+  std::sort(order.begin(), order.end(),
+            [](const auto& a, const auto& b) { return a.first > b.first; });
+  for (const auto& [distance, c] : order) {
+    if (!fit.empty() && !fit.could_widen(c->bounds)) continue;
+    for (const auto& v : c->vertices) fit.add(c->origin + glm::dvec3(v.x, v.y, v.z));
+  }
+}
+
+void fit_cloud(ViewFit& fit, const PointCloud& cloud) {
+  std::vector<const PointChunk*> chunks;
+  chunks.reserve(cloud.chunks.size());
+  for (const PointChunk& c : cloud.chunks) chunks.push_back(&c);
+  fit_chunks(fit, chunks);
+}
+
 PointCloud load_point_cloud(const std::vector<std::filesystem::path>& files,
                             const LoadOptions& options) {
   PointCloud cloud;

@@ -464,6 +464,28 @@ void wait_for_virtual_loads(const VirtualCloudHandle& handle, double timeout_s) 
                       [&] { return r.completed.load() != seen || r.pending.load() == 0; });
 }
 
+void fit_virtual_cloud(ViewFit& fit, const VirtualCloudHandle& handle) {
+  const PointletCache& cache = *handle.residency->cache;
+  const std::vector<PointletEntry>& table = cache.pointlets();
+  Aabb all;
+  for (const PointletEntry& e : table) all.extend(pointlet_world_box(e));
+  if (all.empty()) return;
+  std::vector<std::pair<double, uint32_t>> order;
+  order.reserve(table.size());
+  for (uint32_t i = 0; i < table.size(); ++i)
+    if (table[i].count > 0)
+      order.emplace_back(glm::length(pointlet_world_box(table[i]).center() - all.center()), i);
+  std::sort(order.begin(), order.end(),
+            [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<PointletRecord> records;
+  for (const auto& [distance, i] : order) {
+    if (!fit.empty() && !fit.could_widen(pointlet_world_box(table[i]))) continue;
+    records.clear();
+    cache.read(i, 0, table[i].count, records);
+    for (const PointletRecord& r : records) fit.add(z_up_to_y_up(cache.position(table[i], r)));
+  }
+}
+
 void VirtualPointCloudPlugin::build(Engine& engine) {
   if (options.files.empty()) fail("VirtualPointCloudPlugin: no input");
   bool built = false;

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -14,6 +15,7 @@
 
 #include "stipple/io/point_batch.hpp"
 #include "stipple/math/aabb.hpp"
+#include "stipple/math/camera.hpp"
 
 namespace stipple::io {
 struct SceneParams;
@@ -100,6 +102,11 @@ struct LoadOptions {
   bool progress = true;
   bool keep_extras = false;  // PointChunk::extras (GPS time, point source, flags, user data)
 };
+
+// Adds the chunks' points to a view fit (world space): the outermost chunks first, and chunks
+// whose bounds cannot widen the fit are not read, so a large cloud reads few of its points.
+void fit_chunks(ViewFit& fit, std::span<const PointChunk* const> chunks);
+void fit_cloud(ViewFit& fit, const PointCloud& cloud);
 
 // Reads LAS/LAZ/COPC files chunk by chunk into one cloud. Throws stipple::Error.
 PointCloud load_point_cloud(const std::vector<std::filesystem::path>& files,

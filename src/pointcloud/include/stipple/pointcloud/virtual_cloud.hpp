@@ -19,6 +19,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/pointcloud/pointlet_lod.hpp"
 #include "stipple/pointcloud/pointlets.hpp"
@@ -100,6 +101,10 @@ struct VirtualCloudHandle {
 };
 // Blocks until a load completes, or `timeout_s` passed, or nothing is loading.
 void wait_for_virtual_loads(const VirtualCloudHandle& handle, double timeout_s);
+// Adds the cache's points to a view fit (world space), as fit_chunks does for a cloud in
+// memory, so that both paths frame the same data alike: pointlets are taken outermost first and
+// those whose boxes cannot widen the fit are not read, so few of a large cache's points are.
+void fit_virtual_cloud(ViewFit& fit, const VirtualCloudHandle& handle);
 
 struct VirtualPointCloudPlugin {
   static constexpr std::string_view name = "VirtualPointCloudPlugin";
