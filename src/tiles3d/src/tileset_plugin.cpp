@@ -72,6 +72,14 @@ std::optional<pc::PickHit> pick_tileset_point(const TilesetStream& stream, const
   return best;
 }
 
+void fit_drawn_tiles(ViewFit& fit, const TilesetStream& stream) {
+  std::vector<const pc::PointChunk*> chunks;
+  for (uint32_t t : stream.draw)
+    if (t < stream.chunks.size() && stream.chunks[t])
+      for (const auto& chunk : stream.chunks[t]->chunks) chunks.push_back(&chunk);
+  pc::fit_chunks(fit, chunks);
+}
+
 bool report_tile_problem(TilesetStream& stream, const TileError& problem) {
   if (stream.problems[std::string(tile_problem_kind(problem.message))]++ > 0) return false;
   STIPPLE_WARN("tile {}: {}", problem.tile, problem.message);

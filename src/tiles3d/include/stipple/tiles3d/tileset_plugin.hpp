@@ -48,7 +48,7 @@ struct TilesetStream {
   std::shared_ptr<const io::Tileset> tileset;
   std::shared_ptr<tiles3d::TileStreamer> streamer;
   glm::dmat4 world_from_tileset{1.0};
-  Aabb world_bounds;                    // the root volume, world space
+  Aabb world_bounds;  // the root volume (of its point tiles where it holds others), world space
   uint32_t width = 1280, height = 720;  // viewport for screen-space error (a window overrides)
   // Tiles converted for rendering, by tile id (dropped when the streamer evicts the tile).
   std::vector<std::shared_ptr<const TileChunks>> chunks;
@@ -66,6 +66,10 @@ struct TilesetStream {
 bool report_tile_problem(TilesetStream& stream, const TileError& problem);
 // Tiles whose problem was not printed because an earlier tile had the same.
 uint64_t unreported_tile_problems(const TilesetStream& stream);
+
+// Adds the points of this frame's drawn tiles to a view fit (framing from the data, once it has
+// streamed in, rather than from the root volume, which may be far larger).
+void fit_drawn_tiles(ViewFit& fit, const TilesetStream& stream);
 
 // The nearest point of this frame's drawn tiles within the ray's cone (TilesetPlugin registers it
 // in ScenePickers for double-click focus). Chunks whose bounds miss the cone are not read.
