@@ -57,8 +57,11 @@ TEST_P(View, WindowShowsAutzenWithThePanel) {
   auto stats = test::coverage_stats(image, bg, 1);
   EXPECT_GT(stats.coverage, 0.10);
   EXPECT_LT(stats.coverage, 0.5);
-  // Tolerance as in the headless autzen test: within 8 levels of the data's mean per channel.
-  for (int c = 0; c < 3; ++c) EXPECT_NEAR(stats.mean[c], data_mean[c], 8.0) << "channel " << c;
+  // Within 10 levels of the data's mean per channel. The window shows the surfaces in front
+  // (the canopy over the ground) with eye-dome shading, some 7 levels darker than the mean of
+  // every point when framed from the bounding box and 8.3 since the data fills the window
+  // (item 11 of issue 21): the headless test's 8 leaves no room for that.
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(stats.mean[c], data_mean[c], 10.0) << "channel " << c;
 
   // With the panel: the same picture, plus the panel in the top-left corner.
   gpu::Image ui = gpu::read_png(dir / "ui.png");

@@ -35,10 +35,14 @@ TEST(VirtualRender, MatchesTheInMemoryRenderAndKeepsToTheBucket) {
   fs::create_directories(dir);
   const std::string las = (dir / "scene.las").string();
   ASSERT_EQ(test::run_stipple("generate -n 300000 -o " + las).exit_code, 0);
-  const std::string common =
-      " --width 480 --height 270 --cache " + (dir / "cache").string() + " --pointlets 2000";
+  // No hole filling on either (the virtualized path fills by default, the in-memory compute
+  // path does not): the points are compared. Since the data fills the image (issue 21, item
+  // 11) they are sparser per pixel, and filling alone changed 6% of the pixels.
+  const std::string common = " --width 480 --height 270 --fill-radius 0 --cache " +
+                             (dir / "cache").string() + " --pointlets 2000";
   auto full = test::run_stipple("render " + las + " --renderer compute -o " +
-                                (dir / "memory.png").string() + " --width 480 --height 270");
+                                (dir / "memory.png").string() +
+                                " --width 480 --height 270 --fill-radius 0");
   ASSERT_EQ(full.exit_code, 0) << full.output;
   auto virt = test::run_stipple("render " + las + " --virtual --bucket 100000000 -o " +
                                 (dir / "virtual.png").string() + common);

@@ -88,10 +88,8 @@ void run_render(const RenderArgs& args) {
                         : HeadlessTargetPlugin{args.width, args.height, args.output, args.frames});
 
   Registry& main = engine.main();
-  const pc::SceneInfo& scene = main.resource<pc::SceneInfo>();
-  double aspect = double(args.width) / args.height;
-  const Camera camera =
-      scene_camera(args.camera, scene.world_bounds, aspect, args.azimuth, args.elevation, args.fov);
+  const Camera camera = scene_camera(main, args.camera, args.width, args.height, args.azimuth,
+                                     args.elevation, args.fov);
   main.emplace<Camera>(main.create(), camera);
   auto& settings = main.resource<pc::PointDrawSettings>();
   const bool sized_by_data = settings.render.point_size <= 0;
@@ -124,7 +122,7 @@ void run_render(const RenderArgs& args) {
         [settled = uint64_t(0), frames = uint64_t(args.frames), max_frames = args.max_frames,
          output = args.output, height = args.height, memory_mb = args.scene.memory_mb,
          max_sse = max_sse_for(args.scene), point_budget = args.scene.budget, auto_size,
-         uri = scene_options.inputs[0]](Registry& r) mutable {
+         uri = scene_options.inputs[0], reframe = args.camera.empty(), args](Registry& r) mutable {
           auto& s = r.resource<tiles3d::TilesetStream>();
           const auto& stats = r.resource<tiles3d::TilesetStats>();
           bool capped = stats.frames >= max_frames;
@@ -132,6 +130,15 @@ void run_render(const RenderArgs& args) {
           // view wants more), so the streamer goes idle in every case.
           if (!stats.idle && !capped) {
             s.streamer->wait_for_progress();
+            return;
+          }
+          // Framed from the tileset's volume (which may be far larger than the data) until the
+          // first tiles are in: then once from their points, and streamed again for that view.
+          if (reframe && !capped && stats.drawn_points > 0) {
+            reframe = false;
+            ViewFit fit(args.width, args.height, args.azimuth, args.elevation, args.fov);
+            tiles3d::fit_drawn_tiles(fit, s);
+            r.view<Camera>().each([&](Camera& c) { c = fit.camera(); });
             return;
           }
           if (settled == 0 && !stats.idle)

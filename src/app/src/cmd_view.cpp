@@ -90,10 +90,9 @@ void run_view(const ViewArgs& args) {
 
   // The scene: a camera framing the data, and a point size that closes the gaps from there.
   Registry& main = engine.main();
-  const auto& scene = main.resource<pc::SceneInfo>();
   glm::uvec2 size = main.resource<viewer::WindowState>().framebuffer_size;
-  double aspect = size.y > 0 ? double(size.x) / size.y : double(args.width) / args.height;
-  Camera camera = scene_camera(args.camera, scene.world_bounds, aspect, 30.0, 40.0, args.fov);
+  if (size.x == 0 || size.y == 0) size = {args.width, args.height};
+  Camera camera = scene_camera(main, args.camera, size.x, size.y, 30.0, 40.0, args.fov);
   main.emplace<Camera>(main.create(), camera);
   auto& settings = main.resource<pc::PointDrawSettings>();
   main.view<pc::PointCloudData>().each([&](const pc::PointCloudData& data) {

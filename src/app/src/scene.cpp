@@ -19,6 +19,7 @@
 #include "stipple/io/potree.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
+#include "stipple/pointcloud/scene.hpp"
 #include "stipple/pointcloud/virtual_cloud.hpp"
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/tiler/tiler.hpp"
@@ -139,9 +140,25 @@ Renderer resolve_renderer(const SceneOptions& options, const gpu::Context& ctx,
       fmt::format("auto: {} points, under {}: point sizes above one pixel", points, kComputeFrom));
 }
 
-Camera scene_camera(const std::string& text, const Aabb& world_bounds, double aspect,
+Camera frame_scene(Registry& main, uint32_t width, uint32_t height, double azimuth,
+                   double elevation, double fov) {
+  ViewFit fit(width, height, azimuth, elevation, fov);
+  main.view<pc::PointCloudData>().each([&](const pc::PointCloudData& data) {
+    if (data.cloud) pc::fit_cloud(fit, *data.cloud);
+  });
+  if (fit.empty())
+    if (const auto* handle = main.try_resource<pc::VirtualCloudHandle>())
+      pc::fit_virtual_cloud(fit, *handle);
+  if (fit.empty())
+    if (const auto* stream = main.try_resource<tiles3d::TilesetStream>())
+      fit.add_corners(stream->world_bounds);
+  if (fit.empty()) fit.add_corners(main.resource<pc::SceneInfo>().world_bounds);
+  return fit.camera();
+}
+
+Camera scene_camera(Registry& main, const std::string& text, uint32_t width, uint32_t height,
                     double azimuth, double elevation, double fov) {
-  if (text.empty()) return frame_box(world_bounds, aspect, azimuth, elevation, fov);
+  if (text.empty()) return frame_scene(main, width, height, azimuth, elevation, fov);
   const std::vector<double> v = parse_numbers(text, 6, "--camera");
   Camera camera;
   camera.fov_y = glm::radians(fov);

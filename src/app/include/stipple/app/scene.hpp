@@ -17,7 +17,8 @@
 
 namespace stipple {
 class Engine;
-}
+class Registry;
+}  // namespace stipple
 
 namespace stipple::app {
 
@@ -57,6 +58,14 @@ struct SceneOptions {
 // stipple::Error for a bad polygon file.
 void apply_filters(SceneOptions& options);
 
+// The default view of the loaded scene, seen from `azimuth`/`elevation` (degrees, Z-up) so that
+// the data fills most of a width x height image (ViewFit): fitted to the points of point
+// clouds, in memory or in a pointlet cache (the virtualized path), else to a tileset's volume
+// (TilesetStream::world_bounds; render refits to the tiles' points once they are in), else to
+// the scene's bounds.
+Camera frame_scene(Registry& main, uint32_t width, uint32_t height, double azimuth = 30.0,
+                   double elevation = 40.0, double fov = 50.0);
+
 // Whether `options` take the virtualized path (for point-cloud inputs), and why.
 bool use_virtual_path(const SceneOptions& options, std::string* reason = nullptr);
 
@@ -79,8 +88,9 @@ bool is_tileset_scene(const SceneOptions& options);
 double max_sse_for(const SceneOptions& options);
 
 // The camera of `render` and `view`: from --camera 'eye,target' (source coordinates, Z up),
-// else framing `world_bounds` from the azimuth and elevation (degrees); fov in degrees.
-Camera scene_camera(const std::string& camera, const Aabb& world_bounds, double aspect,
+// else frame_scene's for a width x height image from the azimuth and elevation (degrees); fov
+// in degrees.
+Camera scene_camera(Registry& main, const std::string& camera, uint32_t width, uint32_t height,
                     double azimuth, double elevation, double fov);
 
 // Adds the scene plugin for `options` to `engine`; throws stipple::Error for what the chosen
