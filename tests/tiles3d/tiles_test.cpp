@@ -265,7 +265,9 @@ TEST(Glb, InterleavedPointsWithNodeTransformsAndRtc) {
   EXPECT_NEAR(p0.z, 300 + 4, 1e-4);
   EXPECT_NEAR(p1.x, 100 + 8, 1e-4);
   EXPECT_EQ(c.rgba[0], rgba(255, 0, 0));
-  EXPECT_EQ(c.rgba[1], rgba(0, 255, 0, 128));
+  // No material: glTF's default OPAQUE, which ignores COLOR_0's alpha (128 here).
+  EXPECT_EQ(c.rgba[1], rgba(0, 255, 0));
+  EXPECT_FALSE(c.alpha);
 }
 
 // glTF defines COLOR_0 as linear; stipple draws sRGB-encoded colours (as LAS and pnts give
@@ -281,32 +283,35 @@ TEST(Glb, Color0IsLinear) {
   for (uint8_t v : linear8) bin.insert(bin.end(), {v, v, v, 0});
   const size_t atf = bin.size();
   append(bin, linear_f);
-  json j = {{"asset", {{"version", "2.0"}}},
-            {"buffers", {{{"byteLength", bin.size()}}}},
-            {"bufferViews",
-             {{{"buffer", 0}, {"byteLength", 60}},
-              {{"buffer", 0}, {"byteOffset", at8}, {"byteLength", 20}, {"byteStride", 4}},
-              {{"buffer", 0}, {"byteOffset", atf}, {"byteLength", 16}}}},
-            {"accessors",
-             {{{"bufferView", 0}, {"componentType", 5126}, {"count", 5}, {"type", "VEC3"}},
-              {{"bufferView", 1},
-               {"componentType", 5121},
-               {"normalized", true},
-               {"count", 5},
-               {"type", "VEC3"}},
-              {{"bufferView", 0}, {"componentType", 5126}, {"count", 1}, {"type", "VEC3"}},
-              {{"bufferView", 2}, {"componentType", 5126}, {"count", 1}, {"type", "VEC4"}}}},
-            {"meshes",
-             {{{"primitives",
-                {{{"mode", 0}, {"attributes", {{"POSITION", 0}, {"COLOR_0", 1}}}},
-                 {{"mode", 0}, {"attributes", {{"POSITION", 2}, {"COLOR_0", 3}}}}}}}}},
-            {"nodes", {{{"mesh", 0}}}}};
+  json j = {
+      {"asset", {{"version", "2.0"}}},
+      {"buffers", {{{"byteLength", bin.size()}}}},
+      {"bufferViews",
+       {{{"buffer", 0}, {"byteLength", 60}},
+        {{"buffer", 0}, {"byteOffset", at8}, {"byteLength", 20}, {"byteStride", 4}},
+        {{"buffer", 0}, {"byteOffset", atf}, {"byteLength", 16}}}},
+      {"accessors",
+       {{{"bufferView", 0}, {"componentType", 5126}, {"count", 5}, {"type", "VEC3"}},
+        {{"bufferView", 1},
+         {"componentType", 5121},
+         {"normalized", true},
+         {"count", 5},
+         {"type", "VEC3"}},
+        {{"bufferView", 0}, {"componentType", 5126}, {"count", 1}, {"type", "VEC3"}},
+        {{"bufferView", 2}, {"componentType", 5126}, {"count", 1}, {"type", "VEC4"}}}},
+      {"meshes",
+       {{{"primitives",
+          {{{"mode", 0}, {"attributes", {{"POSITION", 0}, {"COLOR_0", 1}}}},
+           {{"mode", 0}, {"attributes", {{"POSITION", 2}, {"COLOR_0", 3}}}, {"material", 0}}}}}}},
+      // BLEND, so that the alpha is kept (OPAQUE, the default, ignores it).
+      {"materials", {{{"alphaMode", "BLEND"}}}},
+      {"nodes", {{{"mesh", 0}}}}};
   io::PointContent c = io::decode_glb_points(make_glb(j, bin), "linear.glb");
   ASSERT_EQ(c.point_count, 6u);
   const uint8_t want[5] = {0, 13, 56, 188, 255};
   for (int i = 0; i < 5; ++i)
     EXPECT_EQ(c.rgba[size_t(i)], rgba(want[i], want[i], want[i])) << "point " << i;
-  EXPECT_EQ(c.rgba[5], rgba(188, 127, 255, 128));
+  EXPECT_EQ(c.rgba[5], rgba(188, 127, 255, 128));  // alpha is not converted
 }
 
 TEST(Glb, QuantizedPositionsAndMeshoptCompression) {
