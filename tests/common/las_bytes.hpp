@@ -127,8 +127,9 @@ inline std::vector<uint8_t> las_bytes(const LasFile& f) {
       put<uint16_t>(b, at + rgb + 4, p.b);
     }
     const size_t base = las_bytes_detail::format_size(f.point_format);
-    std::memcpy(b.data() + at + base, p.extra.data(),
-                std::min<size_t>(p.extra.size(), f.extra_bytes_per_point));
+    if (!p.extra.empty())  // an empty vector's data() may be null, which memcpy may not take
+      std::memcpy(b.data() + at + base, p.extra.data(),
+                  std::min<size_t>(p.extra.size(), f.extra_bytes_per_point));
     at += record;
   }
   return b;
