@@ -175,7 +175,9 @@ TEST(OtherWriters, ZeroExtentCloudIsFramedAndDrawn) {
 }
 
 // Item 6: a tile's problem used to be printed twice (by the streamer and by the plugin), and once
-// per tile; each kind is printed once now, with a count of the tiles not named.
+// per tile; each kind is printed once now, with a count of the tiles not named. Content that is
+// not points (b3dm) is said once, by the load (which reads the first contents' headers), and not
+// again by its tiles.
 TEST(OtherWriters, TileProblemsAreReportedOnce) {
   const fs::path dir = temp_dir();
   const nlohmann::json unknown = {{"FOO", {{"byteOffset", 0}}}};
@@ -190,16 +192,18 @@ TEST(OtherWriters, TileProblemsAreReportedOnce) {
                                          (dir / "tileset.json").string(), png.string()));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("rendered 200 points"), std::string::npos) << r.output;
-  EXPECT_EQ(occurrences(r.output, "content type 'b3dm'"), 1u) << r.output;
+  EXPECT_EQ(occurrences(r.output, "b3dm (batched 3D models)"), 1u) << r.output;
   EXPECT_EQ(occurrences(r.output, "unknown semantic FOO ignored"), 1u) << r.output;
-  EXPECT_NE(r.output.find("3 more tiles had the problems above"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("1 more tiles had the problems above"), std::string::npos) << r.output;
   // A broken external tileset: recorded by the reader, printed by the plugin, once.
   EXPECT_EQ(occurrences(r.output, "missing.json: cannot open"), 1u) << r.output;
 
   r = test::run_stipple("info " + (dir / "tileset.json").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_EQ(occurrences(r.output, "content type 'b3dm'"), 1u) << r.output;
-  EXPECT_NE(r.output.find("(and 2 more tiles)"), std::string::npos) << r.output;
+  EXPECT_EQ(occurrences(r.output, "b3dm (batched 3D models)"), 1u) << r.output;
+  EXPECT_NE(r.output.find("3 of 5 contents are b3dm (batched 3D models)"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("FOO ignored (and 1 more tiles)"), std::string::npos) << r.output;
   EXPECT_EQ(occurrences(r.output, "unknown semantic FOO ignored"), 1u) << r.output;
   EXPECT_EQ(occurrences(r.output, "missing.json: cannot open"), 1u) << r.output;
 }
@@ -214,8 +218,9 @@ TEST(OtherWriters, TilesetWithoutPointsIsAnError) {
     test::Bytes bytes;
     std::string reason;
   };
-  for (const Case& c : {Case{"mesh.glb", triangle_glb(), "only 1 TRIANGLES primitive"},
-                        Case{"mesh.b3dm", b3dm_tile(), "content type 'b3dm'"}}) {
+  for (const Case& c :
+       {Case{"mesh.glb", triangle_glb(), "glb meshes, which stipple does not draw"},
+        Case{"mesh.b3dm", b3dm_tile(), "b3dm (batched 3D models), which stipple does not draw"}}) {
     SCOPED_TRACE(c.name);
     const fs::path tiles = dir / c.name;
     write_flat_tileset(tiles, {{c.name, c.bytes}});

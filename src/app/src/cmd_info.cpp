@@ -280,9 +280,11 @@ nlohmann::json tileset_json(const std::string& uri, size_t max_tiles) {
   // What `render` would refuse: a default view whose tiles hold no points.
   if (loaded.cloud.point_count == 0) {
     const bool read = loaded.stats.loads_completed > 0 || !loaded.errors.empty();
-    const std::string why = !loaded.errors.empty()     ? loaded.errors.front().message
-                            : !loaded.warnings.empty() ? loaded.warnings.front().message
-                                                       : std::string();
+    // (Content not drawn that the headers showed is not warned about again by the tiles.)
+    const std::string why = !loaded.errors.empty()      ? loaded.errors.front().message
+                            : !loaded.warnings.empty()  ? loaded.warnings.front().message
+                            : !content_warnings.empty() ? content_warnings.front()
+                                                        : std::string();
     j["problem"] = read ? fmt::format(
                               "nothing to render: the tiles in the default view hold no "
                               "points{}",
@@ -406,14 +408,15 @@ void run_info(const InfoArgs& args) {
         if (j.contains("problem"))
           std::printf("  problem: %s\n", j["problem"].get<std::string>().c_str());
         // The tree's own problems (external tilesets, subtrees), then the default view's tiles'
-        // (which repeat the tree's problems the view ran into).
+        // (which repeat the tree's problems the view ran into); the content warnings, printed
+        // above, are among the tree's warnings too.
         std::set<std::string> said;
+        for (const auto& w : j["content_warnings"]) said.insert(w.get<std::string>());
         for (const char* kind : {"warnings", "errors"})
-          for (const auto& m : j[kind]) {
-            std::printf("  %s: %s\n", kind[0] == 'w' ? "warning" : "error",
-                        m.get<std::string>().c_str());
-            said.insert(m.get<std::string>());
-          }
+          for (const auto& m : j[kind])
+            if (said.insert(m.get<std::string>()).second)
+              std::printf("  %s: %s\n", kind[0] == 'w' ? "warning" : "error",
+                          m.get<std::string>().c_str());
         for (const auto& p : j["tile_problems"]) {
           if (said.count(p["message"].get<std::string>())) continue;
           const size_t tiles = p["tiles"].get<size_t>();

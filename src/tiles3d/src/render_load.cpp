@@ -207,10 +207,9 @@ RenderLoadResult load_tileset_for_render(const std::string& uri, const RenderLoa
                                     : io::Fetcher([&](const std::string& u) {
                                         return io::fetch(u, options.streamer.fetch);
                                       });
-    std::string warning;
-    const Aabb box = drawable_world_bounds(*tileset, view.world_from_tileset, fetcher, &warning,
-                                           &streamer_options.not_drawn_warned);
-    if (!warning.empty()) STIPPLE_WARN("{}", warning);
+    const Aabb box =
+        drawable_world_bounds(*tileset, view.world_from_tileset, fetcher, &out.not_drawn_warning,
+                              &streamer_options.not_drawn_warned);
     view.camera = frame_box(box, double(options.width) / options.height, options.azimuth,
                             options.elevation, options.fov);
   }

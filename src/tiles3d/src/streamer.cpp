@@ -134,7 +134,7 @@ void TileStreamer::integrate() {
     for (const auto& what : job->not_drawn)
       if (not_drawn_.insert(what).second)
         new_warnings_.push_back(
-            {t, fmt::format("holds {}, which stipple does not draw (points only)", what)});
+            {t, fmt::format("content is {}, which stipple does not draw (points only)", what)});
     // A tile's content warnings are reported once, whatever reloads follow an eviction.
     if (!job->warnings.empty() && !warned_[t]) {
       warned_[t] = true;

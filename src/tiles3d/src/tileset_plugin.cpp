@@ -454,6 +454,13 @@ void TilesetPlugin::build(Engine& engine) {
   // Workers convert each decoded tile to world-space chunks and drop the decoded form.
   StreamerOptions options = streamer;
   options.not_drawn_warned = not_drawn;
+  // Those kinds are not warned about again by tile: they are the reason if nothing is drawn.
+  if (!not_drawn.empty()) {
+    std::string kinds;
+    for (const auto& k : not_drawn) kinds += (kinds.empty() ? "" : ", ") + k;
+    s.first_problem =
+        fmt::format("content is {}, which stipple does not draw (points only)", kinds);
+  }
   // On the compute path the workers also make each tile's LOD batches (coloured per frame).
   options.prepare = [world = s.world_from_tileset, batches = compute](
                         uint32_t tile, const glm::dmat4& transform,

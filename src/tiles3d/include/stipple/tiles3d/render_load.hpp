@@ -44,6 +44,9 @@ struct RenderLoadResult {
   Camera camera;
   std::vector<TileError> errors;
   std::vector<TileError> warnings;  // the loaded contents' (TileStreamer::take_warnings)
+  // drawable_world_bounds' warning on content that is not drawn, not printed: the caller says
+  // it (the tiles do not repeat it).
+  std::string not_drawn_warning;
   uint32_t tiles_rendered = 0;
   // The memory budget limited detail: tiles were drawn at this screen-space error instead of
   // max_sse (infinite: not even the root fitted).

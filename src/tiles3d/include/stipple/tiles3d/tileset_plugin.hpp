@@ -58,7 +58,8 @@ struct TilesetStream {
   // had each: each is printed for its first tile only (a tileset of b3dm tiles would otherwise
   // print one line per tile).
   std::map<std::string, uint32_t> problems;
-  std::string first_problem;  // the first printed, as printed
+  // The first printed, as printed; or the content not drawn that the load warned about.
+  std::string first_problem;
 };
 
 // Prints a tile's error or content warning unless another tile had the same one (see
