@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "batch_content.hpp"
+#include "json_fields.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
@@ -137,7 +138,7 @@ std::shared_ptr<const EptCloud> parse_ept_metadata(std::span<const uint8_t> byte
       c.data_min = bounds_part(j, "boundsConforming", 0, uri);
       c.data_max = bounds_part(j, "boundsConforming", 1, uri);
     }
-    c.span = j.value("span", j.value("ticks", 0));
+    c.span = int(json_fields::integer(j, "span", json_fields::integer(j, "ticks", 0, uri), uri));
     if (c.span < 1 || c.span > (1 << 20)) fail("{}: span {} is not a grid size", uri, c.span);
     c.spacing = (c.cube_max.x - c.cube_min.x) / c.span;
     if (j.contains("srs") && j["srs"].is_object()) c.wkt = j["srs"].value("wkt", "");
@@ -148,7 +149,7 @@ std::shared_ptr<const EptCloud> parse_ept_metadata(std::span<const uint8_t> byte
       EptDimension dim;
       dim.name = d.value("name", "");
       dim.type = d.value("type", "");
-      dim.size = d.value("size", 0);
+      dim.size = int(json_fields::integer(d, "size", 0, uri));
       const bool ok = (dim.type == "float" && (dim.size == 4 || dim.size == 8)) ||
                       ((dim.type == "signed" || dim.type == "unsigned") &&
                        (dim.size == 1 || dim.size == 2 || dim.size == 4 || dim.size == 8));

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "json_fields.hpp"
 #include "potree_detail.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/io/fetch.hpp"
@@ -113,9 +114,10 @@ std::shared_ptr<const PotreeCloud> parse_potree_metadata(std::span<const uint8_t
     c.spacing = j.value("spacing", 0.0);
     if (!(std::isfinite(c.spacing) && c.spacing > 0)) fail("{}: spacing must be positive", uri);
     const json& h = j.value("hierarchy", json::object());
-    c.first_chunk_size = h.value("firstChunkSize", uint64_t(0));
-    c.step_size = h.value("stepSize", 0);
-    c.depth = h.value("depth", 0);
+    c.first_chunk_size = uint64_t(
+        json_fields::integer(h, "firstChunkSize", 0, uri, 0, std::numeric_limits<int64_t>::max()));
+    c.step_size = int(json_fields::integer(h, "stepSize", 0, uri));
+    c.depth = int(json_fields::integer(h, "depth", 0, uri));
     if (c.first_chunk_size == 0 || c.first_chunk_size % kRecord != 0)
       fail("{}: hierarchy.firstChunkSize {} is not a positive multiple of 22", uri,
            c.first_chunk_size);
@@ -129,9 +131,9 @@ std::shared_ptr<const PotreeCloud> parse_potree_metadata(std::span<const uint8_t
       PotreeAttribute pa;
       pa.name = a.value("name", "");
       pa.type = a.value("type", "");
-      pa.elements = a.value("numElements", 1);
-      pa.element_size = a.value("elementSize", 0);
-      pa.size = a.value("size", 0);
+      pa.elements = int(json_fields::integer(a, "numElements", 1, uri));
+      pa.element_size = int(json_fields::integer(a, "elementSize", 0, uri));
+      pa.size = int(json_fields::integer(a, "size", 0, uri));
       if (pa.elements < 1 || pa.elements > 16 || pa.size < 1 || pa.size > 1024)
         fail("{}: attribute '{}' has {} elements of size {}", uri, pa.name, pa.elements, pa.size);
       if (type_size(pa.type) != 0 &&

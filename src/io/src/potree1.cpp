@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "batch_content.hpp"
+#include "json_fields.hpp"
 #include "potree_detail.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/io/fetch.hpp"
@@ -221,9 +222,9 @@ std::shared_ptr<const PotreeCloud> parse_potree1_cloud(std::span<const uint8_t> 
         } else if (a.is_object()) {
           pa.name = a.value("name", "");
           pa.type = a.value("type", "");
-          pa.elements = a.value("elements", 1);
-          pa.element_size = a.value("elementSize", 0);
-          pa.size = a.value("size", 0);
+          pa.elements = int(json_fields::integer(a, "elements", 1, uri));
+          pa.element_size = int(json_fields::integer(a, "elementSize", 0, uri));
+          pa.size = int(json_fields::integer(a, "size", 0, uri));
           if (pa.elements < 1 || pa.elements > 16 || pa.size < 1 || pa.size > 1024)
             fail("{}: attribute '{}' has {} elements of size {}", uri, pa.name, pa.elements,
                  pa.size);
