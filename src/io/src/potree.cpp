@@ -187,15 +187,11 @@ Expansion read_potree_chunk(uint32_t tile, const PendingChildren& pending, size_
     const size_t records = bytes.size() / kRecord;
     // Breadth first: record 0 is the chunk's root (the expanded tile), then every listed node's
     // children in child order. A proxy ends its branch here: its chunk lists it again.
-    struct Item {
-      int32_t tile;  // -1: the expanded tile
-      Key key;
-    };
-    std::vector<Item> queue{{-1, root}};
+    std::vector<QueuedNode> queue{{-1, root}};
     size_t next = 0;
     for (size_t r = 0; r < records; ++r) {
       if (next >= queue.size()) fail("{}: record {} is listed by no node's child mask", name, r);
-      const Item item = queue[next++];
+      const QueuedNode item = queue[next++];
       const uint8_t* p = bytes.data() + r * kRecord;
       const uint8_t type = p[0], mask = p[1];
       const uint32_t points = load<uint32_t>(p + 2);
@@ -226,23 +222,7 @@ Expansion read_potree_chunk(uint32_t tile, const PendingChildren& pending, size_
           e.content_points = points;
         }
       }
-      for (int i = 0; i < 8; ++i) {
-        if (!(mask & (1 << i))) continue;
-        const Key k = item.key.child(i);
-        if (int(k.level) > kMaxPotreeDepth)
-          fail("{}: node below depth {} (a corrupt child mask)", name, kMaxPotreeDepth);
-        if (tiles_now + e.tiles.size() + 1 > options.max_tiles) {
-          e.over_limit = true;
-          fail("the tile limit of {} is reached (TilesetOptions::max_tiles)", options.max_tiles);
-        }
-        Tile child = node_tile(c, k);
-        child.parent = item.tile;
-        child.depth = k.level - root.level - 1;
-        const int32_t local = int32_t(e.tiles.size());
-        if (item.tile >= 0) e.tiles[size_t(item.tile)].children.push_back(uint32_t(local));
-        e.tiles.push_back(std::move(child));
-        queue.push_back({local, k});
-      }
+      add_mask_children(c, root, item, mask, tiles_now, options, name, e, queue);
     }
     // Nodes listed by a mask but without a record: the chunk is cut short.
     if (next != queue.size())

@@ -10,6 +10,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "stipple/core/error.hpp"
 #include "stipple/io/potree.hpp"
 
 namespace stipple::io::potree_detail {
@@ -101,6 +102,39 @@ void set_positions(PointContent& out, const std::vector<glm::dvec3>& absolute);
 
 // Potree 1.x (potree1.cpp): the tileset of a cloud.js, one .hrc file read into tiles, a node
 // decoded.
+// A node waiting in a hierarchy chunk's breadth-first order: its tile in the expansion (-1: the
+// expanded tile itself) and its key.
+struct QueuedNode {
+  int32_t tile;
+  Key key;
+};
+
+// Appends to `e` the children that `mask` names of `parent`, below the chunk's `root`, and
+// queues them for their records; a child deeper than Potree's limit or past the tile limit is
+// an error (`name`: the chunk, for messages).
+inline void add_mask_children(const PotreeCloud& c, const Key& root, const QueuedNode& parent,
+                              uint8_t mask, size_t tiles_now, const TilesetOptions& options,
+                              const std::string& name, Expansion& e,
+                              std::vector<QueuedNode>& queue) {
+  for (int i = 0; i < 8; ++i) {
+    if (!(mask & (1 << i))) continue;
+    const Key k = parent.key.child(i);
+    if (int(k.level) > kMaxPotreeDepth)
+      fail("{}: node below depth {} (a corrupt child mask)", name, kMaxPotreeDepth);
+    if (tiles_now + e.tiles.size() + 1 > options.max_tiles) {
+      e.over_limit = true;
+      fail("the tile limit of {} is reached (TilesetOptions::max_tiles)", options.max_tiles);
+    }
+    Tile child = node_tile(c, k);
+    child.parent = parent.tile;
+    child.depth = k.level - root.level - 1;
+    const int32_t local = int32_t(e.tiles.size());
+    if (parent.tile >= 0) e.tiles[size_t(parent.tile)].children.push_back(uint32_t(local));
+    e.tiles.push_back(std::move(child));
+    queue.push_back({local, k});
+  }
+}
+
 Tileset load_potree1(const std::string& uri, const Fetcher& fetcher, const TilesetOptions& options);
 Expansion read_hrc(uint32_t tile, const PendingChildren& pending, size_t tiles_now,
                    const Fetcher& fetcher, const TilesetOptions& options);
