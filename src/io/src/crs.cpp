@@ -211,6 +211,9 @@ class WktReader {
           n.children.emplace_back();
           if (!node(n.children.back(), depth + 1)) return false;
         } else {
+          // No progress (a bracket that closes nothing here, as in "A[1)"): malformed, and
+          // looping on it would grow the values without end.
+          if (at_ == word) return false;
           std::string_view v = s_.substr(word, at_ - word);
           while (!v.empty() && std::isspace(static_cast<unsigned char>(v.back())))
             v.remove_suffix(1);
