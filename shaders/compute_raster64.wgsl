@@ -3,9 +3,17 @@
 // screen, and its threads project the batch's points, keeping the nearest per pixel with a
 // 64-bit atomicMin of (depth << 32 | point index). Needs ShaderInt64AtomicMinMax (wgpu-native).
 // Variants as pipeline constants: PREFETCH, CONTIGUOUS (compute_raster_batch.wgsl), PLAIN_EARLY
-// and MERGE (compute_raster_write.wgsl).
+// and MERGE (compute_raster_write.wgsl), TILE (compute_raster_tile.wgsl).
 #include "compute_raster_batch.wgsl"
 #include "compute_raster_counted.wgsl"
+#include "compute_raster_tile.wgsl"
+
+// The tile's point index per pixel (segment_base + index, as in the key), after its depth.
+var<workgroup> tile_index: array<atomic<u32>, TILE_PIXELS>;
+
+fn tile_clear_extra(i: u32) {
+  atomicStore(&tile_index[i], 0xffffffffu);
+}
 
 @group(0) @binding(5) var<storage, read_write> visibility: array<atomic<u64>>;
 // The same buffer as 32-bit words for the early depth test: only min/max are allowed on 64-bit
@@ -31,6 +39,23 @@ fn depth_word(pixel: u32) -> u32 {
 }
 
 fn write_key(pixel: u32, key: u64) {
+  if (TILE && tile_phase != 0u) {
+    let i = tile_entry(pixel);
+    if (i < TILE_PIXELS) {
+      let depth = u32(key >> 32u);
+      if (tile_phase == 1u) {
+        if (depth < atomicLoad(&tile_depth[i])) {
+          atomicMin(&tile_depth[i], depth);
+        }
+      } else if (depth == atomicLoad(&tile_depth[i])) {
+        atomicMin(&tile_index[i], u32(key));
+      }
+      return;
+    }
+    if (tile_phase == 2u) {
+      return;  // written to the screen in phase 1
+    }
+  }
   // Early depth test: most occluded points never reach the atomic.
   if (u32(key >> 32u) > depth_word(pixel)) {
     return;
@@ -48,5 +73,22 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups
   if (bits == 0u) {
     return;
   }
-  draw_batch_points(batches[batch], bits, lid);
+  let b = batches[batch];
+  if (TILE && tile_begin(b, lid)) {
+    tile_phase = 1u;
+    draw_batch_points(b, bits, lid);
+    workgroupBarrier();
+    tile_phase = 2u;
+    draw_batch_points(b, bits, lid);
+    workgroupBarrier();
+    tile_phase = 0u;
+    for (var i = lid; i < tile_size.x * tile_size.y; i += WORKGROUP) {
+      let depth = atomicLoad(&tile_depth[i]);
+      if (depth != 0xffffffffu) {
+        write_key(tile_pixel(i), (u64(depth) << 32u) | u64(atomicLoad(&tile_index[i])));
+      }
+    }
+    return;
+  }
+  draw_batch_points(b, bits, lid);
 }

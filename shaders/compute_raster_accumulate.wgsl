@@ -13,6 +13,7 @@
 #include "compute_raster_batch.wgsl"
 #include "compute_raster_shading.wgsl"
 #include "compute_raster_filter.wgsl"
+#include "compute_raster_tile.wgsl"
 
 override PACKED: bool = false;
 
@@ -33,6 +34,18 @@ const NO_PIXEL: u32 = 0xffffffffu;
 var<private> run_pixel: u32 = NO_PIXEL;
 var<private> run_limit: f32;        // the pixel's nearest depth, widened by the tolerance
 var<private> run_sum: vec4<u32>;    // r, g, b, count
+var<private> run_entry: u32;        // its tile entry (TILE_PIXELS: none)
+
+// TILE: the tile's depth limits (tile_depth, as bits) and sums, added to the screen once per
+// pixel when the batch is done.
+var<workgroup> tile_sums: array<array<atomic<u32>, 4>, TILE_PIXELS>;
+
+fn tile_clear_extra(i: u32) {
+  atomicStore(&tile_depth[i], bitcast<u32>(limit_of(tile_pixel(i))));
+  for (var c = 0u; c < 4u; c++) {
+    atomicStore(&tile_sums[i][c], 0u);
+  }
+}
 
 fn add_sums(pixel: u32, sum: vec4<u32>) {
   if (!PACKED) {
@@ -67,7 +80,13 @@ fn add_sums(pixel: u32, sum: vec4<u32>) {
 
 fn end_run() {
   if (run_pixel != NO_PIXEL && run_sum.w > 0u) {
-    add_sums(run_pixel, run_sum);
+    if (run_entry < TILE_PIXELS) {
+      for (var c = 0u; c < 4u; c++) {
+        atomicAdd(&tile_sums[run_entry][c], run_sum[c]);
+      }
+    } else {
+      add_sums(run_pixel, run_sum);
+    }
   }
   run_pixel = NO_PIXEL;
 }
@@ -90,7 +109,15 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   if (!MERGE || pr.pixel != run_pixel) {
     end_run();
     run_pixel = pr.pixel;
-    run_limit = limit_of(pr.pixel);
+    run_entry = TILE_PIXELS;
+    if (TILE && tile_phase != 0u) {
+      run_entry = tile_entry_xy(pr.xy);
+    }
+    if (run_entry < TILE_PIXELS) {
+      run_limit = bitcast<f32>(atomicLoad(&tile_depth[run_entry]));
+    } else {
+      run_limit = limit_of(pr.pixel);
+    }
     run_sum = vec4<u32>(0u);
   }
   if (pr.depth > run_limit) {
@@ -122,5 +149,19 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups
   if (bits == 0u) {
     return;
   }
-  draw_batch_points(batches[batch], bits, lid);
+  let b = batches[batch];
+  if (TILE && tile_begin(b, lid)) {
+    tile_phase = 1u;
+    draw_batch_points(b, bits, lid);
+    workgroupBarrier();
+    for (var i = lid; i < tile_size.x * tile_size.y; i += WORKGROUP) {
+      let sum = vec4<u32>(atomicLoad(&tile_sums[i][0]), atomicLoad(&tile_sums[i][1]),
+                          atomicLoad(&tile_sums[i][2]), atomicLoad(&tile_sums[i][3]));
+      if (sum.w > 0u) {
+        add_sums(tile_pixel(i), sum);
+      }
+    }
+    return;
+  }
+  draw_batch_points(b, bits, lid);
 }

@@ -31,6 +31,8 @@ var<workgroup> batch_matrix: mat4x4<f32>;
 var<private> to_screen: mat4x4<f32>;
 var<private> cells_origin: vec3<f32>;
 var<private> cell_size: vec3<f32>;
+// The column and row of the last point project_point() took to a pixel.
+var<private> point_xy: vec2<u32>;
 
 // Batches are dispatched as rows of workgroups (more than one dimension's limit of batches).
 fn batch_index(group: vec3<u32>, groups: vec3<u32>) -> u32 {
@@ -77,7 +79,9 @@ fn load_cells(bits: u32, index: u32) -> vec3<f32> {
 
 // draw_point's projection: `q` (cells of the workgroup's batch) to its pixel and depth.
 fn project_point(q: vec3<f32>) -> Projected {
-  return project_cell(params, to_screen, q);
+  let r = project_cell(params, to_screen, q);
+  point_xy = r.xy;
+  return r;
 }
 
 // `q` (cells of the workgroup's batch) relative to the camera, for shading by elevation.

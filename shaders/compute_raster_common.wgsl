@@ -108,6 +108,7 @@ fn box_fraction(bits: u32, c: u32, m: u32, f: u32) -> vec3<f32> {
 
 struct Projected {
   pixel: u32,
+  xy: vec2<u32>,  // the pixel's column and row
   depth: f32,  // linear view depth (clip w)
   valid: bool,
 }
@@ -158,7 +159,8 @@ fn project_cell(p: Params, m: mat4x4<f32>, q: vec3<f32>) -> Projected {
   if (s.x < 0.0 || s.y < 0.0 || s.x >= f32(p.width) || s.y >= f32(p.height)) {
     return r;
   }
-  r.pixel = u32(s.y) * p.width + u32(s.x);
+  r.xy = vec2<u32>(s);
+  r.pixel = r.xy.y * p.width + r.xy.x;
   r.depth = c.w;
   r.valid = true;
   return r;

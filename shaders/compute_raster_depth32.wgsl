@@ -4,6 +4,9 @@
 // compute_raster64.wgsl but PLAIN_EARLY.
 #include "compute_raster_batch.wgsl"
 #include "compute_raster_counted.wgsl"
+#include "compute_raster_tile.wgsl"
+
+fn tile_clear_extra(i: u32) {}
 
 @group(0) @binding(5) var<storage, read_write> depth_buffer: array<atomic<u32>>;
 
@@ -24,6 +27,15 @@ fn depth_word(pixel: u32) -> u32 {
 }
 
 fn write_key(pixel: u32, depth: u32) {
+  if (TILE && tile_phase != 0u) {
+    let i = tile_entry(pixel);
+    if (i < TILE_PIXELS) {
+      if (depth < atomicLoad(&tile_depth[i])) {
+        atomicMin(&tile_depth[i], depth);
+      }
+      return;
+    }
+  }
   if (depth >= depth_word(pixel)) {
     return;
   }
@@ -40,5 +52,19 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups
   if (bits == 0u) {
     return;
   }
-  draw_batch_points(batches[batch], bits, lid);
+  let b = batches[batch];
+  if (TILE && tile_begin(b, lid)) {
+    tile_phase = 1u;
+    draw_batch_points(b, bits, lid);
+    workgroupBarrier();
+    tile_phase = 0u;
+    for (var i = lid; i < tile_size.x * tile_size.y; i += WORKGROUP) {
+      let depth = atomicLoad(&tile_depth[i]);
+      if (depth != 0xffffffffu) {
+        write_key(tile_pixel(i), depth);
+      }
+    }
+    return;
+  }
+  draw_batch_points(b, bits, lid);
 }

@@ -126,6 +126,11 @@ std::vector<std::pair<std::string, pc::RasterKernel>> kernel_variants() {
   k = {};
   k.packed_hqs = true;
   kernels.push_back({"packed HQS", k});
+  k = {};
+  k.tile = k.hqs_tile = true;
+  kernels.push_back({"workgroup tile", k});
+  k.merge = true;
+  kernels.push_back({"workgroup tile, merging", k});
   for (uint32_t size : {64u, 256u}) {
     k = {};
     k.workgroup = size;
@@ -456,6 +461,37 @@ TEST_P(ComputeRaster, KernelVariantsDrawTheSameImage) {
                   100 * differ);
       EXPECT_LE(differ, 0.001) << name << (hqs ? " HQS" : "");
       EXPECT_EQ(r.counters.points_rendered, reference.counters.points_rendered) << name;
+    }
+  }
+}
+
+// The workgroup tile (RasterKernel::tile) takes batches that cover at most 512 pixels: small
+// batches of a dense scene at overview distance do, and their tiles must give the same image as
+// the screen-wide atomics, with the 64-bit visibility buffer (depth, then index) and the 32-bit
+// fallback (depth only), with and without HQS. Tolerance 0: the same nearest point per pixel.
+TEST_P(ComputeRaster, WorkgroupTileDrawsTheSameImage) {
+  auto ctx = context();
+  io::SceneParams scene;
+  scene.point_count = 200'000;
+  const pc::PointCloud cloud = pc::generate_scene_cloud(scene);
+  const uint32_t w = 320, h = 180;
+  const Camera camera = frame_box(cloud.world_bounds, double(w) / h);
+  pc::BatchingOptions batching;
+  batching.batch_points = 256;  // ~800 batches, most under 512 pixels on screen
+  const pc::BatchedCloud batched = pc::build_batches(cloud, batching);
+  pc::RasterKernel tile;
+  tile.tile = tile.hqs_tile = true;
+  for (bool fallback : {false, true}) {
+    for (bool hqs : {false, true}) {
+      SCOPED_TRACE(std::string(fallback ? "32-bit fallback" : "64-bit") + (hqs ? ", HQS" : ""));
+      pc::ComputeRasterOptions options;
+      options.hqs = hqs;
+      const auto reference = render_compute(*ctx, batched, camera, options, w, h, fallback);
+      ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.1);
+      const auto r = render_compute(*ctx, batched, camera, options, w, h, fallback, 0,
+                                    pc::DisplayPass::Auto, tile);
+      EXPECT_EQ(test::differing_fraction(reference.image, r.image, 0), 0.0);
+      EXPECT_EQ(r.counters.points_rendered, reference.counters.points_rendered);
     }
   }
 }

@@ -195,7 +195,12 @@ void run_raster_bench(const RasterArgs& args) {
     add("prefetch", [](Variant& v) { v.kernel.prefetch = true; });
     add("atomic-early", [](Variant& v) { v.kernel.plain_early = false; });
     add("wg256", [](Variant& v) { v.kernel.workgroup = 256; });
+    add("tile", [](Variant& v) { v.kernel.tile = true; });
     add("compute-hqs", [](Variant& v) { v.options.hqs = true; });
+    add("hqs-tile", [](Variant& v) {
+      v.options.hqs = true;
+      v.kernel.tile = v.kernel.hqs_tile = true;
+    });
     add("hqs-strided", [](Variant& v) {
       v.options.hqs = true;
       v.kernel.hqs_prefetch = true;
@@ -217,6 +222,10 @@ void run_raster_bench(const RasterArgs& args) {
     add("fallback32-contiguous", [](Variant& v) {
       v.fallback = true;
       v.kernel.hqs_prefetch = true;
+    });
+    add("fallback32-tile", [](Variant& v) {
+      v.fallback = true;
+      v.kernel.tile = v.kernel.hqs_tile = true;
     });
     add("fallback32-merge", [](Variant& v) {
       v.fallback = true;
@@ -364,9 +373,10 @@ void add_bench_raster_command(CLI::App& bench) {
       ->capture_default_str();
   cmd->add_option("--variants", args->variants,
                   "Only these variants (compute-basic, compute-precision, merge, contiguous, "
-                  "prefetch, atomic-early, wg256, compute-hqs, "
+                  "prefetch, atomic-early, wg256, tile, compute-hqs, hqs-tile, "
                   "hqs-contiguous, hqs-strided, hqs-packed, "
-                  "hqs-no-merge, compute-fallback32, fallback32-contiguous, fallback32-merge, "
+                  "hqs-no-merge, compute-fallback32, fallback32-contiguous, fallback32-tile, "
+                  "fallback32-merge, "
                   "dilate-3px, billboard-1px)")
       ->delimiter(',');
   cmd->add_flag("!--no-billboard", args->billboard, "Skip the billboard variant (saves 16 B/pt)");

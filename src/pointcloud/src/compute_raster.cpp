@@ -102,6 +102,7 @@ std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, 
       {"PREFETCH", (geometry ? kernel.prefetch : kernel.hqs_prefetch) ? 1.0 : 0.0},
       {"CONTIGUOUS", (geometry ? kernel.contiguous : kernel.hqs_contiguous) ? 1.0 : 0.0},
       {"MERGE", (geometry ? kernel.merge : kernel.hqs_merge) ? 1.0 : 0.0}};
+  c.push_back({"TILE", (geometry ? kernel.tile : kernel.hqs_tile) ? 1.0 : 0.0});
   if (geometry)
     c.push_back({"PLAIN_EARLY", kernel.plain_early ? 1.0 : 0.0});
   else

@@ -81,6 +81,9 @@ struct RasterKernel {
   bool contiguous = false;  // with prefetch: each thread one range of its batch, not a stride
   bool merge = false;       // a thread's points in a row on one pixel: one write for them
   bool plain_early = true;  // the early depth test as a plain load, as in Listing 1
+  // Batches that cover at most 512 pixels are rasterized in workgroup memory first, then
+  // written once per pixel (compute_raster_tile.wgsl).
+  bool tile = false;
   // HQS: two packed 32-bit atomics a point instead of four (3.6); with merged sums the four
   // plain ones were 12-17 % faster on the H200.
   bool packed_hqs = false;
@@ -91,6 +94,7 @@ struct RasterKernel {
   bool hqs_prefetch = false;
   bool hqs_contiguous = true;
   bool hqs_merge = true;
+  bool hqs_tile = false;  // the accumulation's sums in workgroup memory first (as `tile`)
 };
 
 // Whether this context can run the 64-bit visibility buffer (STIPPLE_RASTER_FALLBACK=1 says no).
