@@ -127,7 +127,10 @@ std::vector<std::pair<std::string, pc::RasterKernel>> kernel_variants() {
   k.packed_hqs = true;
   kernels.push_back({"packed HQS", k});
   k = {};
-  k.tile = k.hqs_tile = true;
+  k.hqs_tile = false;
+  kernels.push_back({"HQS sums without the workgroup tile", k});
+  k = {};
+  k.tile = true;
   kernels.push_back({"workgroup tile", k});
   k.merge = true;
   kernels.push_back({"workgroup tile, merging", k});
@@ -465,9 +468,9 @@ TEST_P(ComputeRaster, KernelVariantsDrawTheSameImage) {
   }
 }
 
-// The workgroup tile (RasterKernel::tile) takes batches that cover at most 512 pixels: small
-// batches of a dense scene at overview distance do, and their tiles must give the same image as
-// the screen-wide atomics, with the 64-bit visibility buffer (depth, then index) and the 32-bit
+// The workgroup tile (RasterKernel::tile, hqs_tile) takes batches that cover at most 512 pixels:
+// small batches of a dense scene at overview distance do, and their tiles must give the same image
+// as the screen-wide atomics, with the 64-bit visibility buffer (depth, then index) and the 32-bit
 // fallback (depth only), with and without HQS. Tolerance 0: the same nearest point per pixel.
 TEST_P(ComputeRaster, WorkgroupTileDrawsTheSameImage) {
   auto ctx = context();
@@ -479,14 +482,16 @@ TEST_P(ComputeRaster, WorkgroupTileDrawsTheSameImage) {
   pc::BatchingOptions batching;
   batching.batch_points = 256;  // ~800 batches, most under 512 pixels on screen
   const pc::BatchedCloud batched = pc::build_batches(cloud, batching);
-  pc::RasterKernel tile;
+  pc::RasterKernel global, tile;
+  global.hqs_tile = false;
   tile.tile = tile.hqs_tile = true;
   for (bool fallback : {false, true}) {
     for (bool hqs : {false, true}) {
       SCOPED_TRACE(std::string(fallback ? "32-bit fallback" : "64-bit") + (hqs ? ", HQS" : ""));
       pc::ComputeRasterOptions options;
       options.hqs = hqs;
-      const auto reference = render_compute(*ctx, batched, camera, options, w, h, fallback);
+      const auto reference = render_compute(*ctx, batched, camera, options, w, h, fallback, 0,
+                                            pc::DisplayPass::Auto, global);
       ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.1);
       const auto r = render_compute(*ctx, batched, camera, options, w, h, fallback, 0,
                                     pc::DisplayPass::Auto, tile);

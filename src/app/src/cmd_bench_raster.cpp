@@ -197,9 +197,13 @@ void run_raster_bench(const RasterArgs& args) {
     add("wg256", [](Variant& v) { v.kernel.workgroup = 256; });
     add("tile", [](Variant& v) { v.kernel.tile = true; });
     add("compute-hqs", [](Variant& v) { v.options.hqs = true; });
-    add("hqs-tile", [](Variant& v) {
+    add("hqs-no-tile", [](Variant& v) {
       v.options.hqs = true;
-      v.kernel.tile = v.kernel.hqs_tile = true;
+      v.kernel.hqs_tile = false;
+    });
+    add("hqs-geometry-tile", [](Variant& v) {
+      v.options.hqs = true;
+      v.kernel.tile = true;
     });
     add("hqs-strided", [](Variant& v) {
       v.options.hqs = true;
@@ -225,7 +229,7 @@ void run_raster_bench(const RasterArgs& args) {
     });
     add("fallback32-tile", [](Variant& v) {
       v.fallback = true;
-      v.kernel.tile = v.kernel.hqs_tile = true;
+      v.kernel.tile = true;
     });
     add("fallback32-merge", [](Variant& v) {
       v.fallback = true;
@@ -371,13 +375,14 @@ void add_bench_raster_command(CLI::App& bench) {
   cmd->add_option("--copy-mb", args->copy_mb,
                   "Size of the bandwidth measurements (read kernel, copy) in MiB")
       ->capture_default_str();
-  cmd->add_option("--variants", args->variants,
-                  "Only these variants (compute-basic, compute-precision, merge, contiguous, "
-                  "prefetch, atomic-early, wg256, tile, compute-hqs, hqs-tile, "
-                  "hqs-contiguous, hqs-strided, hqs-packed, "
-                  "hqs-no-merge, compute-fallback32, fallback32-contiguous, fallback32-tile, "
-                  "fallback32-merge, "
-                  "dilate-3px, billboard-1px)")
+  cmd->add_option(
+         "--variants", args->variants,
+         "Only these variants (compute-basic, compute-precision, merge, contiguous, "
+         "prefetch, atomic-early, wg256, tile, compute-hqs, hqs-no-tile, hqs-geometry-tile, "
+         "hqs-contiguous, hqs-strided, hqs-packed, "
+         "hqs-no-merge, compute-fallback32, fallback32-contiguous, fallback32-tile, "
+         "fallback32-merge, "
+         "dilate-3px, billboard-1px)")
       ->delimiter(',');
   cmd->add_flag("!--no-billboard", args->billboard, "Skip the billboard variant (saves 16 B/pt)");
   cmd->add_option("--seed", args->seed, "Scene seed")->capture_default_str();

@@ -231,6 +231,14 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   }
   p.accumulate =
       make_compute(ctx, "compute_raster_accumulate.wgsl", kernel_constants(kernel, false));
+  // The fallback's plain colour pass (the nearest points only) without the tile, which made it
+  // 7 % slower on the H200 while it made HQS 1.8x faster (bench/RESULTS.md).
+  if (!p.visibility64 && kernel.hqs_tile) {
+    RasterKernel plain = kernel;
+    plain.hqs_tile = false;
+    p.accumulate_plain =
+        make_compute(ctx, "compute_raster_accumulate.wgsl", kernel_constants(plain, false));
+  }
   p.hqs_finish = make_compute(ctx, "compute_raster_hqs_finish.wgsl");
 
   gpu::ShaderModule display_module =
@@ -417,12 +425,14 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
         graph
             .add_pass(
                 "raster-accumulate", gpu::PassKind::Compute,
-                [&p, &cloud, depth_name, sums, packed](gpu::PassContext& pc) {
+                [&p, &cloud, depth_name, sums, packed, hqs = options.hqs](gpu::PassContext& pc) {
                   gpu::Context& ctx = pc.gpu();
                   if (packed)
                     wgpuCommandEncoderClearBuffer(pc.encoder(), pc.buffer(sums), 0,
                                                   WGPU_WHOLE_SIZE);
-                  auto layout = gpu::bind_group_layout_of(p.accumulate);
+                  const gpu::ComputePipeline& pipeline =
+                      !hqs && p.accumulate_plain ? p.accumulate_plain : p.accumulate;
+                  auto layout = gpu::bind_group_layout_of(pipeline);
                   std::vector<gpu::BindGroup> groups;
                   for (auto& seg : cloud.segments)
                     groups.push_back(gpu::create_bind_group(
@@ -440,7 +450,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                          gpu::bind_buffer(12, p.polygon_vertices.get())}));
                   auto pass = pc.begin_compute_pass();
                   for (size_t s = 0; s < cloud.segments.size(); ++s)
-                    dispatch_batches(pass.get(), p.accumulate.get(), groups[s].get(),
+                    dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
                                      cloud.segments[s].batch_count);
                   wgpuComputePassEncoderEnd(pass.get());
                 })
