@@ -17,8 +17,10 @@
 #include "stipple/core/error.hpp"
 #include "stipple/io/las.hpp"
 #include "stipple/io/procedural.hpp"
+#include "stipple/math/camera.hpp"
 #include "stipple/math/geo.hpp"
 #include "stipple/pointcloud/batches.hpp"
+#include "stipple/pointcloud/pointlet_lod.hpp"
 #include "stipple/pointcloud/pointlets.hpp"
 #include "test_util.hpp"
 
@@ -338,4 +340,49 @@ TEST(Pointlets, RefusesMixedGeographicAndProjectedInputs) {
   }
   EXPECT_FALSE(fs::exists(dir / "mixed.pointlets"));
   fs::remove_all(dir);
+}
+
+// Pointlets of one point (k = 1: fewer than twice --pointlets points) have empty boxes; eq. 2's
+// weight was then 0 / 0 for each, no pointlet got a point and `render --virtual` of a
+// 110,000-point file wrote an empty image. Their LoD boxes now have a floor: every visible
+// single point is drawn while the bucket holds them all, and a pointlet with a real extent
+// keeps its box (and so the seed's weight) exactly.
+TEST(Pointlets, SinglePointPointletsAreDrawn) {
+  std::vector<pc::PointletEntry> table;
+  for (int i = 0; i < 400; ++i) {
+    pc::PointletEntry e;
+    e.min[0] = e.max[0] = (i % 20) * 5.0;
+    e.min[1] = e.max[1] = (i / 20) * 5.0;
+    e.min[2] = e.max[2] = 1.0;
+    e.first = uint64_t(i);
+    e.count = 1;
+    table.push_back(e);
+  }
+  pc::PointletEntry wide;  // a real pointlet: 10 m x 10 m x 2 m
+  wide.min[0] = 20.0;
+  wide.min[1] = 20.0;
+  wide.min[2] = 0.0;
+  wide.max[0] = 30.0;
+  wide.max[1] = 30.0;
+  wide.max[2] = 2.0;
+  wide.first = 400;
+  wide.count = 64;
+  table.push_back(wide);
+
+  const glm::dvec3 origin(50.0, 1.0, -50.0);  // Y up: the boxes' centre
+  const auto boxes = pc::pointlet_boxes(table, origin);
+  ASSERT_EQ(boxes.size(), table.size());
+  for (size_t i = 0; i + 1 < boxes.size(); ++i) ASSERT_GT(boxes[i].lo[3], 0.0f) << i;
+  EXPECT_NEAR(boxes.back().lo[3], 0.5 * std::sqrt(10.0 * 10.0 + 10.0 * 10.0 + 2.0 * 2.0), 1e-4);
+
+  Aabb box;
+  box.extend(z_up_to_y_up(glm::dvec3(0, 0, 0)));
+  box.extend(z_up_to_y_up(glm::dvec3(100, 100, 2)));
+  const Camera camera = frame_box(box, 16.0 / 9.0);
+  std::vector<uint32_t> sizes;
+  for (const auto& e : table) sizes.push_back(e.count);
+  const auto counts =
+      pc::pointlet_lod_cpu(boxes, sizes, sizes, origin, camera, 640, 360, 1'000'000);
+  for (size_t i = 0; i + 1 < counts.size(); ++i) EXPECT_EQ(counts[i], 1u) << "pointlet " << i;
+  EXPECT_EQ(counts.back(), 64u);
 }

@@ -62,13 +62,35 @@ float weight_of(const PointletBox& b, const glm::mat4& vp, const glm::vec3& offs
 
 std::vector<PointletBox> pointlet_boxes(const std::vector<PointletEntry>& table,
                                         const glm::dvec3& origin) {
+  // A pointlet of one point (every pointlet when the cloud has fewer than twice --pointlets
+  // points: k = 1) or of coincident points has an empty box: eq. 2 then gives 0 / 0, every such
+  // pointlet got no points, and a whole image stayed empty. Boxes whose half diagonal is under
+  // a floor grow around their centre to it; the floor is an eighth of the spacing pointlets
+  // would have tiling the cloud's extent as a surface, far under any real pointlet's size, so
+  // the others keep the seed's weights exactly.
+  std::vector<Aabb> world(table.size());
+  Aabb all;
+  for (size_t i = 0; i < table.size(); ++i) {
+    world[i] = pointlet_world_box(table[i]);
+    all.extend(world[i].min);
+    all.extend(world[i].max);
+  }
+  const double floor_half_diagonal = table.empty() ? 0.0
+                                                   : 0.125 * 0.5 * glm::length(all.max - all.min) /
+                                                         std::sqrt(double(table.size()));
   std::vector<PointletBox> boxes(table.size());
   for (size_t i = 0; i < table.size(); ++i) {
-    const PointletEntry& e = table[i];
-    const Aabb world = pointlet_world_box(e);
-    const glm::dvec3 lo = world.min - origin, hi = world.max - origin;
-    const float half_diagonal = float(0.5 * glm::length(hi - lo));
-    boxes[i] = {{float(lo.x), float(lo.y), float(lo.z), half_diagonal},
+    glm::dvec3 lo = world[i].min - origin, hi = world[i].max - origin;
+    double half_diagonal = 0.5 * glm::length(hi - lo);
+    if (half_diagonal < floor_half_diagonal) {
+      const glm::dvec3 centre = (lo + hi) * 0.5;
+      const glm::dvec3 half =
+          glm::max((hi - lo) * 0.5, glm::dvec3(floor_half_diagonal / std::sqrt(3.0)));
+      lo = centre - half;
+      hi = centre + half;
+      half_diagonal = glm::length(half);
+    }
+    boxes[i] = {{float(lo.x), float(lo.y), float(lo.z), float(half_diagonal)},
                 {float(hi.x), float(hi.y), float(hi.z), 0.0f}};
   }
   return boxes;
