@@ -83,9 +83,7 @@ bool is_potree_input(const std::string& uri) {
 
 std::shared_ptr<const PotreeCloud> parse_potree_metadata(std::span<const uint8_t> bytes,
                                                          const std::string& uri) {
-  if (bytes.size() > (64u << 20)) fail("{}: metadata of {} bytes is too large", uri, bytes.size());
-  json j = json::parse(bytes.begin(), bytes.end(), nullptr, false);
-  if (!j.is_object()) fail("{}: not a JSON object", uri);
+  json j = json_fields::metadata_object(bytes, uri);
   auto cloud = std::make_shared<PotreeCloud>();
   PotreeCloud& c = *cloud;
   c.uri = uri;

@@ -151,9 +151,7 @@ glm::vec3 normal_oct16(uint8_t bx, uint8_t by) {
 
 std::shared_ptr<const PotreeCloud> parse_potree1_cloud(std::span<const uint8_t> bytes,
                                                        const std::string& uri) {
-  if (bytes.size() > (64u << 20)) fail("{}: cloud.js of {} bytes is too large", uri, bytes.size());
-  json j = json::parse(bytes.begin(), bytes.end(), nullptr, false);
-  if (!j.is_object()) fail("{}: not a JSON object", uri);
+  json j = json_fields::metadata_object(bytes, uri);
   auto cloud = std::make_shared<PotreeCloud>();
   PotreeCloud& c = *cloud;
   c.uri = uri;
