@@ -114,6 +114,18 @@ if [[ -x "$deps/py3dtiles/bin/python" ]] && ! "$deps/py3dtiles/bin/python" -c 'i
   "$deps/py3dtiles/bin/pip" install -q lazrs >/dev/null ||
     log "lazrs not installed; tests of written COPC files will skip"
 fi
+# The Python bindings' build and test environment (pyproject.toml; tests/python): nanobind and
+# scikit-build-core build the extension, laspy + lazrs are what stipple.read is checked against,
+# dask + distributed run stipple.dask. Reinstalled only when this list changes.
+py_pkgs=(numpy==2.4.6 nanobind==3.1.0 scikit-build-core==1.1.2 pytest==9.2.0 laspy==2.7.0
+  lazrs==0.8.2 dask==2026.8.0 distributed==2026.8.0)
+if [[ "$(cat "$deps/python/.stipple-pkgs" 2>/dev/null)" != "${py_pkgs[*]}" ]]; then
+  log "installing ${py_pkgs[*]} (PyPI) into .deps/python"
+  { [[ -x "$deps/python/bin/python" ]] || python3 -m venv "$deps/python"; } &&
+    "$deps/python/bin/pip" install -q --disable-pip-version-check "${py_pkgs[@]}" >/dev/null &&
+    echo "${py_pkgs[*]}" >"$deps/python/.stipple-pkgs" ||
+    log "Python packages not installed; the Python tests will skip"
+fi
 [[ $deps_only -eq 1 ]] && exit 0
 
 # ---- configure and build ---------------------------------------------------------------

@@ -19,6 +19,17 @@ cmake --build build -- -j"$jobs" | { grep -vE "^\[[0-9]+/[0-9]+\] (Building|Link
 echo "== tests (build/) =="
 ctest --test-dir build --output-on-failure -j"$jobs"
 
+# The Python bindings (pyproject.toml), built into build/python (incrementally) and installed
+# into .deps/python, then their pytest suite.
+if [[ -x .deps/python/bin/python ]] && .deps/python/bin/python -c 'import nanobind, pytest' 2>/dev/null; then
+  echo "== Python tests (tests/python) =="
+  .deps/python/bin/pip install -q --disable-pip-version-check --no-build-isolation \
+    -C cmake.define.STIPPLE_WERROR="${werror:-OFF}" . >/dev/null
+  (cd tests/python && ../../.deps/python/bin/python -m pytest -q -p no:cacheprovider .)
+else
+  echo "== Python tests skipped: .deps/python is missing (scripts/setup.sh --deps installs it) =="
+fi
+
 if [[ "${STIPPLE_SKIP_ASAN:-0}" != 1 ]]; then
   echo "== tests under AddressSanitizer + UndefinedBehaviorSanitizer, with fuzzing (build-asan/) =="
   cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \

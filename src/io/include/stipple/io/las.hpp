@@ -156,6 +156,13 @@ class LasReader {
   std::unique_ptr<Impl> impl_;
 };
 
+// An Extra Bytes descriptor's type (LAS 1.4 R15 table 25), e.g. "uint16", "float64[3]".
+std::string extra_bytes_type_name(const ExtraBytesDescriptor& e);
+
+// The header as a JSON object (file, version, point_format, point_count, scale, offset, min, max,
+// crs, vlrs, extra_bytes, ...): what `stipple info --json` prints for a LAS/LAZ/COPC file.
+std::string las_header_json(const LasHeader& header);
+
 // Header, VLRs, EVLRs and CRS only; no points are decoded.
 LasHeader read_las_header(const std::filesystem::path& path);
 
