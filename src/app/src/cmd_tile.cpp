@@ -1,6 +1,7 @@
 // `stipple tile`: LAS/LAZ inputs -> one 3D Tiles tileset (glb for 1.1, pnts for 1.0), out of core.
 #include <cstdio>
 #include <memory>
+#include <tuple>
 
 #include "stipple/app/commands.hpp"
 #include "stipple/core/error.hpp"
@@ -11,13 +12,15 @@ namespace stipple::app {
 void add_tile_command(CLI::App& cli) {
   struct Args {
     tiler::TileOptions options;
-    std::string format = "glb", memory = "2G";
+    std::string format = "glb", memory = "2G", subset;
+    tiler::MergeOptions merge;
+    std::string merge_memory = "2G";
   };
   auto args = std::make_shared<Args>();
   auto* cmd = cli.add_subcommand(
       "tile", "Build a 3D Tiles tileset (octree, additive refinement) from LAS/LAZ files");
-  cmd->add_option("inputs", args->options.inputs, "Input .las/.laz files")->required();
-  cmd->add_option("-o,--output", args->options.output, "Output directory")->required();
+  cmd->add_option("inputs", args->options.inputs, "Input .las/.laz files");
+  cmd->add_option("-o,--output", args->options.output, "Output directory");
   cmd->add_option("--format", args->format, "glb (3D Tiles 1.1) or pnts (3D Tiles 1.0)")
       ->check(CLI::IsMember({"glb", "pnts"}))
       ->capture_default_str();
@@ -45,7 +48,33 @@ void add_tile_command(CLI::App& cli) {
       ->check(CLI::Range(1, 16))
       ->capture_default_str();
   cmd->add_flag("--force", args->options.force, "Replace an existing output directory");
-  cmd->callback([args] {
+  cmd->add_option("--subset", args->subset,
+                  "Split tiling: tile only part I of N (N a power of 4 or 8) of the root cube, "
+                  "every input read; the output is a part for `stipple tile merge`");
+  auto* merge = cmd->add_subcommand(
+      "merge",
+      "Merge the parts of a split tiling (tile --subset I/N, every I) into one tileset: the "
+      "levels above the parts are built from the parts' roots");
+  merge->add_option("parts", args->merge.parts, "Part directories (all N)")->required();
+  merge->add_option("-o,--output", args->merge.output, "Output directory")->required();
+  merge->add_option("--max-memory", args->merge_memory, "Memory budget, e.g. 2G, 512M")
+      ->capture_default_str();
+  merge->add_option("--threads", args->merge.threads, "Worker threads (default: all cores)");
+  merge->add_flag("--force", args->merge.force, "Replace an existing output directory");
+  merge->callback([args] {
+    args->merge.max_memory = tiler::parse_size(args->merge_memory);
+    tiler::TileStats s = tiler::merge_parts(args->merge);
+    std::printf("merged %zu parts: %llu points in %llu tiles (depth %d) in %.2f s\n",
+                args->merge.parts.size(), static_cast<unsigned long long>(s.points),
+                static_cast<unsigned long long>(s.tiles), s.depth, s.seconds);
+  });
+  cmd->callback([args, merge] {
+    if (merge->parsed()) return;
+    if (args->options.inputs.empty()) throw CLI::RequiredError("inputs");
+    if (args->options.output.empty()) throw CLI::RequiredError("--output");
+    if (!args->subset.empty())
+      std::tie(args->options.subset_index, args->options.subset_count) =
+          tiler::parse_subset(args->subset);
     args->options.format = args->format == "pnts" ? tiler::Format::Pnts : tiler::Format::Glb;
     args->options.max_memory = tiler::parse_size(args->memory);
     tiler::TileStats s = tiler::build_tileset(args->options);

@@ -180,6 +180,7 @@ class Tiler {
  public:
   explicit Tiler(const TileOptions& o) : opt_(o) {}
   TileStats run();
+  TileStats merge(const std::vector<nlohmann::json>& parts, const std::vector<fs::path>& dirs);
 
  private:
   void open_inputs();
@@ -209,6 +210,16 @@ class Tiler {
   void record(const NodeKey& key, std::span<const TilePoint> pts);
   void write_tileset();
   nlohmann::json write_implicit();
+  void write_part();
+  fs::path begin_output(const std::string& output);
+  TileStats commit(const fs::path& out, std::chrono::steady_clock::time_point start);
+  // Split tiling: whether a count cell lies in this run's part, and drops the records that do
+  // not (in place); returns how many are kept.
+  bool cell_in_part(uint32_t cell) const;
+  size_t keep_in_part(TilePoint* recs, size_t n) const;
+  void report(const char* phase, uint64_t done, uint64_t total) {
+    if (opt_.progress) opt_.progress(phase, done, total);
+  }
   glm::dvec3 node_min(const NodeKey& k) const {
     return cube_min_ + glm::dvec3(k.x, k.y, k.z) * node_size(k.level);
   }
@@ -254,8 +265,30 @@ class Tiler {
   std::map<NodeKey, fs::path> pending_roots_;  // chunk roots waiting for the upper levels
   std::atomic<uint64_t> written_{0};
   std::unique_ptr<Progress> index_progress_;
+  uint64_t indexed_ = 0;
   std::mutex progress_mutex_;
+  // Split tiling: the part's level (0: the whole cube) and its shape.
+  int part_level_ = 0;
+  bool part_columns_ = false;  // N a power of 4: columns of (x, y) at part_level_
+  std::unique_ptr<PartialDir> partial_;
 };
+
+bool Tiler::cell_in_part(uint32_t cell) const {
+  if (part_level_ == 0) return true;
+  const uint32_t mask = (1u << count_level_) - 1, shift = uint32_t(count_level_ - part_level_);
+  const uint32_t x = (cell & mask) >> shift, y = ((cell >> count_level_) & mask) >> shift;
+  const uint32_t z = (cell >> (2 * count_level_)) >> shift, n = 1u << part_level_;
+  const uint32_t index = part_columns_ ? x + y * n : x + (y + z * n) * n;
+  return index == opt_.subset_index;
+}
+
+size_t Tiler::keep_in_part(TilePoint* recs, size_t n) const {
+  if (part_level_ == 0) return n;
+  size_t kept = 0;
+  for (size_t i = 0; i < n; ++i)
+    if (cell_in_part(cell_of(recs[i]))) recs[kept++] = recs[i];
+  return kept;
+}
 
 void Tiler::open_inputs() {
   if (opt_.inputs.empty()) fail("no input files");
@@ -566,6 +599,7 @@ void Tiler::read_pass(const char* label, Process process) {
       batches.push_back(std::move(batch));
       std::lock_guard progress_lock(progress_mutex_);
       progress.set(done.load());
+      report(label, done.load(), total_points_);
     }
   });
   progress.finish();
@@ -593,7 +627,7 @@ void Tiler::plan_chunks(const std::vector<uint32_t>& counts) {
     const uint32_t n = 1u << k.level;
     uint64_t c = pyramid[k.level][(size_t(k.z) * n + k.y) * n + k.x];
     if (c == 0) continue;
-    if (c > chunk_points_ && k.level < count_level_) {
+    if ((c > chunk_points_ || k.level < part_level_) && k.level < count_level_) {
       for (int i = 0; i < 8; ++i) stack.push_back(k.child(i));
       continue;
     }
@@ -726,6 +760,8 @@ void Tiler::index_node(const NodeKey& key, std::span<TilePoint> pts, bool chunk_
   {
     std::lock_guard lock(progress_mutex_);
     index_progress_->advance(mine.size());
+    indexed_ += mine.size();
+    report("indexing", indexed_, total_points_);
   }
   for (int i = 0; i < 8; ++i) {
     const size_t b = starts[i], e = i == 7 ? starts[8] : starts[i + 1];
@@ -753,7 +789,7 @@ void Tiler::build_upper_levels() {
   while (true) {
     int deepest = 0;
     for (auto& [k, f] : pending_roots_) deepest = std::max(deepest, k.level);
-    if (deepest == 0) break;
+    if (deepest <= part_level_) break;
     std::map<NodeKey, std::vector<NodeKey>> parents;
     for (auto& [k, f] : pending_roots_)
       if (k.level == deepest) parents[k.parent()].push_back(k);
@@ -797,6 +833,7 @@ void Tiler::build_upper_levels() {
       for (const NodeKey& k : kids) pending_roots_.erase(k);
     for (auto& [k, f] : made) pending_roots_[k] = f;
   }
+  if (part_level_ > 0) return;  // the part roots stay raw: write_part keeps them for the merge
   for (auto& [k, f] : pending_roots_) {
     std::vector<TilePoint> pts = read_points(f);
     write_content(k, pts);
@@ -928,10 +965,23 @@ nlohmann::json Tiler::write_implicit() {
 
 TileStats Tiler::run() {
   auto start = std::chrono::steady_clock::now();
-  fs::path out = fs::absolute(opt_.output).lexically_normal();
-  if (out.filename().empty()) out = out.parent_path();
-  if (fs::exists(out) && !opt_.force) fail("{} exists; pass --force to replace it", out.string());
   phase_start_ = start;
+  if (opt_.subset_count) {
+    const auto [index, count] =
+        parse_subset(fmt::format("{}/{}", opt_.subset_index, opt_.subset_count));
+    (void)index;
+    // Octree nodes where N is a power of 8, else columns of a quadtree level.
+    int l8 = 0, l4 = 0;
+    for (uint64_t v = 1; v < count; v *= 8) ++l8;
+    for (uint64_t v = 1; v < count; v *= 4) ++l4;
+    if ((uint64_t(1) << (3 * l8)) == count) {
+      part_level_ = l8;
+    } else {
+      part_level_ = l4;
+      part_columns_ = true;
+    }
+  }
+  const fs::path out = begin_output(opt_.output);
   open_inputs();
   make_frame_and_cube();
 
@@ -950,17 +1000,11 @@ TileStats Tiler::run() {
   // Staged records and resident chunks (2 x 40 bytes a point) within half the budget.
   in_memory_ = total_points_ * 2 * sizeof(TilePoint) <= budget / 2;
   if (in_memory_) staged_mem_.reset(new TilePoint[total_points_]);
-
-  fs::path parent = out.parent_path();
-  if (!fs::is_directory(parent)) fail("{}: no such directory", parent.string());
-  std::string templ = (parent / (out.filename().string() + ".partial-XXXXXX")).string();
-  if (!::mkdtemp(templ.data()))
-    fail("cannot create a directory beside {} ({})", out.string(), std::strerror(errno));
-  PartialDir partial{templ};
-  dir_ = partial.path;
-  tmp_ = dir_ / ".tmp";
-  fs::create_directories(tmp_);
-  fs::create_directories(dir_ / "tiles");
+  if (part_level_ > count_level_)
+    fail(
+        "--subset {}/{}: parts of level {} are finer than the count grid (level {}); use fewer "
+        "parts or a larger --max-memory",
+        opt_.subset_index, opt_.subset_count, part_level_, count_level_);
   STIPPLE_INFO(
       "tile: {} points from {} input(s), cube {:.1f} m, root spacing {:.3f} m, precision {:.4f} m, "
       "batches of {}, count grid {}^3, chunks of <= {} points, {} threads",
@@ -989,7 +1033,8 @@ TileStats Tiler::run() {
         thread_local std::vector<glm::dvec3> local;
         to_local(in, batch, local);
         for (const glm::dvec3& p : local)
-          counts[cell_of(p)].fetch_add(1, std::memory_order_relaxed);
+          if (const uint32_t cell = cell_of(p); cell_in_part(cell))
+            counts[cell].fetch_add(1, std::memory_order_relaxed);
       });
     } else {
       int fd = -1;
@@ -999,19 +1044,28 @@ TileStats Tiler::run() {
       }
       const FdCloser closer{fd};
       read_pass("reading", [&](const Input& in, io::PointBatch& batch) {
-        const size_t n = batch.size();
+        size_t n = batch.size();
         thread_local std::vector<TilePoint> local;
         TilePoint* recs = nullptr;
-        if (in_memory_) {
+        if (in_memory_ && part_level_ == 0) {
           uint64_t at = staged_fill_.fetch_add(n);
           if (at + n > total_points_)
             fail("the inputs hold more points than the {} their headers declare", total_points_);
           recs = staged_mem_.get() + at;
+          make_records(in, batch, recs);
         } else {
           local.resize(n);
           recs = local.data();
+          make_records(in, batch, recs);
+          n = keep_in_part(recs, n);
+          if (in_memory_) {
+            uint64_t at = staged_fill_.fetch_add(n);
+            if (at + n > total_points_)
+              fail("the inputs hold more points than the {} their headers declare", total_points_);
+            std::memcpy(staged_mem_.get() + at, recs, n * sizeof(TilePoint));
+            recs = staged_mem_.get() + at;
+          }
         }
-        make_records(in, batch, recs);
         for (size_t i = 0; i < n; ++i)
           counts[cell_of(recs[i])].fetch_add(1, std::memory_order_relaxed);
         if (in_memory_) return;
@@ -1028,6 +1082,13 @@ TileStats Tiler::run() {
     phase(reread ? "read + transform + count" : "read + transform + stage + count");
     std::vector<uint32_t> plain(counts.size());
     for (size_t i = 0; i < counts.size(); ++i) plain[i] = counts[i].load();
+    if (part_level_ > 0) {
+      // From here on, the points are those of the part.
+      total_points_ = 0;
+      for (uint32_t c : plain) total_points_ += c;
+      STIPPLE_INFO("tile: part {}/{} holds {} points", opt_.subset_index, opt_.subset_count,
+                   total_points_);
+    }
     std::vector<std::atomic<uint32_t>>().swap(counts);
     plan_chunks(plain);
     if (!in_memory_) choose_resident_chunks(plain);
@@ -1040,6 +1101,7 @@ TileStats Tiler::run() {
         thread_local std::vector<TilePoint> recs;
         recs.resize(batch.size());
         make_records(in, batch, recs.data());
+        recs.resize(keep_in_part(recs.data(), recs.size()));
         append_to_chunks(recs.data(), recs.size());
       });
     } else {
@@ -1072,12 +1134,38 @@ TileStats Tiler::run() {
   build_upper_levels();
   index_progress_->finish();
   phase("upper levels");
-  if (written_ != total_points_)
-    fail("internal error: {} points written, {} read", written_.load(), total_points_);
-  write_tileset();
+  uint64_t kept_for_merge = 0;
+  for (auto& [k, f] : pending_roots_) kept_for_merge += fs::file_size(f) / sizeof(TilePoint);
+  if (written_ + kept_for_merge != total_points_)
+    fail("internal error: {} points written, {} read", written_ + kept_for_merge, total_points_);
+  if (part_level_ > 0)
+    write_part();
+  else
+    write_tileset();
   fs::remove_all(tmp_);
-  phase("tileset.json");
+  phase(part_level_ > 0 ? "part.json" : "tileset.json");
+  return commit(out, start);
+}
 
+fs::path Tiler::begin_output(const std::string& output) {
+  fs::path out = fs::absolute(output).lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();
+  if (fs::exists(out) && !opt_.force) fail("{} exists; pass --force to replace it", out.string());
+  fs::path parent = out.parent_path();
+  if (!fs::is_directory(parent)) fail("{}: no such directory", parent.string());
+  std::string templ = (parent / (out.filename().string() + ".partial-XXXXXX")).string();
+  if (!::mkdtemp(templ.data()))
+    fail("cannot create a directory beside {} ({})", out.string(), std::strerror(errno));
+  partial_ = std::make_unique<PartialDir>();
+  partial_->path = templ;
+  dir_ = partial_->path;
+  tmp_ = dir_ / ".tmp";
+  fs::create_directories(tmp_);
+  fs::create_directories(dir_ / "tiles");
+  return out;
+}
+
+TileStats Tiler::commit(const fs::path& out, std::chrono::steady_clock::time_point start) {
   // Commit: the finished directory replaces the output in one rename.
   if (fs::exists(out)) {
     fs::path old = out;
@@ -1088,7 +1176,7 @@ TileStats Tiler::run() {
   } else {
     fs::rename(dir_, out);
   }
-  partial.committed = true;
+  partial_->committed = true;
   phase("commit");
 
   TileStats stats;
@@ -1103,11 +1191,221 @@ TileStats Tiler::run() {
   return stats;
 }
 
+// A part's tiles, its roots' raw points (roots/LEVEL-X-Y-Z.bin) and part.json: what the merge
+// needs to go on as build_tileset would above the part's nodes.
+void Tiler::write_part() {
+  using nlohmann::json;
+  fs::create_directories(dir_ / "roots");
+  json roots = json::array();
+  for (auto& [k, f] : pending_roots_) {
+    const uint64_t points = fs::file_size(f) / sizeof(TilePoint);
+    fs::rename(f, dir_ / "roots" / (k.name() + ".bin"));
+    roots.push_back({k.level, k.x, k.y, k.z, points});
+  }
+  pending_roots_.clear();
+  json nodes = json::array();
+  for (auto& [k, info] : nodes_) {
+    const Box& b = info.content;
+    nodes.push_back({k.level, k.x, k.y, k.z, info.points, b.min.x, b.min.y, b.min.z, b.max.x,
+                     b.max.y, b.max.z});
+  }
+  const glm::dvec3& o = frame_.origin_ecef;
+  json part = {{"stipple_part", 1},
+               {"subset", {opt_.subset_index, opt_.subset_count}},
+               {"level", part_level_},
+               {"points", total_points_},
+               {"inputs", opt_.inputs},
+               {"format", opt_.format == Format::Glb ? "glb" : "pnts"},
+               {"compression", opt_.compression},
+               {"implicit", opt_.implicit},
+               {"subtree_levels", opt_.subtree_levels},
+               {"max_node_points", opt_.max_node_points},
+               {"cube", {cube_min_.x, cube_min_.y, cube_min_.z, cube_size_}},
+               {"root_spacing", root_spacing_},
+               {"max_level", max_level_},
+               {"precision", content_.precision},
+               {"rgb", content_.rgb},
+               {"gps_time", content_.gps_time},
+               {"frame_origin", {o.x, o.y, o.z}},
+               {"nodes", nodes},
+               {"roots", roots}};
+  const std::string text = part.dump(1);
+  write_file(dir_ / "part.json", text.data(), text.size());
+}
+
+// Hard links where the file system allows (parts stay intact for a re-run), else copies.
+void link_or_copy(const fs::path& from, const fs::path& to) {
+  std::error_code ec;
+  fs::create_hard_link(from, to, ec);
+  if (ec) fs::copy_file(from, to, fs::copy_options::overwrite_existing);
+}
+
+TileStats Tiler::merge(const std::vector<nlohmann::json>& parts,
+                       const std::vector<fs::path>& dirs) {
+  const auto start = std::chrono::steady_clock::now();
+  phase_start_ = start;
+  const nlohmann::json& first = parts.front();
+  auto vec = [](const nlohmann::json& a) {
+    return glm::dvec3(a[0].get<double>(), a[1].get<double>(), a[2].get<double>());
+  };
+  cube_min_ = vec(first["cube"]);
+  cube_size_ = first["cube"][3].get<double>();
+  root_spacing_ = first["root_spacing"].get<double>();
+  max_level_ = first["max_level"].get<int>();
+  content_.precision = first["precision"].get<double>();
+  content_.rgb = first["rgb"].get<bool>();
+  content_.gps_time = first["gps_time"].get<bool>();
+  content_.compression = opt_.compression == "meshopt" ? Compression::Meshopt
+                         : opt_.compression == "draco" ? Compression::Draco
+                                                       : Compression::None;
+  frame_ = make_local_frame(vec(first["frame_origin"]));
+  const fs::path out = begin_output(opt_.output);
+  unsigned threads =
+      opt_.threads ? opt_.threads : std::max(1u, std::thread::hardware_concurrency());
+  pool_ = std::make_unique<ThreadPool>(threads);
+  uint64_t tiles = 0;
+  for (size_t i = 0; i < parts.size(); ++i) {
+    const nlohmann::json& p = parts[i];
+    total_points_ += p["points"].get<uint64_t>();
+    for (const auto& n : p["nodes"]) {
+      const NodeKey k{n[0].get<int>(), n[1].get<uint32_t>(), n[2].get<uint32_t>(),
+                      n[3].get<uint32_t>()};
+      NodeInfo info;
+      info.points = n[4].get<uint64_t>();
+      if (info.points > 0) {
+        info.content.min = glm::dvec3(n[5].get<double>(), n[6].get<double>(), n[7].get<double>());
+        info.content.max = glm::dvec3(n[8].get<double>(), n[9].get<double>(), n[10].get<double>());
+      }
+      if (nodes_.count(k)) fail("{}: tile {} is in another part too", dirs[i].string(), k.name());
+      nodes_[k] = info;
+      written_ += info.points;
+    }
+    if (fs::is_directory(dirs[i] / "tiles"))
+      for (const auto& e : fs::directory_iterator(dirs[i] / "tiles")) {
+        link_or_copy(e.path(), dir_ / "tiles" / e.path().filename());
+        ++tiles;
+      }
+    for (const auto& r : p["roots"]) {
+      const NodeKey k{r[0].get<int>(), r[1].get<uint32_t>(), r[2].get<uint32_t>(),
+                      r[3].get<uint32_t>()};
+      const fs::path from = dirs[i] / "roots" / (k.name() + ".bin");
+      if (!fs::exists(from) || fs::file_size(from) != r[4].get<uint64_t>() * sizeof(TilePoint))
+        fail("{}: {} is missing or not of {} points", dirs[i].string(), from.string(),
+             r[4].get<uint64_t>());
+      const fs::path to = tmp_ / ("root-" + k.name() + ".bin");
+      fs::copy_file(from, to);  // build_upper_levels consumes it
+      pending_roots_[k] = to;
+    }
+    report("merging", i + 1, parts.size());
+  }
+  STIPPLE_INFO("tile merge: {} parts, {} points, {} tiles linked", parts.size(), total_points_,
+               tiles);
+  phase("link part tiles");
+  index_progress_ = std::make_unique<Progress>("upper levels", total_points_);
+  build_upper_levels();
+  index_progress_->finish();
+  phase("upper levels");
+  if (written_ != total_points_)
+    fail("internal error: {} points written, {} in the parts", written_.load(), total_points_);
+  write_tileset();
+  fs::remove_all(tmp_);
+  phase("tileset.json");
+  return commit(out, start);
+}
+
 }  // namespace
 
 TileStats build_tileset(const TileOptions& options) {
   Tiler tiler(options);
   return tiler.run();
+}
+
+std::pair<uint32_t, uint32_t> parse_subset(const std::string& text) {
+  const size_t slash = text.find('/');
+  uint64_t index = 0, count = 0;
+  bool ok = slash != std::string::npos && slash > 0 && slash + 1 < text.size();
+  for (size_t i = 0; ok && i < text.size(); ++i) {
+    if (i == slash) continue;
+    if (text[i] < '0' || text[i] > '9' || (i < slash ? index : count) > (1u << 30)) {
+      ok = false;
+      break;
+    }
+    uint64_t& v = i < slash ? index : count;
+    v = v * 10 + uint64_t(text[i] - '0');
+  }
+  bool power = false;
+  for (uint64_t v = 4; ok && v <= count; v *= 4) power |= v == count;
+  for (uint64_t v = 8; ok && v <= count; v *= 8) power |= v == count;
+  if (!ok || !power || index >= count)
+    fail("--subset '{}' is not I/N with N a power of 4 or 8 (4, 8, 16, 64, ...) and 0 <= I < N",
+         text);
+  return {uint32_t(index), uint32_t(count)};
+}
+
+namespace {
+
+TileStats merge_parts_checked(const MergeOptions& options) {
+  if (options.parts.empty()) fail("tile merge: no parts");
+  std::vector<nlohmann::json> parts;
+  std::vector<fs::path> dirs;
+  std::set<uint32_t> seen;
+  uint32_t count = 0;
+  for (const std::string& dir : options.parts) {
+    const fs::path file = fs::path(dir) / "part.json";
+    std::ifstream in(file);
+    if (!in) fail("{}: not a part of a split tiling (no part.json; made by tile --subset)", dir);
+    nlohmann::json p = nlohmann::json::parse(in, nullptr, false);
+    if (p.is_discarded() || !p.is_object() || p.value("stipple_part", 0) != 1 ||
+        !p.contains("subset") || !p.contains("nodes") || !p.contains("roots"))
+      fail("{}: not a part.json written by stipple tile --subset", file.string());
+    const uint32_t index = p["subset"][0].get<uint32_t>(), n = p["subset"][1].get<uint32_t>();
+    if (count == 0) count = n;
+    if (n != count)
+      fail("{}: part {}/{} of another split (the first part is of {})", dir, index, n, count);
+    if (!seen.insert(index).second) fail("{}: part {}/{} is given twice", dir, index, n);
+    if (!parts.empty()) {
+      for (const char* key : {"cube", "root_spacing", "format", "compression", "implicit",
+                              "subtree_levels", "max_node_points", "frame_origin", "precision"})
+        if (p[key] != parts.front()[key])
+          fail("{}: its {} differs from {}'s: the parts are of different tilings", dir, key,
+               options.parts.front());
+    }
+    parts.push_back(std::move(p));
+    dirs.push_back(dir);
+  }
+  if (seen.size() != count) {
+    std::string missing;
+    for (uint32_t i = 0; i < count && missing.size() < 200; ++i)
+      if (!seen.count(i)) missing += (missing.empty() ? "" : ", ") + fmt::format("{}/{}", i, count);
+    fail("tile merge: {} of {} parts given; missing {}", seen.size(), count, missing);
+  }
+  TileOptions o;
+  o.output = options.output;
+  o.force = options.force;
+  o.threads = options.threads;
+  o.max_memory = options.max_memory;
+  o.progress = options.progress;
+  const nlohmann::json& f = parts.front();
+  o.format = f["format"] == "pnts" ? Format::Pnts : Format::Glb;
+  o.compression = f["compression"].get<std::string>();
+  o.implicit = f["implicit"].get<bool>();
+  o.subtree_levels = f["subtree_levels"].get<int>();
+  o.max_node_points = f["max_node_points"].get<size_t>();
+  for (const auto& p : parts)
+    for (const auto& in : p["inputs"]) o.inputs.push_back(in.get<std::string>());
+  Tiler tiler(o);
+  return tiler.merge(parts, dirs);
+}
+
+}  // namespace
+
+TileStats merge_parts(const MergeOptions& options) {
+  try {
+    return merge_parts_checked(options);
+  } catch (const nlohmann::json::exception& e) {
+    fail("tile merge: a part.json is malformed ({}): not written by stipple tile --subset",
+         e.what());
+  }
 }
 
 }  // namespace stipple::tiler
