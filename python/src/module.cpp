@@ -52,6 +52,9 @@ std::string header_json(const std::string& path) {
 }
 
 }  // namespace
+
+void add_tile(nb::module_& m);
+
 }  // namespace stipple::python
 
 NB_MODULE(_stipple, m) {
@@ -60,4 +63,5 @@ NB_MODULE(_stipple, m) {
   nb::exception<stipple::Error>(m, "Error", PyExc_RuntimeError);
   m.def("read", &read_las, "path"_a, "fields"_a = nb::none());
   m.def("header_json", &header_json, "path"_a);
+  add_tile(m);
 }

@@ -16,7 +16,7 @@ import numpy as np
 from . import _stipple
 from ._stipple import Error
 
-__all__ = ["Error", "read", "read_header", "info"]
+__all__ = ["Error", "read", "read_header", "info", "tile", "merge"]
 
 
 def _path(path) -> str:
@@ -52,3 +52,52 @@ def read_header(path) -> dict:
 def info(path) -> dict:
     """What ``stipple info --json`` says about a file, as a dict."""
     return read_header(path)
+
+
+def tile(
+    inputs,
+    out_dir,
+    *,
+    format: str = "glb",
+    crs: str = "",
+    spacing: float = 0.0,
+    max_memory="2G",
+    threads: int = 0,
+    force: bool = False,
+    max_node_points: int = 60000,
+    compress: str = "none",
+    implicit: bool = False,
+    subtree_levels: int = 6,
+    subset: Optional[str] = None,
+    progress=None,
+) -> dict:
+    """LAS/LAZ files -> a 3D Tiles tileset in ``out_dir``, as ``stipple tile`` builds it (same
+    options). ``progress(phase, done, total)`` is called as the work advances (an exception it
+    raises stops the work and is raised here). ``subset="I/N"`` tiles one part of a split tiling
+    (see :func:`merge` and :mod:`stipple.dask`). Returns points, tiles, depth, seconds..."""
+    if isinstance(inputs, (str, os.PathLike)):
+        inputs = [inputs]
+    return _stipple.tile(
+        [_path(p) for p in inputs],
+        _path(out_dir),
+        format,
+        crs,
+        float(spacing),
+        str(max_memory),
+        int(threads),
+        bool(force),
+        int(max_node_points),
+        compress,
+        bool(implicit),
+        int(subtree_levels),
+        subset or "",
+        progress,
+    )
+
+
+def merge(parts, out_dir, *, force: bool = False, threads: int = 0, max_memory="2G", progress=None) -> dict:
+    """The parts of a split tiling (``tile(..., subset="I/N")`` for every I) -> one tileset, as
+    ``stipple tile merge`` builds it. The parts are left as they were."""
+    return _stipple.merge(
+        [_path(p) for p in parts], _path(out_dir), bool(force), int(threads), str(max_memory), progress
+    )
