@@ -1264,12 +1264,25 @@ TileStats Tiler::merge(const std::vector<nlohmann::json>& parts,
       opt_.threads ? opt_.threads : std::max(1u, std::thread::hardware_concurrency());
   pool_ = std::make_unique<ThreadPool>(threads);
   uint64_t tiles = 0;
+  const int part_level = first["level"].get<int>();
+  if (part_level < 1 || part_level > 15 || max_level_ < part_level || max_level_ > 30)
+    fail("{}: part level {} or maximum level {} is out of range", dirs[0].string(), part_level,
+         max_level_);
+  // A key from a part.json: a node of the cube, below (or, for a root, at) the part level.
+  auto key_of = [&](const nlohmann::json& a, bool root, const fs::path& dir) {
+    const NodeKey k{a[0].get<int>(), a[1].get<uint32_t>(), a[2].get<uint32_t>(),
+                    a[3].get<uint32_t>()};
+    const bool level_ok = root ? k.level == part_level : k.level > part_level && k.level <= 30;
+    const uint64_t n = level_ok ? uint64_t(1) << k.level : 0;
+    if (!level_ok || k.x >= n || k.y >= n || k.z >= n)
+      fail("{}: part.json names tile {}, outside the part's levels", dir.string(), k.name());
+    return k;
+  };
   for (size_t i = 0; i < parts.size(); ++i) {
     const nlohmann::json& p = parts[i];
     total_points_ += p["points"].get<uint64_t>();
     for (const auto& n : p["nodes"]) {
-      const NodeKey k{n[0].get<int>(), n[1].get<uint32_t>(), n[2].get<uint32_t>(),
-                      n[3].get<uint32_t>()};
+      const NodeKey k = key_of(n, false, dirs[i]);
       NodeInfo info;
       info.points = n[4].get<uint64_t>();
       if (info.points > 0) {
@@ -1286,8 +1299,9 @@ TileStats Tiler::merge(const std::vector<nlohmann::json>& parts,
         ++tiles;
       }
     for (const auto& r : p["roots"]) {
-      const NodeKey k{r[0].get<int>(), r[1].get<uint32_t>(), r[2].get<uint32_t>(),
-                      r[3].get<uint32_t>()};
+      const NodeKey k = key_of(r, true, dirs[i]);
+      if (pending_roots_.count(k))
+        fail("{}: root {} is in another part too", dirs[i].string(), k.name());
       const fs::path from = dirs[i] / "roots" / (k.name() + ".bin");
       if (!fs::exists(from) || fs::file_size(from) != r[4].get<uint64_t>() * sizeof(TilePoint))
         fail("{}: {} is missing or not of {} points", dirs[i].string(), from.string(),
@@ -1306,7 +1320,12 @@ TileStats Tiler::merge(const std::vector<nlohmann::json>& parts,
   index_progress_->finish();
   phase("upper levels");
   if (written_ != total_points_)
-    fail("internal error: {} points written, {} in the parts", written_.load(), total_points_);
+    fail("tile merge: the parts' tiles and roots hold {} points, their part.json files say {}",
+         written_.load(), total_points_);
+  if (total_points_ == 0 || !nodes_.count(NodeKey{})) fail("tile merge: the parts hold no points");
+  for (const auto& [k, info] : nodes_)
+    if (k.level > 0 && !nodes_.count(k.parent()))
+      fail("tile merge: tile {} has no parent in any part", k.name());
   write_tileset();
   fs::remove_all(tmp_);
   phase("tileset.json");
@@ -1359,6 +1378,11 @@ TileStats merge_parts_checked(const MergeOptions& options) {
         !p.contains("subset") || !p.contains("nodes") || !p.contains("roots"))
       fail("{}: not a part.json written by stipple tile --subset", file.string());
     const uint32_t index = p["subset"][0].get<uint32_t>(), n = p["subset"][1].get<uint32_t>();
+    try {
+      parse_subset(fmt::format("{}/{}", index, n));  // N a power of 4 or 8, I < N
+    } catch (const Error&) {
+      fail("{}: part {}/{} is not one of N parts with N a power of 4 or 8", dir, index, n);
+    }
     if (count == 0) count = n;
     if (n != count)
       fail("{}: part {}/{} of another split (the first part is of {})", dir, index, n, count);
