@@ -6,7 +6,7 @@ import pathlib
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-DATA = pathlib.Path(os.environ.get("STIPPLE_DATA", ROOT.parent / "shared" / "data"))
+DATA = pathlib.Path(os.environ.get("STIPPLE_DATA_DIR", ROOT.parent / "shared" / "data"))
 
 
 @pytest.fixture
