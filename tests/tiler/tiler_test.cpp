@@ -343,6 +343,86 @@ TEST_P(TilerOutOfCore, ChunksLoseAndDuplicateNothing) {
 
 INSTANTIATE_TEST_SUITE_P(Tiler, TilerOutOfCore, testing::Values("las", "laz"));
 
+// Split tiling: N parts (--subset I/N) merged hold every source point exactly once, with the
+// spacing rules of one run, on each reading path (in memory; out of core re-read LAS and staged
+// LAZ) and both part shapes (octree nodes for 8, columns for 16).
+struct SplitCase {
+  const char* input;  // "autzen" or a generated file's extension
+  uint32_t parts;
+};
+void PrintTo(const SplitCase& c, std::ostream* os) {
+  *os << c.input << ", " << c.parts << " parts";
+}
+class TilerSplit : public testing::TestWithParam<SplitCase> {};
+
+TEST_P(TilerSplit, MergedPartsHoldEveryPointOnce) {
+  const SplitCase c = GetParam();
+  const bool autzen = std::string(c.input) == "autzen";
+  fs::path las = autzen ? data_dir() / "las/autzen_trim.las"
+                        : generated_las(400000, std::string("gen400k.") + c.input);
+  if (!fs::exists(las)) GTEST_SKIP() << "test data " << las << " not found";
+  const std::string name = fmt::format("split_{}_{}", c.input, c.parts);
+  std::vector<std::string> parts;
+  uint64_t part_points = 0;
+  for (uint32_t i = 0; i < c.parts; ++i) {
+    tiler::TileOptions o;
+    o.inputs = {las.string()};
+    o.output = (temp_dir() / fmt::format("{}_part{}", name, i)).string();
+    if (!autzen) o.crs = "EPSG:32633", o.max_memory = 4 << 20;
+    o.max_node_points = autzen ? 2000 : 20000;
+    o.threads = 2;
+    o.force = true;
+    o.subset_index = i, o.subset_count = c.parts;
+    part_points += tiler::build_tileset(o).points;
+    parts.push_back(o.output);
+  }
+  const uint64_t total = autzen ? 110000 : 400000;
+  EXPECT_EQ(part_points, total);
+  tiler::MergeOptions m;
+  m.parts = parts;
+  m.output = (temp_dir() / name).string();
+  m.force = true;
+  EXPECT_EQ(tiler::merge_parts(m).points, total);
+  const double tol = autzen ? 0.01 * 0.3048 : 0.001;
+  Tileset ts = read_tileset(m.output, tol);
+  ASSERT_EQ(ts.points.size(), total);
+  EXPECT_EQ(ts.outside, 0u);
+  expect_spacing_halves(ts);
+  std::vector<Decoded> src;
+  if (autzen) {
+    src = source_ecef(las);
+  } else {
+    tiler::EcefTransform t("EPSG:32633");
+    io::LasReader reader(las);
+    io::PointBatch b;
+    while (reader.read(b, 1 << 16) > 0) {
+    }
+    std::vector<glm::dvec3> p = b.positions;
+    t.transform(p.data(), p.size());
+    for (size_t i = 0; i < p.size(); ++i)
+      src.push_back({p[i], {}, b.intensity[i], b.classification[i]});
+  }
+  EXPECT_EQ(count_matched(src, ts.points, tol), total);
+  // A part missing: refused, naming it.
+  m.parts.pop_back();
+  m.output = (temp_dir() / (name + "_short")).string();
+  try {
+    tiler::merge_parts(m);
+    ADD_FAILURE() << "a merge with a part missing succeeded";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(fmt::format("missing {}/{}", c.parts - 1, c.parts)),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Tiler, TilerSplit,
+                         testing::Values(SplitCase{"autzen", 8}, SplitCase{"autzen", 16},
+                                         SplitCase{"las", 16}, SplitCase{"laz", 8}),
+                         [](const testing::TestParamInfo<SplitCase>& info) {
+                           return fmt::format("{}_{}parts", info.param.input, info.param.parts);
+                         });
+
 TEST(Tiler, InputWithoutCrsIsRefused) {
   fs::path las = generated_las(400000, "gen400k.las");
   tiler::TileOptions o;
