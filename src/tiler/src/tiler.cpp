@@ -1363,6 +1363,42 @@ std::pair<uint32_t, uint32_t> parse_subset(const std::string& text) {
 
 namespace {
 
+// Whether part.json has the shape write_part gives it: integers where integers are read (a
+// double read as an integer out of its range would be undefined behaviour), numbers, strings
+// and booleans elsewhere.
+bool part_json_shape_ok(const nlohmann::json& p) {
+  auto uints = [](const nlohmann::json& a, size_t from, size_t to) {
+    for (size_t i = from; i < to; ++i)
+      if (!a[i].is_number_unsigned()) return false;
+    return true;
+  };
+  auto numbers = [](const nlohmann::json& a, size_t from, size_t to) {
+    for (size_t i = from; i < to; ++i)
+      if (!a[i].is_number()) return false;
+    return true;
+  };
+  auto array_of = [](const nlohmann::json& a, size_t n) { return a.is_array() && a.size() == n; };
+  if (!p.is_object()) return false;
+  for (const char* key :
+       {"subset", "level", "points", "inputs", "format", "compression", "implicit",
+        "subtree_levels", "max_node_points", "cube", "root_spacing", "max_level", "precision",
+        "rgb", "gps_time", "frame_origin", "nodes", "roots"})
+    if (!p.contains(key)) return false;
+  for (const char* key : {"level", "points", "subtree_levels", "max_node_points", "max_level"})
+    if (!p[key].is_number_unsigned()) return false;
+  if (!array_of(p["subset"], 2) || !uints(p["subset"], 0, 2)) return false;
+  if (!array_of(p["cube"], 4) || !numbers(p["cube"], 0, 4)) return false;
+  if (!array_of(p["frame_origin"], 3) || !numbers(p["frame_origin"], 0, 3)) return false;
+  if (!p["root_spacing"].is_number() || !p["precision"].is_number()) return false;
+  if (!p["nodes"].is_array() || !p["roots"].is_array() || !p["inputs"].is_array()) return false;
+  for (const auto& n : p["nodes"])
+    if (!array_of(n, 11) || !uints(n, 0, 5) || !numbers(n, 5, 11)) return false;
+  for (const auto& r : p["roots"])
+    if (!array_of(r, 5) || !uints(r, 0, 5)) return false;
+  return p["subtree_levels"].get<uint64_t>() <= 16 && p["level"].get<uint64_t>() <= 30 &&
+         p["max_level"].get<uint64_t>() <= 30;
+}
+
 TileStats merge_parts_checked(const MergeOptions& options) {
   if (options.parts.empty()) fail("tile merge: no parts");
   std::vector<nlohmann::json> parts;
@@ -1374,8 +1410,8 @@ TileStats merge_parts_checked(const MergeOptions& options) {
     std::ifstream in(file);
     if (!in) fail("{}: not a part of a split tiling (no part.json; made by tile --subset)", dir);
     nlohmann::json p = nlohmann::json::parse(in, nullptr, false);
-    if (p.is_discarded() || !p.is_object() || p.value("stipple_part", 0) != 1 ||
-        !p.contains("subset") || !p.contains("nodes") || !p.contains("roots"))
+    if (p.is_discarded() || !p.is_object() || !p.contains("stipple_part") ||
+        p["stipple_part"] != 1 || !part_json_shape_ok(p))
       fail("{}: not a part.json written by stipple tile --subset", file.string());
     const uint32_t index = p["subset"][0].get<uint32_t>(), n = p["subset"][1].get<uint32_t>();
     try {
