@@ -3,12 +3,14 @@
 # AddressSanitizer + UndefinedBehaviorSanitizer, the configuration of scripts/test.sh) and runs
 # each (default: every one in tests/fuzz/CMakeLists.txt) for SECONDS, JOBS at a time (default:
 # the number of cores), starting from the kept corpus in tests/fuzz/corpus/<target>/, the
-# generated seeds (tests/fuzz/seeds/) and the heads of the real files in ../shared/data. After
+# generated seeds (tests/fuzz/seeds/) and, for the LAS readers, the heads of the real files in
+# ../shared/data (the input generators, fuzz_tileset and fuzz_las_roundtrip, get 4 KiB inputs). After
 # the run the kept corpus is replaced by the minimised union of old and new (libFuzzer -merge=1),
 # so the next campaign, and CI's short runs, start where this one stopped.
 # Prints one line per target: executions, executions per second, coverage (edges: cov, features:
-# ft), corpus files kept, and crashes; a crash's input is left in bench/fuzz-out/<target>/ and the
-# script exits non-zero.
+# ft), corpus files kept, and crashes (crash, leak, timeout, out-of-memory); a crash's input is
+# left in bench/fuzz-out/<target>/ and the script exits non-zero. Slow units (over 10 s, which a
+# loaded machine produces too) are left there as well but not counted.
 #   JOBS=2 bench/fuzz.sh 600                 every target, 10 minutes each, two at a time
 #   STIPPLE_FUZZ_BUILD=build-fuzz bench/fuzz.sh 60 fuzz_las   another build directory
 set -euo pipefail
@@ -33,7 +35,7 @@ if [[ ! -f "$build/build.ninja" ]]; then
     -DSTIPPLE_SANITIZE=ON -DSTIPPLE_FUZZ=ON >/dev/null
 fi
 cmake --build "$build" --target "${targets[@]}" -- -j"$jobs" |
-  { grep -vE "^\[[0-9]+/[0-9]+\] (Building|Linking|Generating)|^ninja: no work" || true; }
+  { grep -vE "^\[[0-9]+/[0-9]+\] |^ninja: no work|^-- " || true; }
 
 out="$root/bench/fuzz-out"
 mkdir -p "$out"
@@ -45,29 +47,43 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 campaign() {
   local t=$1 exe="$build/tests/fuzz/$1" work="$out/$1/work" kept="tests/fuzz/corpus/$1"
   rm -rf "$out/$t" && mkdir -p "$work" "$kept"
-  if [[ -d ../shared/data ]]; then
-    while IFS= read -r -d '' f; do
-      head -c 65536 "$f" >"$work/$(basename "$f")"
-    done < <(find ../shared/data -type f \( -name '*.las' -o -name '*.laz' \) -print0)
-  fi
-  find tests/fuzz/seeds -type f -exec cp {} "$work"/ \;
+  # Seeds: the heads of the real LAS/LAZ files for the targets that read LAS, the generated
+  # files of tests/fuzz/seeds for the others. They are not kept (every run adds them again).
+  local seeds="$out/$t/seeds" max_len=()
+  mkdir -p "$seeds"
+  case $t in
+    fuzz_las | fuzz_copc)
+      if [[ -d ../shared/data ]]; then
+        while IFS= read -r -d '' f; do
+          head -c 65536 "$f" >"$seeds/$(basename "$f")"
+        done < <(find ../shared/data -type f \( -name '*.las' -o -name '*.laz' \) -print0)
+      fi
+      ;;
+    fuzz_tileset | fuzz_las_roundtrip) max_len=(-max_len=4096) ;;  # generators: short inputs
+  esac
+  [[ $t == fuzz_las_roundtrip ]] || find tests/fuzz/seeds -type f -exec cp {} "$seeds"/ \;
+  cp "$seeds"/* "$work"/ 2>/dev/null || true
   cp "$kept"/* "$work"/ 2>/dev/null || true
   local rc=0
   "$exe" -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=20 -print_final_stats=1 \
-    -artifact_prefix="$out/$t/" "$work" >"$out/$t/log" 2>&1 || rc=$?
+    "${max_len[@]}" -artifact_prefix="$out/$t/" "$work" >"$out/$t/log" 2>&1 || rc=$?
   # Minimise old + new into a fresh directory, then keep that.
   mkdir -p "$out/$t/merged"
   "$exe" -merge=1 -rss_limit_mb=2048 -timeout=20 "$out/$t/merged" "$work" "$kept" \
     >"$out/$t/merge.log" 2>&1 || true
+  # Seeds stay out of the kept corpus (merge names files by their SHA-1).
+  for f in "$seeds"/*; do
+    [[ -f $f ]] && rm -f "$out/$t/merged/$(sha1sum "$f" | cut -d' ' -f1)"
+  done
   if [[ -n "$(ls -A "$out/$t/merged")" ]]; then
     rm -rf "$kept" && mv "$out/$t/merged" "$kept"
   fi
-  rm -rf "$work"
+  rm -rf "$work" "$seeds"
   local execs cov ft crashes
   execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$out/$t/log" | grep -o '[0-9]*$' || echo 0)
   cov=$(grep -oE 'cov: [0-9]+ ft: [0-9]+' "$out/$t/log" | tail -n1 || true)
   ft=${cov##*ft: } cov=${cov%% ft*} cov=${cov#cov: }
-  crashes=$(find "$out/$t" -maxdepth 1 -type f \( -name 'crash-*' -o -name 'leak-*' -o -name 'timeout-*' -o -name 'oom-*' -o -name 'slow-unit-*' \) | wc -l)
+  crashes=$(find "$out/$t" -maxdepth 1 -type f \( -name 'crash-*' -o -name 'leak-*' -o -name 'timeout-*' -o -name 'oom-*' \) | wc -l)
   printf '%-20s %6ss %12s %8s %6s %7s %6s %7s %s\n' "$t" "$seconds" "${execs:-0}" \
     "$(( ${execs:-0} / (seconds > 0 ? seconds : 1) ))" "${cov:-?}" "${ft:-?}" \
     "$(find "$kept" -type f | wc -l)" "$crashes" "$([[ $rc -ne 0 ]] && echo "exit $rc: $out/$t/log")"
