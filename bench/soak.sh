@@ -4,7 +4,8 @@
 # FAULT_ERR% of content requests answer 500, FAULT_TRUNC% get the file cut in half, FAULT_SLOW%
 # come through a location throttled to 32 KiB/s. `stipple bench stream` flies its scripted
 # camera path (an orbit while the field of view zooms) over it for MINUTES, under a small resident
-# tile budget (MEMORY_MB, default 8) so that tiles are evicted and fetched again all along.
+# tile budget (MEMORY_MB, default 8) and a fine screen-space error (MAX_SSE, default 2 pixels) so
+# that tiles are evicted and fetched again all along.
 # The process's RSS is sampled every second (samples.csv in the work directory); at the end the
 # run fails if it crashed, if the peak resident tile bytes passed the budget, or if RSS grew over
 # the last half of the run (least-squares slope x half the duration > max(16 MiB, 5% of mean)).
@@ -16,6 +17,7 @@ minutes=${1:?usage: bench/soak.sh MINUTES}
 stipple=${STIPPLE:-$root/build/stipple}
 points=${POINTS:-2000000}
 memory_mb=${MEMORY_MB:-8}
+max_sse=${MAX_SSE:-2}
 err=${FAULT_ERR:-5} trunc=${FAULT_TRUNC:-5} slow=${FAULT_SLOW:-10}
 work=${SOAK_DIR:-$root/bench/soak-out}
 nginx=$(command -v nginx || echo /usr/sbin/nginx)
@@ -65,13 +67,14 @@ nginx_pid=$!
 trap 'kill $nginx_pid 2>/dev/null || true' EXIT
 for _ in $(seq 50); do curl -sf -o /dev/null "http://127.0.0.1:$port/tiles/tileset.json" && break; sleep 0.1; done
 url="http://127.0.0.1:$port/tiles/tileset.json"
-common=(--width 640 --height 360 --memory-mb "$memory_mb")
+common=(--width 960 --height 540 --memory-mb "$memory_mb" --max-sse "$max_sse")
 
 # Warm-up: frames per second on this machine, to size the run.
 "$stipple" bench stream "$url" "${common[@]}" --frames 120 --json "$work/warmup.json" \
   >"$work/warmup.log" 2>&1 || { echo "FAIL: warm-up run"; tail -n 20 "$work/warmup.log"; exit 1; }
 fps=$(python3 -c "import json; print(json.load(open('$work/warmup.json'))['fps']['average'])")
-frames=$(python3 -c "print(max(120, min(1000000, int($fps * $minutes * 60))))")
+# The warm-up's average includes the first loads: the long run is faster, hence the 1.25.
+frames=$(python3 -c "print(max(120, min(1000000, int(1.25 * $fps * $minutes * 60))))")
 echo "soak: $minutes min, $frames frames at ~$fps FPS (warm-up), budget $memory_mb MiB, faults: $err% 500, $trunc% truncated, $slow% throttled"
 
 "$stipple" bench stream "$url" "${common[@]}" --frames "$frames" --json "$work/soak.json" \
