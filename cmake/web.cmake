@@ -1,0 +1,25 @@
+# The web build's dependencies (scripts/build-web.sh configures it with emscripten's toolchain
+# file). Only header-only libraries cross over: the Debian packages' headers are exposed through
+# a folder of links (never /usr/include itself, whose C library headers are not emscripten's),
+# and the targets the modules name are made here as interface libraries.
+find_package(Python3 REQUIRED COMPONENTS Interpreter)
+set(STIPPLE_WEB_HEADERS ${CMAKE_BINARY_DIR}/host-headers)
+file(MAKE_DIRECTORY ${STIPPLE_WEB_HEADERS})
+foreach(dir spdlog fmt glm nlohmann)
+  if(NOT EXISTS /usr/include/${dir})
+    message(FATAL_ERROR "/usr/include/${dir} not found: run scripts/setup.sh --deps")
+  endif()
+  file(CREATE_LINK /usr/include/${dir} ${STIPPLE_WEB_HEADERS}/${dir} SYMBOLIC)
+endforeach()
+
+set(STIPPLE_WEB_FLAGS -pthread -fexceptions)
+add_compile_options(${STIPPLE_WEB_FLAGS})
+add_link_options(${STIPPLE_WEB_FLAGS})
+
+add_library(stipple_web_headers INTERFACE)
+target_include_directories(stipple_web_headers SYSTEM INTERFACE ${STIPPLE_WEB_HEADERS})
+# Debian's spdlog is configured for an external fmt (tweakme.h): both header-only here.
+target_compile_definitions(stipple_web_headers INTERFACE FMT_HEADER_ONLY=1)
+foreach(name spdlog::spdlog glm::glm nlohmann_json::nlohmann_json Threads::Threads)
+  add_library(${name} ALIAS stipple_web_headers)
+endforeach()
