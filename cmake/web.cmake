@@ -12,7 +12,9 @@ foreach(dir spdlog fmt glm nlohmann)
   file(CREATE_LINK /usr/include/${dir} ${STIPPLE_WEB_HEADERS}/${dir} SYMBOLIC)
 endforeach()
 
-set(STIPPLE_WEB_FLAGS -pthread -fexceptions)
+# Native WebAssembly exceptions: emscripten's JS-emulated ones call through JS frames, which
+# JSPI cannot suspend (the library waits for WebGPU callbacks by suspending).
+set(STIPPLE_WEB_FLAGS -pthread -fwasm-exceptions)
 add_compile_options(${STIPPLE_WEB_FLAGS})
 add_link_options(${STIPPLE_WEB_FLAGS})
 

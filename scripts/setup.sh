@@ -126,6 +126,8 @@ if [[ "$(cat "$deps/python/.stipple-pkgs" 2>/dev/null)" != "${py_pkgs[*]}" ]]; t
     echo "${py_pkgs[*]}" >"$deps/python/.stipple-pkgs" ||
     log "Python packages not installed; the Python tests will skip"
 fi
+# The web build's toolchain (emscripten, binaryen, clang-19) into .deps/emscripten.
+"$root/scripts/build-web.sh" --deps
 [[ $deps_only -eq 1 ]] && exit 0
 
 # ---- configure and build ---------------------------------------------------------------
@@ -135,4 +137,7 @@ cmake -S "$root" -B "$root/build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DSTIPPLE_WERROR="${CI:+ON}" >/dev/null
 cmake --build "$root/build" -- -k 0 | { grep -vE "^\[[0-9]+/[0-9]+\] (Building|Linking|Generating|Embedding|Re-checking)|^ninja: no work" || true; }
 test -x "$root/build/stipple"
-log "done: build/stipple"
+# The web viewer (build-web/): WebAssembly through ccache, like the native objects.
+log "building build-web/ (the web viewer)"
+"$root/scripts/build-web.sh"
+log "done: build/stipple, build-web/stipple.html"

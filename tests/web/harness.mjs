@@ -91,8 +91,9 @@ function canConnect(port) {
   });
 }
 
-// nginx serving `root` on 127.0.0.1; `stop()` ends it.
-export async function startNginx(root) {
+// nginx serving `root` on 127.0.0.1; `stop()` ends it. `headers` are added to every response
+// (the web viewer's threads need cross-origin isolation: COOP and COEP).
+export async function startNginx(root, { headers = {} } = {}) {
   const dir = tempDir('nginx');
   const port = await freePort();
   fs.mkdirSync(path.join(dir, 'tmp'));
@@ -105,7 +106,9 @@ export async function startNginx(root) {
       ` fastcgi_temp_path ${dir}/tmp;\n uwsgi_temp_path ${dir}/tmp;\n scgi_temp_path ${dir}/tmp;\n` +
       ` include /etc/nginx/mime.types;\n` +
       ` types { application/octet-stream pnts glb subtree bin laz zst hrc; application/wasm wasm; }\n` +
-      ` server {\n  listen 127.0.0.1:${port};\n  root ${root};\n }\n}\n`,
+      ` server {\n  listen 127.0.0.1:${port};\n  root ${root};\n` +
+      Object.entries(headers).map(([k, v]) => `  add_header ${k} "${v}" always;\n`).join('') +
+      ` }\n}\n`,
   );
   const child = spawn(nginxPath, ['-p', dir + '/', '-c', conf], { stdio: 'ignore' });
   for (let i = 0; i < 100 && !(await canConnect(port)); ++i)
@@ -124,18 +127,14 @@ export async function startNginx(root) {
   };
 }
 
-// Headless chromium with WebGL on SwiftShader.
-export async function launchBrowser() {
+// Headless chromium with WebGL on SwiftShader; with `webgpu`, WebGPU on SwiftShader's Vulkan
+// (Chromium 156 runs it headless with these flags).
+export async function launchBrowser({ webgpu = false } = {}) {
   const puppeteer = require('puppeteer-core');
-  return puppeteer.launch({
-    executablePath: chromiumPath,
-    headless: true,
-    args: [
-      '--no-sandbox',
-      '--use-angle=swiftshader',
-      '--enable-unsafe-swiftshader',
-      '--ignore-gpu-blocklist',
-      '--window-size=800,600',
-    ],
-  });
+  const args = webgpu
+    ? ['--no-sandbox', '--enable-unsafe-webgpu', '--enable-features=Vulkan', '--use-vulkan=native',
+       '--ignore-gpu-blocklist', '--window-size=800,600']
+    : ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+       '--ignore-gpu-blocklist', '--window-size=800,600'];
+  return puppeteer.launch({ executablePath: chromiumPath, headless: true, args });
 }

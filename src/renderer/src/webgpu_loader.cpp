@@ -1,6 +1,10 @@
 #include "webgpu_loader.hpp"
 
+#ifdef __EMSCRIPTEN__
+#include "webgpu_web.hpp"
+#else
 #include <dlfcn.h>
+#endif
 
 #include <cstdio>
 #include <cstdlib>
@@ -17,6 +21,7 @@ namespace {
 std::mutex g_mutex;
 std::optional<Backend> g_loaded;
 
+#ifndef __EMSCRIPTEN__
 // The library for a backend: an explicit override, the SDK setup.sh unpacked (path compiled in),
 // or the plain soname for installed copies.
 std::string library_path(Backend backend) {
@@ -28,13 +33,24 @@ std::string library_path(Backend backend) {
   return backend == Backend::Wgpu ? "libwgpu_native-release.so" : "libwebgpu_wrapper.so";
 }
 
+#endif
+
 void* lookup(void* library, const char* name) {
+#ifdef __EMSCRIPTEN__
+  (void)library;
+  return web::lookup(name);
+#else
   return dlsym(library, name);
+#endif
 }
 
 }  // namespace
 
 std::string_view backend_name(Backend backend) {
+#ifdef __EMSCRIPTEN__
+  (void)backend;
+  return "browser";  // the page's WebGPU, whichever the backend option says
+#endif
   return backend == Backend::Wgpu ? "wgpu" : "dawn";
 }
 
@@ -57,6 +73,12 @@ void load_backend(Backend backend) {
     fail("WebGPU backend '{}' is already loaded in this process; cannot switch to '{}'",
          backend_name(*g_loaded), backend_name(backend));
   }
+#ifdef __EMSCRIPTEN__
+  // The browser's WebGPU, through webgpu_web.cpp.
+  size_t bound = detail::bind_procs(lookup, nullptr);
+  STIPPLE_DEBUG("bound the browser's WebGPU ({} entry points)", bound);
+  g_loaded = backend;
+#else
   std::string path = library_path(backend);
   void* library = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (!library) {
@@ -69,6 +91,7 @@ void load_backend(Backend backend) {
   }
   STIPPLE_DEBUG("loaded {} ({} entry points bound)", path, bound);
   g_loaded = backend;
+#endif
 }
 
 bool has_proc(const char* name) {

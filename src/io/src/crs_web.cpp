@@ -1,0 +1,13 @@
+// The web build's CRS reader: PROJ is not built for WebAssembly (yet), so a LAS file's CRS is
+// not read there; drawing needs none (points are drawn in the file's own coordinates).
+#include "las_detail.hpp"
+#include "stipple/core/log.hpp"
+
+namespace stipple::io::detail {
+
+Crs parse_crs(const std::vector<Vlr>& vlrs, const std::vector<Vlr>& evlrs, uint16_t, bool) {
+  if (!vlrs.empty() || !evlrs.empty()) STIPPLE_DEBUG("the web build does not read CRS records");
+  return Crs{};
+}
+
+}  // namespace stipple::io::detail
