@@ -34,9 +34,11 @@ after(async () => {
   if (work) fs.rmSync(work, { recursive: true, force: true });
 });
 
-// Opens the viewer with `query` and waits until it reports done or an error.
-async function open(query) {
+// Opens the viewer with `query` and waits until it reports done or an error. `before` runs in
+// the page before its scripts.
+async function open(query, before = null) {
   const page = await browser.newPage();
+  if (before) await page.evaluateOnNewDocument(before);
   const log = [];
   page.on('pageerror', (e) => log.push(`page error: ${e}`));
   page.on('console', (m) => log.push(`page ${m.type()}: ${m.text()}`));
@@ -108,5 +110,14 @@ test('a bad option is an error shown on the page', { skip: skip || false }, asyn
   const { page, state } = await open('width=abc');
   assert.match(state.error || '', /--width: not a number: 'abc'/);
   assert.match(state.shown, /--width/);
+  await page.close();
+});
+
+test('a browser without WebGPU is told so on the page', { skip: skip || false }, async () => {
+  const { page, state } = await open('width=64&height=64', () => {
+    delete Navigator.prototype.gpu;
+  });
+  assert.match(state.shown, /no WebGPU/);
+  assert.equal(state.done, undefined);
   await page.close();
 });

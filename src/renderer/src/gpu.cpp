@@ -320,6 +320,10 @@ std::unique_ptr<Context> create_context(const ContextOptions& options) {
   wgpuInstanceRequestAdapter(ctx->instance.get(), &adapter_options, adapter_cb);
   ctx->wait_until([&] { return adapter_result.done; });
   if (!adapter_result.adapter) {
+#ifdef __EMSCRIPTEN__
+    fail("the browser offers no WebGPU adapter ({}): is WebGPU enabled (chrome://gpu)?",
+         adapter_result.message);
+#endif
     fail(
         "{}: no WebGPU adapter found ({}). A Vulkan driver is needed: Mesa's lavapipe "
         "(mesa-vulkan-drivers 25 from bookworm-backports) or a GPU driver",
