@@ -2,12 +2,36 @@
 # Tiler throughput and peak memory, stipple tile vs py3dtiles convert, same input, same machine.
 #   bench/tiler.sh [POINTS]   (generated input size, default 100000000)
 #   PY3DTILES=path/to/py3dtiles overrides .deps/py3dtiles/bin/py3dtiles (e.g. a worktree)
+# Scaling (issue 22): runs at 1 and T threads, REPEAT times each (default 3, interleaved), and
+# prints per phase the median wall and CPU times, the serial fraction and Amdahl's prediction
+# for PREDICT threads (default 16):
+#   bench/tiler.sh --threads T [POINTS]   (default 20000000)
+#   STIPPLE=path/to/stipple overrides build/stipple; TILE_ARGS adds options (e.g. --max-memory 512M)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-stipple="$root/build/stipple"
+stipple="${STIPPLE:-$root/build/stipple}"
 py3dtiles="${PY3DTILES:-$root/.deps/py3dtiles/bin/py3dtiles}"
 work="${TMPDIR:-/tmp}/stipple_bench_tiler"
 mkdir -p "$work"
+if [[ "${1:-}" == "--threads" ]]; then
+  threads="${2:?--threads takes a thread count}"
+  points="${3:-20000000}"
+  gen="$work/gen_${points}.las"
+  [[ -f "$gen" ]] || "$stipple" generate -n "$points" -o "$gen" >/dev/null
+  one=() many=()
+  for r in $(seq "${REPEAT:-3}"); do
+    for t in 1 "$threads"; do
+      rm -rf "$work/out_scaling"
+      # shellcheck disable=SC2086
+      "$stipple" tile "$gen" -o "$work/out_scaling" --threads "$t" ${TILE_ARGS:-} \
+        --stats "$work/scaling_${t}_${r}.json" >/dev/null
+      if [[ "$t" == 1 ]]; then one+=("$work/scaling_${t}_${r}.json"); else many+=("$work/scaling_${t}_${r}.json"); fi
+    done
+  done
+  rm -rf "$work/out_scaling"
+  echo "load average at the end: $(cut -d' ' -f1-3 /proc/loadavg), $(nproc) cores"
+  exec python3 "$root/bench/tiler_scaling.py" "$threads" "${PREDICT:-16}" "${one[@]}" -- "${many[@]}"
+fi
 points="${1:-100000000}"
 gen="$work/gen_${points}.las"
 [[ -f "$gen" ]] || "$stipple" generate -n "$points" -o "$gen" >/dev/null

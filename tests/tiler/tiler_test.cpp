@@ -291,6 +291,54 @@ TEST(Tiler, AutzenGlbHoldsEveryPointAtItsEcefPosition) {
   EXPECT_FALSE(fs::exists(fs::path(o.output) / ".tmp"));
 }
 
+// The profile (issue 22): every phase in order, their walls adding up to the run, one CPU time
+// per thread (the caller and each worker), the reading phase reads the input's bytes, the
+// index phase writes the tiles, and the steps where the work ran; the JSON carries the same.
+TEST(Tiler, ProfileCoversEveryPhaseAndThread) {
+  fs::path las = data_dir() / "las/autzen_trim.las";
+  if (!fs::exists(las)) GTEST_SKIP() << "test data " << las << " not found";
+  tiler::TileOptions o;
+  o.inputs = {las.string()};
+  o.output = (temp_dir() / "autzen_profile").string();
+  o.threads = 2;
+  o.sample_threads = true;
+  o.max_memory = 8 << 20;  // out of core: count and distribution passes, chunk files
+  tiler::TileStats s = tiler::build_tileset(o);
+  ASSERT_EQ(s.threads, 2u);
+  std::vector<std::string> names;
+  double walls = 0;
+  for (const tiler::PhaseProfile& p : s.phases) {
+    names.push_back(p.name);
+    walls += p.wall;
+    EXPECT_EQ(p.thread_cpu.size(), 3u) << p.name;
+    EXPECT_GE(p.wall, 0.0);
+    EXPECT_LE(p.one_thread, p.wall + 0.01) << p.name;
+  }
+  EXPECT_NEAR(walls, s.seconds, 0.05);
+  auto phase = [&](const std::string& n) -> const tiler::PhaseProfile& {
+    auto it = std::find(names.begin(), names.end(), n);
+    EXPECT_NE(it, names.end()) << n;
+    return s.phases.at(size_t(it - names.begin()));
+  };
+  const uint64_t las_bytes = fs::file_size(las);
+  EXPECT_GE(phase("read+decode+transform+count").bytes_read, las_bytes * 9 / 10);
+  const auto& index = phase("index+sample+encode+write");
+  EXPECT_GT(index.bytes_written, 110000u * 20);               // glb: more than 20 bytes a point
+  EXPECT_GT(index.thread_cpu[1] + index.thread_cpu[2], 0.0);  // the workers did the indexing
+  ASSERT_EQ(s.steps.size(), tiler::step_count);
+  EXPECT_EQ(s.steps[size_t(tiler::Step::ReadDecode)].bytes >= 110000u * 34, true);
+  EXPECT_GT(s.steps[size_t(tiler::Step::Sample)].cpu, 0.0);
+  EXPECT_GT(s.steps[size_t(tiler::Step::Encode)].cpu, 0.0);
+  EXPECT_GT(s.steps[size_t(tiler::Step::Write)].bytes, 110000u * 20);
+  json j = json::parse(tiler::stats_json(s));
+  EXPECT_EQ(j["points"], 110000);
+  ASSERT_EQ(j["phases"].size(), s.phases.size());
+  EXPECT_EQ(j["phases"][1]["name"], "read+decode+transform+count");
+  EXPECT_EQ(j["phases"][1]["threadCpu"].size(), 3u);
+  EXPECT_TRUE(j["steps"].contains("distribute"));
+  EXPECT_NE(tiler::profile_table(s).find("| index+sample+encode+write |"), std::string::npos);
+}
+
 TEST(Tiler, AutzenPntsHoldsEveryPoint) {
   fs::path las = data_dir() / "las/autzen_trim.las";
   if (!fs::exists(las)) GTEST_SKIP() << "test data " << las << " not found";

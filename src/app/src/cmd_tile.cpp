@@ -4,6 +4,7 @@
 #include <tuple>
 
 #include "stipple/app/commands.hpp"
+#include "stipple/core/atomic_file.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/tiler/tiler.hpp"
 
@@ -15,6 +16,8 @@ void add_tile_command(CLI::App& cli) {
     std::string format = "glb", memory = "2G", subset;
     tiler::MergeOptions merge;
     std::string merge_memory = "2G";
+    bool profile = false;
+    std::string stats;
   };
   auto args = std::make_shared<Args>();
   auto* cmd = cli.add_subcommand(
@@ -48,6 +51,11 @@ void add_tile_command(CLI::App& cli) {
       ->check(CLI::Range(1, 16))
       ->capture_default_str();
   cmd->add_flag("--force", args->options.force, "Replace an existing output directory");
+  cmd->add_flag("--profile", args->profile,
+                "Print a table of the phases (wall, CPU per thread, system time, bytes read and "
+                "written, page faults, time with at most one thread runnable) and of the steps");
+  cmd->add_option("--stats", args->stats,
+                  "Write the run's stats and its per-phase profile as JSON to this file");
   cmd->add_option("--subset", args->subset,
                   "Split tiling: tile only part I of N (N a power of 4 or 8) of the root cube, "
                   "every input read; the output is a part for `stipple tile merge`");
@@ -77,12 +85,15 @@ void add_tile_command(CLI::App& cli) {
           tiler::parse_subset(args->subset);
     args->options.format = args->format == "pnts" ? tiler::Format::Pnts : tiler::Format::Glb;
     args->options.max_memory = tiler::parse_size(args->memory);
+    args->options.sample_threads = args->profile || !args->stats.empty();
     tiler::TileStats s = tiler::build_tileset(args->options);
     std::printf(
         "tiled %llu points into %llu tiles (depth %d, %zu chunks, root spacing %.3f m) in "
         "%.2f s: %.2f M points/s\n",
         static_cast<unsigned long long>(s.points), static_cast<unsigned long long>(s.tiles),
         s.depth, s.chunks, s.root_spacing, s.seconds, double(s.points) / s.seconds / 1e6);
+    if (args->profile) std::printf("\n%s", tiler::profile_table(s).c_str());
+    if (!args->stats.empty()) write_file_atomically(args->stats, tiler::stats_json(s));
   });
 }
 

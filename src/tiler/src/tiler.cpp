@@ -190,16 +190,24 @@ class Tiler {
   void to_local(const Input& in, io::PointBatch& batch, std::vector<glm::dvec3>& out);
   void make_records(const Input& in, io::PointBatch& batch, TilePoint* out);
   void append_to_chunks(const TilePoint* recs, size_t n);
+  void flush_chunk_buffers();
   void choose_resident_chunks(const std::vector<uint32_t>& counts);
   void distribute(const fs::path& staged, uint64_t count);
   void distribute_in_memory(uint64_t count);
   uint32_t cell_of(const glm::dvec3& p) const;
   uint32_t cell_of(const TilePoint& p) const { return cell_of(glm::dvec3(p.x, p.y, p.z)); }
-  void phase(const char* name) {
+  // Ends the phase under way (logging its time) and starts `next` (none: the run is over).
+  void phase(const char* next) {
     auto now = std::chrono::steady_clock::now();
-    STIPPLE_INFO("tile: phase {:<26} {:8.3f} s", name,
-                 std::chrono::duration<double>(now - phase_start_).count());
+    if (!phase_name_.empty())
+      STIPPLE_INFO("tile: phase {:<30} {:8.3f} s", phase_name_,
+                   std::chrono::duration<double>(now - phase_start_).count());
     phase_start_ = now;
+    phase_name_ = next ? next : "";
+    if (next)
+      prof_.phase(next);
+    else
+      prof_.finish();
   }
   void plan_chunks(const std::vector<uint32_t>& counts);
   void split_oversized_chunks();
@@ -239,6 +247,8 @@ class Tiler {
   std::unique_ptr<ThreadPool> pool_;
   fs::path dir_, tmp_;
   std::chrono::steady_clock::time_point phase_start_ = std::chrono::steady_clock::now();
+  std::string phase_name_;
+  Profiler prof_;
 
   struct Chunk {
     NodeKey key;
@@ -247,8 +257,11 @@ class Tiler {
     std::mutex mutex;
     bool resident = false;  // points at resident_[offset, offset + count), not in file
     uint64_t offset = 0;
-    uint64_t expected = 0;  // points counted in its cells (out-of-core distribution)
+    uint64_t expected = 0;            // points counted in its cells (out-of-core distribution)
+    std::vector<TilePoint> pending;   // not resident: records not yet appended to `file`
+    std::atomic<uint64_t> filled{0};  // resident, out of core: records placed so far
   };
+  size_t chunk_buffer_points_ = 0;  // a chunk file is appended to this many records at a time
   // In-memory mode (the records of every input fit the budget twice over): the reading pass
   // stages records in memory and the chunks stay resident; no temporary files for them.
   bool in_memory_ = false;
@@ -342,6 +355,7 @@ void Tiler::open_inputs() {
 }
 
 void Tiler::to_local(const Input& in, io::PointBatch& batch, std::vector<glm::dvec3>& out) {
+  Profiler::Scope scope(&prof_, Step::Transform);
   out.resize(batch.positions.size());
   LatticeStats stats;
   // A tenth of the input precision: the interpolation never shows in the output.
@@ -362,6 +376,7 @@ void Tiler::make_records(const Input& in, io::PointBatch& batch, TilePoint* out)
   const bool inten = !batch.intensity.empty(), cls = !batch.classification.empty();
   const bool ret = !batch.return_number.empty();
   const int shift = in.header.rgb_bits == 8 ? 0 : 8;
+  Profiler::Scope scope(&prof_, Step::Transform);
   for (size_t i = 0; i < n; ++i) {
     TilePoint& t = out[i];
     t.x = local[i].x, t.y = local[i].y, t.z = local[i].z;
@@ -385,6 +400,7 @@ void Tiler::append_to_chunks(const TilePoint* recs, size_t n) {
   thread_local std::vector<TilePoint> sorted;
   thread_local std::vector<int32_t> chunk_of;
   thread_local std::vector<uint32_t> offsets, fill;
+  Profiler::Scope scope(&prof_, Step::Distribute);
   chunk_of.resize(n);
   offsets.assign(chunks_.size() + 1, 0);
   for (size_t i = 0; i < n; ++i) {
@@ -400,17 +416,62 @@ void Tiler::append_to_chunks(const TilePoint* recs, size_t n) {
     uint32_t s = offsets[c], e = offsets[c + 1];
     if (s == e) continue;
     Chunk& ch = *chunks_[c];
-    std::lock_guard lock(ch.mutex);
     if (ch.resident) {
-      if (ch.count + (e - s) > ch.expected)
+      // No lock: each writer reserves its own range of the chunk's counted place.
+      const uint64_t at = ch.filled.fetch_add(e - s, std::memory_order_relaxed);
+      if (at + (e - s) > ch.expected)
         fail("internal error: chunk {} receives more points than were counted", ch.key.name());
-      std::memcpy(resident_.get() + ch.offset + ch.count, sorted.data() + s,
+      std::memcpy(resident_.get() + ch.offset + at, sorted.data() + s,
                   size_t(e - s) * sizeof(TilePoint));
-    } else {
-      append_file(ch.file, sorted.data() + s, size_t(e - s) * sizeof(TilePoint));
+      continue;
     }
-    ch.count += e - s;
+    std::unique_lock lock(ch.mutex);
+    if (chunk_buffer_points_ == 0) {
+      Profiler::Scope write(&prof_, Step::Write, size_t(e - s) * sizeof(TilePoint));
+      append_file(ch.file, sorted.data() + s, size_t(e - s) * sizeof(TilePoint));
+      ch.count += e - s;
+    } else {
+      // Fewer, larger writes: the chunk's records gather in its buffer (allocated once, at its
+      // full size), and whoever would overfill it takes the full buffer, leaving its own empty
+      // one of the same size, and appends it outside the lock; a run as large as a buffer is
+      // appended directly. O_APPEND writes do not interleave; the order of records in a chunk
+      // never mattered.
+      const size_t run = e - s;
+      ch.count += run;
+      thread_local std::vector<TilePoint> full;
+      full.clear();
+      if (run >= chunk_buffer_points_) {
+        lock.unlock();
+        Profiler::Scope write(&prof_, Step::Write, run * sizeof(TilePoint));
+        append_file(ch.file, sorted.data() + s, run * sizeof(TilePoint));
+        continue;
+      }
+      if (ch.pending.capacity() < chunk_buffer_points_) ch.pending.reserve(chunk_buffer_points_);
+      if (ch.pending.size() + run > chunk_buffer_points_) {
+        full.reserve(chunk_buffer_points_);
+        full.swap(ch.pending);
+      }
+      ch.pending.insert(ch.pending.end(), sorted.begin() + s, sorted.begin() + e);
+      lock.unlock();
+      if (full.empty()) continue;
+      Profiler::Scope write(&prof_, Step::Write, full.size() * sizeof(TilePoint));
+      append_file(ch.file, full.data(), full.size() * sizeof(TilePoint));
+      full.clear();
+    }
   }
+}
+
+// After a distribution pass: what the chunk buffers still hold goes to the files, in parallel.
+void Tiler::flush_chunk_buffers() {
+  pool_->parallel_for(chunks_.size(), 1, [&](size_t b, size_t e) {
+    for (size_t c = b; c < e; ++c) {
+      Chunk& ch = *chunks_[c];
+      if (ch.pending.empty()) continue;
+      Profiler::Scope write(&prof_, Step::Write, ch.pending.size() * sizeof(TilePoint));
+      append_file(ch.file, ch.pending.data(), ch.pending.size() * sizeof(TilePoint));
+      std::vector<TilePoint>().swap(ch.pending);
+    }
+  });
 }
 
 // Out of core, chunks are kept in memory while their records fit half the budget (the counting
@@ -429,6 +490,14 @@ void Tiler::choose_resident_chunks(const std::vector<uint32_t>& counts) {
     total += c->expected;
   }
   if (total) resident_.reset(new TilePoint[total]);
+  // The other chunks gather records in buffers of together a sixteenth of the budget, when
+  // that makes buffers of at least 10 kB; smaller ones would save few writes.
+  size_t spilled = 0;
+  for (auto& c : chunks_) spilled += !c->resident && c->expected > 0;
+  if (spilled > 0) {
+    const uint64_t per_chunk = opt_.max_memory / 16 / sizeof(TilePoint) / spilled;
+    chunk_buffer_points_ = per_chunk >= 256 ? size_t(std::min<uint64_t>(per_chunk, 65536)) : 0;
+  }
   STIPPLE_INFO("tile: {} of {} points in chunks held in memory, the rest in temporary files", total,
                total_points_);
 }
@@ -450,6 +519,7 @@ void Tiler::distribute(const fs::path& staged, uint64_t count) {
       char* dst = reinterpret_cast<char*>(recs.data());
       size_t want = n * sizeof(TilePoint);
       off_t at = off_t(first * sizeof(TilePoint));
+      Profiler::Scope read(&prof_, Step::ReadDecode, want);
       while (want > 0) {
         ssize_t r = ::pread(fd, dst, want, at);
         if (r <= 0) fail("{}: cannot read temporary points", staged.string());
@@ -469,6 +539,7 @@ void Tiler::distribute_in_memory(uint64_t count) {
   const uint64_t block = batch_points_;
   const size_t blocks = size_t((count + block - 1) / block), nc = chunks_.size();
   const TilePoint* recs = staged_mem_.get();
+  Profiler::Scope scope(&prof_, Step::Distribute);
   std::vector<uint32_t> chunk_of(count);
   std::vector<uint64_t> offsets(blocks * nc, 0);
   pool_->parallel_for(blocks, 1, [&](size_t bb, size_t be) {
@@ -588,10 +659,13 @@ void Tiler::read_pass(const char* label, Process process) {
       }
       if (!reader) reader = std::make_unique<io::LasReader>(in.path);
       if (!batch) batch = std::make_unique<io::PointBatch>();
-      batch->clear();
-      reader->seek(range.first);
-      if (reader->read(*batch, range.count) != range.count)
-        fail("{}: holds fewer points than its header declares", in.path);
+      {
+        Profiler::Scope read(&prof_, Step::ReadDecode, range.count * in.header.point_record_length);
+        batch->clear();
+        reader->seek(range.first);
+        if (reader->read(*batch, range.count) != range.count)
+          fail("{}: holds fewer points than its header declares", in.path);
+      }
       process(in, *batch);
       done += range.count;
       std::lock_guard lock(mutex);
@@ -702,9 +776,13 @@ void Tiler::record(const NodeKey& key, std::span<const TilePoint> pts) {
 void Tiler::write_content(const NodeKey& key, std::span<const TilePoint> pts) {
   record(key, pts);
   if (pts.empty()) return;
-  std::vector<uint8_t> bytes =
-      opt_.format == Format::Glb ? write_glb(pts, content_) : write_pnts(pts, content_);
+  std::vector<uint8_t> bytes;
+  {
+    Profiler::Scope encode(&prof_, Step::Encode);
+    bytes = opt_.format == Format::Glb ? write_glb(pts, content_) : write_pnts(pts, content_);
+  }
   const char* ext = opt_.format == Format::Glb ? ".glb" : ".pnts";
+  Profiler::Scope write(&prof_, Step::Write, bytes.size());
   write_file(dir_ / "tiles" / (key.name() + ext), bytes.data(), bytes.size());
   written_ += pts.size();
 }
@@ -716,7 +794,11 @@ void Tiler::index_node(const NodeKey& key, std::span<TilePoint> pts, bool chunk_
   std::array<size_t, 9> starts{};
   if (pts.size() > opt_.max_node_points && key.level < max_level_) {
     thread_local std::vector<uint8_t> bucket;
-    grid_select(pts, node_min(key), spacing(key.level), opt_.max_node_points, bucket);
+    {
+      Profiler::Scope sample(&prof_, Step::Sample);
+      grid_select(pts, node_min(key), spacing(key.level), opt_.max_node_points, bucket);
+    }
+    Profiler::Scope index(&prof_, Step::Index);
     const glm::dvec3 centre = node_min(key) + glm::dvec3(node_size(key.level + 1));
     const size_t n = pts.size();
     std::array<size_t, 9> sizes{};
@@ -751,7 +833,10 @@ void Tiler::index_node(const NodeKey& key, std::span<TilePoint> pts, bool chunk_
   if (chunk_root) {
     // Its final content is known only after the upper levels took their share.
     fs::path file = tmp_ / ("root-" + key.name() + ".bin");
-    write_file(file, mine.data(), mine.size() * sizeof(TilePoint));
+    {
+      Profiler::Scope write(&prof_, Step::Write, mine.size() * sizeof(TilePoint));
+      write_file(file, mine.data(), mine.size() * sizeof(TilePoint));
+    }
     std::lock_guard lock(nodes_mutex_);
     pending_roots_[key] = file;
   } else {
@@ -776,6 +861,7 @@ void Tiler::index_chunk(size_t i) {
   if (c.resident) {
     pts = {resident_.get() + c.offset, c.count};
   } else {
+    Profiler::Scope read(&prof_, Step::ReadDecode, c.count * sizeof(TilePoint));
     read_points(c.file, from_file);
     fs::remove(c.file);
     pts = from_file;
@@ -801,12 +887,17 @@ void Tiler::build_upper_levels() {
       std::vector<size_t> ends;
       std::vector<TilePoint> all;
       for (const NodeKey& k : kids) {
+        Profiler::Scope read(&prof_, Step::ReadDecode);
         std::vector<TilePoint> p = read_points(pending_roots_.at(k));
+        read.add_bytes(p.size() * sizeof(TilePoint));
         all.insert(all.end(), p.begin(), p.end());
         ends.push_back(all.size());
       }
       std::vector<uint8_t> selected;
-      grid_select(all, node_min(parent), spacing(parent.level), opt_.max_node_points, selected);
+      {
+        Profiler::Scope sample(&prof_, Step::Sample);
+        grid_select(all, node_min(parent), spacing(parent.level), opt_.max_node_points, selected);
+      }
       std::vector<TilePoint> up;
       size_t at = 0;
       for (size_t c = 0; c < kids.size(); ++c) {
@@ -816,7 +907,10 @@ void Tiler::build_upper_levels() {
         fs::remove(pending_roots_.at(kids[c]));
       }
       fs::path file = tmp_ / ("root-" + parent.name() + ".bin");
-      write_file(file, up.data(), up.size() * sizeof(TilePoint));
+      {
+        Profiler::Scope write(&prof_, Step::Write, up.size() * sizeof(TilePoint));
+        write_file(file, up.data(), up.size() * sizeof(TilePoint));
+      }
       std::lock_guard lock(made_mutex);
       made[parent] = file;
     };
@@ -835,7 +929,12 @@ void Tiler::build_upper_levels() {
   }
   if (part_level_ > 0) return;  // the part roots stay raw: write_part keeps them for the merge
   for (auto& [k, f] : pending_roots_) {
-    std::vector<TilePoint> pts = read_points(f);
+    std::vector<TilePoint> pts;
+    {
+      Profiler::Scope read(&prof_, Step::ReadDecode);
+      pts = read_points(f);
+      read.add_bytes(pts.size() * sizeof(TilePoint));
+    }
     write_content(k, pts);
     fs::remove(f);
   }
@@ -892,6 +991,7 @@ void Tiler::write_tileset() {
                       {"geometricErrorPerSpacing", 1.0},
                       {"cube", {cube_min_.x, cube_min_.y, cube_min_.z, cube_size_}}}}}}};
   std::string text = tileset.dump(1);
+  Profiler::Scope write(&prof_, Step::Write, text.size());
   write_file(dir_ / "tileset.json", text.data(), text.size());
 }
 
@@ -966,6 +1066,7 @@ nlohmann::json Tiler::write_implicit() {
 TileStats Tiler::run() {
   auto start = std::chrono::steady_clock::now();
   phase_start_ = start;
+  phase("headers, frame, cube");
   if (opt_.subset_count) {
     const auto [index, count] =
         parse_subset(fmt::format("{}/{}", opt_.subset_index, opt_.subset_count));
@@ -988,6 +1089,7 @@ TileStats Tiler::run() {
   unsigned threads =
       opt_.threads ? opt_.threads : std::max(1u, std::thread::hardware_concurrency());
   pool_ = std::make_unique<ThreadPool>(threads);
+  prof_.attach(*pool_, opt_.sample_threads);
   // Memory plan (bytes per point in flight): a read batch ~170 (PointBatch + local positions +
   // records + sorted copy); a point being indexed ~120 (twice its record + hash slots).
   const uint64_t budget = opt_.max_memory;
@@ -1010,7 +1112,6 @@ TileStats Tiler::run() {
       "batches of {}, count grid {}^3, chunks of <= {} points, {} threads",
       total_points_, inputs_.size(), cube_size_, root_spacing_, content_.precision, batch_points_,
       1 << count_level_, chunk_points_, threads);
-  phase("headers, frame, cube");
 
   {
     // Three ways through the inputs (count cells, plan chunks, distribute to chunks):
@@ -1024,6 +1125,7 @@ TileStats Tiler::run() {
     //    reading pass writes records to a staging file, read back in parallel.
     const bool reread = !in_memory_ && std::none_of(inputs_.begin(), inputs_.end(),
                                                     [](auto& in) { return in.header.compressed; });
+    phase(reread ? "read+decode+transform+count" : "read+decode+transform+stage+count");
     std::vector<std::atomic<uint32_t>> counts(size_t(1) << (3 * count_level_));
     const fs::path staged = tmp_ / "staged.bin";
     std::mutex stage_mutex;
@@ -1032,6 +1134,7 @@ TileStats Tiler::run() {
       read_pass("counting", [&](const Input& in, io::PointBatch& batch) {
         thread_local std::vector<glm::dvec3> local;
         to_local(in, batch, local);
+        Profiler::Scope count(&prof_, Step::Count);
         for (const glm::dvec3& p : local)
           if (const uint32_t cell = cell_of(p); cell_in_part(cell))
             counts[cell].fetch_add(1, std::memory_order_relaxed);
@@ -1066,9 +1169,13 @@ TileStats Tiler::run() {
             recs = staged_mem_.get() + at;
           }
         }
-        for (size_t i = 0; i < n; ++i)
-          counts[cell_of(recs[i])].fetch_add(1, std::memory_order_relaxed);
+        {
+          Profiler::Scope count(&prof_, Step::Count);
+          for (size_t i = 0; i < n; ++i)
+            counts[cell_of(recs[i])].fetch_add(1, std::memory_order_relaxed);
+        }
         if (in_memory_) return;
+        Profiler::Scope write(&prof_, Step::Write, n * sizeof(TilePoint));
         std::lock_guard lock(stage_mutex);
         write_all(fd, staged, recs, n * sizeof(TilePoint));
         staged_points += n;
@@ -1079,7 +1186,7 @@ TileStats Tiler::run() {
         "tile: PROJ on {} lattice nodes for {} points ({} transformed point by point), largest "
         "sampled interpolation error {:.2e} m",
         lattice_.nodes, lattice_.points, lattice_.exact_points, lattice_.max_sample_error);
-    phase(reread ? "read + transform + count" : "read + transform + stage + count");
+    phase("plan chunks");
     std::vector<uint32_t> plain(counts.size());
     for (size_t i = 0; i < counts.size(); ++i) plain[i] = counts[i].load();
     if (part_level_ > 0) {
@@ -1092,7 +1199,7 @@ TileStats Tiler::run() {
     std::vector<std::atomic<uint32_t>>().swap(counts);
     plan_chunks(plain);
     if (!in_memory_) choose_resident_chunks(plain);
-    phase("plan chunks");
+    phase(reread ? "read+decode+transform+distribute" : "distribute");
     if (in_memory_) {
       distribute_in_memory(staged_points);
       staged_mem_.reset();
@@ -1108,11 +1215,13 @@ TileStats Tiler::run() {
       distribute(staged, staged_points);
       fs::remove(staged);
     }
+    if (!in_memory_) flush_chunk_buffers();
     std::vector<int32_t>().swap(cell_chunk_);
-    phase("distribute");
+    phase("split oversized chunks");
   }
   uint64_t distributed = 0;
   for (auto& c : chunks_) {
+    if (!in_memory_ && c->resident) c->count = c->filled.load();
     distributed += c->count;
     if (!in_memory_ && c->resident && c->count != c->expected)
       fail("internal error: chunk {} holds {} points, {} were counted", c->key.name(), c->count,
@@ -1121,7 +1230,7 @@ TileStats Tiler::run() {
   if (distributed != total_points_)
     fail("the inputs hold {} points, not the {} their headers declare", distributed, total_points_);
   split_oversized_chunks();
-  phase("split oversized chunks");
+  phase("index+sample+encode+write");
   // Biggest chunks first keeps the pool busy to the end.
   std::sort(chunks_.begin(), chunks_.end(), [](auto& a, auto& b) { return a->count > b->count; });
 
@@ -1130,10 +1239,10 @@ TileStats Tiler::run() {
     for (size_t i = b; i < e; ++i) index_chunk(i);
   });
   resident_.reset();
-  phase("index chunks");
+  phase("upper levels");
   build_upper_levels();
   index_progress_->finish();
-  phase("upper levels");
+  phase(part_level_ > 0 ? "part.json" : "tileset.json");
   uint64_t kept_for_merge = 0;
   for (auto& [k, f] : pending_roots_) kept_for_merge += fs::file_size(f) / sizeof(TilePoint);
   if (written_ + kept_for_merge != total_points_)
@@ -1143,7 +1252,7 @@ TileStats Tiler::run() {
   else
     write_tileset();
   fs::remove_all(tmp_);
-  phase(part_level_ > 0 ? "part.json" : "tileset.json");
+  phase("commit");
   return commit(out, start);
 }
 
@@ -1177,7 +1286,7 @@ TileStats Tiler::commit(const fs::path& out, std::chrono::steady_clock::time_poi
     fs::rename(dir_, out);
   }
   partial_->committed = true;
-  phase("commit");
+  phase(nullptr);
 
   TileStats stats;
   stats.points = total_points_;
@@ -1188,6 +1297,9 @@ TileStats Tiler::commit(const fs::path& out, std::chrono::steady_clock::time_poi
     stats.depth = std::max(stats.depth, k.level);
   }
   stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  stats.threads = pool_ ? pool_->size() : 0;
+  stats.phases = prof_.phases();
+  for (size_t s = 0; s < step_count; ++s) stats.steps.push_back(prof_.step(Step(s)));
   return stats;
 }
 
@@ -1244,6 +1356,7 @@ TileStats Tiler::merge(const std::vector<nlohmann::json>& parts,
                        const std::vector<fs::path>& dirs) {
   const auto start = std::chrono::steady_clock::now();
   phase_start_ = start;
+  phase("read parts, link part tiles");
   const nlohmann::json& first = parts.front();
   auto vec = [](const nlohmann::json& a) {
     return glm::dvec3(a[0].get<double>(), a[1].get<double>(), a[2].get<double>());
@@ -1314,11 +1427,11 @@ TileStats Tiler::merge(const std::vector<nlohmann::json>& parts,
   }
   STIPPLE_INFO("tile merge: {} parts, {} points, {} tiles linked", parts.size(), total_points_,
                tiles);
-  phase("link part tiles");
+  phase("upper levels");
   index_progress_ = std::make_unique<Progress>("upper levels", total_points_);
   build_upper_levels();
   index_progress_->finish();
-  phase("upper levels");
+  phase("tileset.json");
   if (written_ != total_points_)
     fail("tile merge: the parts' tiles and roots hold {} points, their part.json files say {}",
          written_.load(), total_points_);
@@ -1328,7 +1441,7 @@ TileStats Tiler::merge(const std::vector<nlohmann::json>& parts,
       fail("tile merge: tile {} has no parent in any part", k.name());
   write_tileset();
   fs::remove_all(tmp_);
-  phase("tileset.json");
+  phase("commit");
   return commit(out, start);
 }
 
@@ -1466,6 +1579,73 @@ TileStats merge_parts(const MergeOptions& options) {
     fail("tile merge: a part.json is malformed ({}): not written by stipple tile --subset",
          e.what());
   }
+}
+
+std::string profile_table(const TileStats& stats) {
+  std::string out = fmt::format(
+      "| phase | wall s | CPU s | sys s | CPU s per thread (main, workers) | CPU/wall | one "
+      "thread "
+      "s | read MB | written MB | minor faults |\n|---|--:|--:|--:|---|--:|--:|--:|--:|--:|\n");
+  PhaseProfile total;
+  total.name = "total";
+  for (const PhaseProfile& p : stats.phases) {
+    std::string per;
+    for (double c : p.thread_cpu) per += fmt::format("{}{:.2f}", per.empty() ? "" : " ", c);
+    out += fmt::format(
+        "| {} | {:.3f} | {:.2f} | {:.2f} | {} | {:.2f} | {:.3f} | {:.1f} | {:.1f} | {} |\n", p.name,
+        p.wall, p.cpu(), p.sys, per, p.wall > 0 ? p.cpu() / p.wall : 0.0, p.one_thread,
+        double(p.bytes_read) / 1e6, double(p.bytes_written) / 1e6, p.minor_faults);
+    total.wall += p.wall, total.user += p.user, total.sys += p.sys;
+    total.one_thread += p.one_thread;
+    total.bytes_read += p.bytes_read, total.bytes_written += p.bytes_written;
+    total.minor_faults += p.minor_faults;
+  }
+  out += fmt::format(
+      "| total | {:.3f} | {:.2f} | {:.2f} | | {:.2f} | {:.3f} | {:.1f} | {:.1f} | {} |\n",
+      total.wall, total.cpu(), total.sys, total.wall > 0 ? total.cpu() / total.wall : 0.0,
+      total.one_thread, double(total.bytes_read) / 1e6, double(total.bytes_written) / 1e6,
+      total.minor_faults);
+  out += "\n| step | thread s | CPU s | MB |\n|---|--:|--:|--:|\n";
+  for (size_t s = 0; s < stats.steps.size(); ++s)
+    out += fmt::format("| {} | {:.3f} | {:.3f} | {:.1f} |\n", step_name(Step(s)),
+                       stats.steps[s].thread_seconds, stats.steps[s].cpu,
+                       double(stats.steps[s].bytes) / 1e6);
+  return out;
+}
+
+std::string stats_json(const TileStats& stats) {
+  using nlohmann::json;
+  json phases = json::array();
+  for (const PhaseProfile& p : stats.phases)
+    phases.push_back({{"name", p.name},
+                      {"wall", p.wall},
+                      {"user", p.user},
+                      {"sys", p.sys},
+                      {"threadCpu", p.thread_cpu},
+                      {"oneThread", p.one_thread},
+                      {"noThread", p.no_thread},
+                      {"bytesRead", p.bytes_read},
+                      {"bytesWritten", p.bytes_written},
+                      {"minorFaults", p.minor_faults},
+                      {"majorFaults", p.major_faults},
+                      {"voluntarySwitches", p.voluntary_switches},
+                      {"involuntarySwitches", p.involuntary_switches}});
+  json steps = json::object();
+  for (size_t s = 0; s < stats.steps.size(); ++s)
+    steps[step_name(Step(s))] = {{"threadSeconds", stats.steps[s].thread_seconds},
+                                 {"cpu", stats.steps[s].cpu},
+                                 {"bytes", stats.steps[s].bytes}};
+  json j = {{"points", stats.points},
+            {"tiles", stats.tiles},
+            {"depth", stats.depth},
+            {"chunks", stats.chunks},
+            {"rootSpacing", stats.root_spacing},
+            {"seconds", stats.seconds},
+            {"pointsPerSecond", stats.seconds > 0 ? double(stats.points) / stats.seconds : 0.0},
+            {"threads", stats.threads},
+            {"phases", phases},
+            {"steps", steps}};
+  return j.dump(1) + "\n";
 }
 
 }  // namespace stipple::tiler

@@ -6,6 +6,8 @@
 #include <utility>
 #include <vector>
 
+#include "stipple/tiler/profile.hpp"
+
 namespace stipple::tiler {
 
 enum class Format { Glb, Pnts };
@@ -36,6 +38,9 @@ struct TileOptions {
   // Called as the work advances with the phase ("reading", "indexing", ...), the points done
   // and the phase's total; from worker threads, one call at a time.
   std::function<void(const std::string& phase, uint64_t done, uint64_t total)> progress;
+  // Sample every millisecond how many threads run (PhaseProfile::one_thread); the phases' times,
+  // CPU and I/O are recorded either way.
+  bool sample_threads = false;
 };
 
 struct TileStats {
@@ -45,7 +50,14 @@ struct TileStats {
   size_t chunks = 0;  // out-of-core chunks indexed independently
   double root_spacing = 0;
   double seconds = 0;
+  unsigned threads = 0;              // worker threads used
+  std::vector<PhaseProfile> phases;  // in order; their wall times add up to `seconds`
+  std::vector<StepProfile> steps;    // indexed by Step
 };
+
+// The profile as a table (one row a phase, then one a step), and the stats as JSON.
+std::string profile_table(const TileStats& stats);
+std::string stats_json(const TileStats& stats);
 
 TileStats build_tileset(const TileOptions& options);
 
