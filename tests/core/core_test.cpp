@@ -1,17 +1,21 @@
-// core: atomic output files and medians.
+// core: atomic output files, medians and the thread pool.
 #include <unistd.h>
 
+#include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include <gtest/gtest.h>
 
 #include "stipple/core/atomic_file.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/core/stats.hpp"
+#include "stipple/core/thread_pool.hpp"
 
 using namespace stipple;
 namespace fs = std::filesystem;
@@ -95,4 +99,23 @@ TEST(AtomicFile, WritesWholeContents) {
   EXPECT_EQ(read_text(dir / "big.txt"), text);
   EXPECT_EQ(files_in(dir), 1u);
   fs::remove_all(dir);
+}
+
+// A body that throws must not leave the other pieces running on the caller's stack (the tiler's
+// workers wrote into freed memory when a progress callback raised): parallel_for rethrows only
+// after every piece has ended, and the first exception is the one rethrown.
+TEST(ThreadPool, ParallelForEndsEveryPieceBeforeRethrowing) {
+  ThreadPool pool(2);
+  std::atomic<int> ended{0};
+  try {
+    pool.parallel_for(8, 1, [&](size_t begin, size_t) {
+      if (begin == 0) throw std::runtime_error("piece 0");
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      ++ended;
+    });
+    FAIL() << "the exception was swallowed";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "piece 0");
+  }
+  EXPECT_EQ(ended.load(), 7);
 }

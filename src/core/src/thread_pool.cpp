@@ -1,6 +1,7 @@
 #include "stipple/core/thread_pool.hpp"
 
 #include <algorithm>
+#include <exception>
 
 namespace stipple {
 
@@ -51,7 +52,17 @@ void ThreadPool::parallel_for(size_t count, size_t grain,
     size_t end = std::min(count, begin + grain);
     pending.push_back(submit([&body, begin, end] { body(begin, end); }));
   }
-  for (auto& f : pending) f.get();
+  // Every task holds `body` and what it refers to (the caller's stack): all of them must end
+  // before an exception leaves this frame, so the first one is kept and thrown after the rest.
+  std::exception_ptr first;
+  for (auto& f : pending) {
+    try {
+      f.get();
+    } catch (...) {
+      if (!first) first = std::current_exception();
+    }
+  }
+  if (first) std::rethrow_exception(first);
 }
 
 }  // namespace stipple
