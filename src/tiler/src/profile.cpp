@@ -5,6 +5,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -113,6 +114,7 @@ void Profiler::phase(const std::string& name) {
   {
     std::lock_guard lock(sample_mutex_);
     sampled_one_ = sampled_none_ = 0;
+    sampled_since_ns_ = now_ns(CLOCK_MONOTONIC);
   }
   start_ = snapshot();
   open_ = true;
@@ -133,7 +135,8 @@ void Profiler::finish() {
   p.voluntary_switches = end.nvcsw - start_.nvcsw;
   p.involuntary_switches = end.nivcsw - start_.nivcsw;
   std::lock_guard lock(sample_mutex_);
-  p.one_thread = sampled_one_, p.no_thread = sampled_none_;
+  // A sample that ends after the snapshot above belongs to this phase only up to its end.
+  p.one_thread = std::min(sampled_one_, p.wall), p.no_thread = std::min(sampled_none_, p.wall);
 }
 
 // Every millisecond: how many threads are runnable (state R in /proc/self/task/TID/stat:
@@ -148,7 +151,7 @@ void Profiler::sampler() {
   char buf[512];
   while (!stop_) {
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    const int64_t t1 = now_ns(CLOCK_MONOTONIC), dt = t1 - t0;
+    const int64_t t1 = now_ns(CLOCK_MONOTONIC);
     int running = 0;
     for (int fd : fds) {
       if (fd < 0) continue;
@@ -159,8 +162,11 @@ void Profiler::sampler() {
       const char* close = std::strrchr(buf, ')');
       if (close && close[1] == ' ' && close[2] == 'R') ++running;
     }
-    t0 = t1;
     std::lock_guard lock(sample_mutex_);
+    // A sampler kept off the cores wakes late: of the time since its last sample, only what
+    // lies in the current phase is the phase's.
+    const int64_t dt = std::max<int64_t>(0, t1 - std::max(t0, sampled_since_ns_));
+    t0 = t1;
     if (running <= 1) sampled_one_ += double(dt) * 1e-9;
     if (running == 0) sampled_none_ += double(dt) * 1e-9;
   }

@@ -98,6 +98,7 @@ class Profiler {
   bool open_ = false;
   std::mutex sample_mutex_;
   double sampled_one_ = 0, sampled_none_ = 0;  // of the current phase
+  int64_t sampled_since_ns_ = 0;  // its start (CLOCK_MONOTONIC): earlier time is not its own
   std::atomic<bool> stop_{false};
   std::thread sampler_;
   std::array<std::atomic<int64_t>, step_count> step_wall_{}, step_cpu_{};
