@@ -385,4 +385,12 @@ TEST(Pointlets, SinglePointPointletsAreDrawn) {
       pc::pointlet_lod_cpu(boxes, sizes, sizes, origin, camera, 640, 360, 1'000'000);
   for (size_t i = 0; i + 1 < counts.size(); ++i) EXPECT_EQ(counts[i], 1u) << "pointlet " << i;
   EXPECT_EQ(counts.back(), 64u);
+
+  // A cloud of coincident points has no extent at all: still drawn.
+  std::vector<pc::PointletEntry> same(3, table[0]);
+  for (size_t i = 0; i < same.size(); ++i) same[i].first = i;
+  const auto same_boxes = pc::pointlet_boxes(same, origin);
+  const std::vector<uint32_t> ones(3, 1);
+  EXPECT_EQ(pc::pointlet_lod_cpu(same_boxes, ones, ones, origin, camera, 640, 360, 1'000'000),
+            ones);
 }

@@ -75,9 +75,12 @@ std::vector<PointletBox> pointlet_boxes(const std::vector<PointletEntry>& table,
     all.extend(world[i].min);
     all.extend(world[i].max);
   }
-  const double floor_half_diagonal = table.empty() ? 0.0
-                                                   : 0.125 * 0.5 * glm::length(all.max - all.min) /
-                                                         std::sqrt(double(table.size()));
+  // At least a millimetre (the frame is metric: geographic input goes to a local frame), for a
+  // cloud of one point or of coincident points, whose extent is zero.
+  const double floor_half_diagonal =
+      table.empty() ? 0.0
+                    : std::max(1e-3, 0.125 * 0.5 * glm::length(all.max - all.min) /
+                                         std::sqrt(double(table.size())));
   std::vector<PointletBox> boxes(table.size());
   for (size_t i = 0; i < table.size(); ++i) {
     glm::dvec3 lo = world[i].min - origin, hi = world[i].max - origin;
