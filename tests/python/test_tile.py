@@ -83,9 +83,12 @@ def test_dask_tile_survives_a_killed_worker(data, tmp_path, stipple_cli):
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
         silence_logs=50,
     ) as cluster, distributed.Client(cluster) as client:
+        scratch = tmp_path / "scratch"  # the caller's folder: what is in it stays
+        scratch.mkdir()
+        (scratch / "keep.txt").write_text("mine")
         stats = stipple.dask.tile(
             [src], tmp_path / "dask", client, parts=4, max_node_points=1000, threads=1,
-            progress=kill_once,
+            progress=kill_once, work_dir=scratch,
         )
     assert marker.exists()  # a worker was killed during a part
     assert stats["points"] == 110000
@@ -93,4 +96,4 @@ def test_dask_tile_survives_a_killed_worker(data, tmp_path, stipple_cli):
     split = tileset_summary(stipple_cli, tmp_path / "dask")
     assert split[0] == one[0]
     assert split[2] == pytest.approx(one[2], abs=1e-9)
-    assert not (tmp_path / "dask.parts").exists()
+    assert sorted(p.name for p in scratch.iterdir()) == ["keep.txt"]
