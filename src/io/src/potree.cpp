@@ -6,7 +6,9 @@
 #include <filesystem>
 #include <map>
 
+#ifndef STIPPLE_NO_BROTLI
 #include <brotli/decode.h>
+#endif
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -263,7 +265,7 @@ Tileset load_potree_tileset(const std::string& uri, const Fetcher& fetcher,
 namespace {
 
 // Every third bit of `x` from bit 0, packed: one axis of a Morton code, 16 bits of it.
-uint32_t morton_axis(uint64_t x) {
+[[maybe_unused]] uint32_t morton_axis(uint64_t x) {  // unused without Brotli
   x &= 0x1249249249249249ull;
   x = (x ^ (x >> 2)) & 0x10c30c30c30c30c3ull;
   x = (x ^ (x >> 4)) & 0x100f00f00f00f00full;
@@ -287,6 +289,13 @@ std::vector<uint8_t> brotli_records(const PotreeCloud& c, std::span<const uint8_
   if (n == 0) return {};
   if (packed * n > (size_t(2) << 30))
     fail("{}: {} points of {} bytes is over 2 GiB once decompressed", uri, n, packed);
+#ifdef STIPPLE_NO_BROTLI
+  (void)bytes;
+  fail(
+      "{}: BROTLI Potree nodes are not decoded by the web build (no Brotli for WebAssembly): "
+      "DEFAULT nodes are",
+      uri);
+#else
   std::vector<uint8_t> raw(packed * n);
   size_t got = raw.size();
   if (BrotliDecoderDecompress(bytes.size(), bytes.data(), &got, raw.data()) !=
@@ -320,6 +329,7 @@ std::vector<uint8_t> brotli_records(const PotreeCloud& c, std::span<const uint8_
     }
   }
   return records;
+#endif
 }
 
 }  // namespace
