@@ -1,9 +1,12 @@
 // The web viewer's program: libstipple's engine, plugins, render graph and shaders on the
 // browser's WebGPU (a thin front end, as app/ is for the command line). It renders what
-// `stipple render` renders for the same options (the built-in scene so far), draws the image
-// on the page's canvas and reports on the page (window.stipple: done, error, stats).
+// `stipple render` renders for the same options: the built-in scene, or a 3D Tiles tileset by
+// URL (--url, from the page's ?url=), streamed frame by frame with the camera, one engine frame
+// per animation frame; draws the image on the page's canvas and reports on the page
+// (window.stipple: done, error, tile problems, stats).
 #include <emscripten.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -14,6 +17,7 @@
 #include <fmt/format.h>
 
 #include "stipple/core/error.hpp"
+#include "stipple/core/log.hpp"
 #include "stipple/engine/engine.hpp"
 #include "stipple/engine/plugins.hpp"
 #include "stipple/engine/render_plugins.hpp"
@@ -23,6 +27,20 @@
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/pointcloud/scene.hpp"
+#include "stipple/tiles3d/streamer.hpp"
+#include "stipple/tiles3d/tileset_plugin.hpp"
+
+// Resolves at the page's next animation frame (or after 100 ms where the page is hidden and
+// frames are not run): the main thread's stack is suspended meanwhile (JSPI), so the page draws,
+// and the streamer's requests finish on their workers.
+// clang-format off
+EM_ASYNC_JS(void, stipple_next_frame, (), {
+  await new Promise((resolve) => {
+    requestAnimationFrame(resolve);
+    setTimeout(resolve, 100);
+  });
+});
+// clang-format on
 
 namespace {
 
@@ -33,6 +51,12 @@ struct Options {
   uint64_t scene_points = 1'000'000;
   uint32_t seed = 1;
   double azimuth = 30.0, elevation = 40.0, fov = 50.0;
+  // A tileset (tileset.json URL): as `stipple render URL`, with its defaults.
+  std::string url;
+  uint64_t memory_mb = 512;
+  double max_sse = 16.0;
+  uint64_t frames = 1;          // drawn after the tileset is streamed (frame times)
+  uint64_t max_frames = 10000;  // then drawn as is, with a warning
 };
 
 uint64_t number(const std::string& name, const char* value) {
@@ -56,11 +80,23 @@ Options parse(int argc, char** argv) {
       o.scene_points = number(a, v);
     else if (a == "--seed")
       o.seed = uint32_t(number(a, v));
+    else if (a == "--url")
+      o.url = v;
+    else if (a == "--memory-mb")
+      o.memory_mb = number(a, v);
+    else if (a == "--max-sse")
+      o.max_sse = double(number(a, v));
+    else if (a == "--frames")
+      o.frames = std::max<uint64_t>(1, number(a, v));
+    else if (a == "--max-frames")
+      o.max_frames = number(a, v);
     else
       fail("unknown option '{}'", a);
   }
   if (o.width == 0 || o.height == 0 || o.width > 8192 || o.height > 8192)
     fail("the image size must be 1..8192 pixels a side");
+  if (o.memory_mb == 0 || o.memory_mb > (uint64_t(1) << 20)) fail("--memory-mb: 1..1048576");
+  if (o.max_sse <= 0) fail("--max-sse: a positive number of pixels");
   return o;
 }
 
@@ -81,7 +117,7 @@ void report(const char* key, const std::string& value) {
   EM_ASM({ Module.stippleReport(UTF8ToString($0), UTF8ToString($1)); }, key, value.c_str());
 }
 
-void run(const Options& o) {
+void run_scene(const Options& o) {
   Engine engine;
   engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
   GpuPlugin gpu;
@@ -135,11 +171,147 @@ void run(const Options& o) {
   report("ms", fmt::format("{:.1f}", ms));
 }
 
+// The tile problems so far (failed tiles, content warnings), one line per kind with how many
+// tiles had it: the first tile's message in full (it names the tile's URI).
+std::string tile_problems(const tiles3d::TilesetStream& s) {
+  std::string text;
+  const std::string first_kind(tiles3d::tile_problem_kind(s.first_problem));
+  for (const auto& [kind, count] : s.problems) {
+    if (!text.empty()) text += '\n';
+    text += kind == first_kind && !s.first_problem.empty() ? s.first_problem : kind;
+    if (count > 1) text += fmt::format(" ({} tiles)", count);
+  }
+  return text;
+}
+
+// A tileset by URL, as `stipple render URL` draws it (the same plugins, renderer choice, framing
+// and point size), one engine frame per animation frame while its tiles stream in. Once the
+// streamer is idle the camera is fitted to the drawn points (streamed again for that view), the
+// point size to their density, and `frames` more frames are drawn: then it reports done.
+void run_tileset(const Options& o) {
+  Engine engine;
+  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
+  GpuPlugin gpu;
+  gpu.options.optional_features = pc::compute_raster_features();
+  engine.add_plugin(std::move(gpu));
+  RenderGraphPlugin graph;
+  graph.keep_history = true;
+  engine.add_plugin(std::move(graph));
+  // As `stipple render --renderer auto` for a tileset: the compute rasterizer (blending as HQS)
+  // when the memory budget holds 10M points or more, else billboards.
+  const bool compute = (o.memory_mb << 20) / pc::kRasterPointBytes >= 10'000'000;
+  tiles3d::TilesetPlugin tiles;
+  tiles.compute = compute;
+  tiles.raster.hqs = compute && tiles.render.splat == pc::SplatMode::Blend;
+  tiles.raster.fill_radius = 0;
+  tiles.raster.occlusion_beta = 0.0f;
+  tiles.uri = o.url;
+  tiles.streamer.traversal.max_sse = o.max_sse;
+  tiles.streamer.traversal.memory_budget = o.memory_mb << 20;
+  tiles.streamer.traversal.point_budget = 0;
+  engine.add_plugin(std::move(tiles));
+  engine.add_plugin(HeadlessTargetPlugin{o.width, o.height, "", 0});
+  auto captured = std::make_shared<gpu::Image>();
+  engine.render().insert_resource(
+      FrameCapture{[captured](uint64_t, const gpu::Image& image) { *captured = image; }});
+
+  Registry& main = engine.main();
+  {
+    ViewFit fit(o.width, o.height, o.azimuth, o.elevation, o.fov);
+    fit.add_corners(main.resource<tiles3d::TilesetStream>().world_bounds);
+    main.emplace<Camera>(main.create(), fit.camera());
+  }
+  main.resource<pc::PointDrawSettings>().render.point_size = 2.0f;  // fitted once streamed
+  // What the frames did (the system below): done once `frames` frames after the stream settled.
+  struct Progress {
+    uint64_t settled = 0;
+    bool reframe = true, done = false;
+  };
+  auto progress = std::make_shared<Progress>();
+  engine.add_system(
+      MainStage::Update,
+      [progress, o](Registry& r) {
+        Progress& p = *progress;
+        auto& s = r.resource<tiles3d::TilesetStream>();
+        const auto& stats = r.resource<tiles3d::TilesetStats>();
+        const bool capped = stats.frames >= o.max_frames;
+        if (p.done || (!stats.idle && !capped)) return;
+        if (p.reframe && !capped && stats.drawn_points > 0) {
+          p.reframe = false;
+          ViewFit fit(o.width, o.height, o.azimuth, o.elevation, o.fov);
+          tiles3d::fit_drawn_tiles(fit, s);
+          r.view<Camera>().each([&](Camera& c) { c = fit.camera(); });
+          return;
+        }
+        if (p.settled == 0 && !stats.idle)
+          STIPPLE_WARN("{} frames reached before the tileset was streamed", o.max_frames);
+        if (p.settled == 0 && stats.drawn_points == 0 &&
+            (stats.loads_completed > 0 || stats.errors > 0) && stats.resident_points == 0)
+          fail("{}: nothing to render: the tiles in view hold no points{}", o.url,
+               s.first_problem.empty() ? "" : fmt::format(" ({})", s.first_problem));
+        if (p.settled++ == 0 && stats.drawn_points > 0) {
+          Aabb drawn;
+          for (uint32_t t : s.draw)
+            for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
+          r.view<Camera>().each([&](const Camera& c) {
+            r.resource<pc::PointDrawSettings>().render.point_size =
+                pc::auto_point_size(drawn, stats.drawn_points, c, o.height);
+          });
+        }
+        if (p.settled >= o.frames) p.done = true;
+      },
+      "web_render_when_streamed");
+
+  report("renderer", compute ? "compute" : "billboard");
+  const double start = emscripten_get_now();
+  std::vector<double> settled_ms;  // frame times once streamed
+  size_t problems = 0;
+  for (;;) {
+    const double frame_start = emscripten_get_now();
+    engine.update();
+    // Frames drawn once streamed (the system above ran before this frame was drawn).
+    if (progress->settled > 0) settled_ms.push_back(emscripten_get_now() - frame_start);
+    if (!captured->rgba.empty()) show(*captured);
+    const auto& s = main.resource<tiles3d::TilesetStream>();
+    const auto& stats = main.resource<tiles3d::TilesetStats>();
+    size_t n = 0;
+    for (const auto& [kind, count] : s.problems) n += count;
+    if (n != problems) {
+      problems = n;
+      report("tileProblems", tile_problems(s));
+    }
+    report("progress", fmt::format("{} tiles, {} points{}", stats.drawn_tiles, stats.drawn_points,
+                                   stats.idle ? "" : ", loading"));
+    if (progress->done) break;
+    stipple_next_frame();
+  }
+  engine.wait_for_render();
+  const auto& stats = main.resource<tiles3d::TilesetStats>();
+  const auto& description = main.resource<GpuContext>()->description;
+  report("adapter", fmt::format("{} {} ({})", description.vendor, description.architecture,
+                                description.backend));
+  report("tiles", std::to_string(stats.drawn_tiles));
+  report("points", std::to_string(stats.drawn_points));
+  report("errors", std::to_string(stats.errors));
+  report("pointSize",
+         fmt::format("{:.3f}", main.resource<pc::PointDrawSettings>().render.point_size));
+  report("ms", fmt::format("{:.1f}", emscripten_get_now() - start));
+  if (!settled_ms.empty()) {
+    std::sort(settled_ms.begin(), settled_ms.end());
+    report("frameMs", fmt::format("{:.1f}", settled_ms[settled_ms.size() / 2]));
+  }
+  engine.shutdown();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   try {
-    run(parse(argc, argv));
+    const Options o = parse(argc, argv);
+    if (o.url.empty())
+      run_scene(o);
+    else
+      run_tileset(o);
     report("done", "1");
     return 0;
   } catch (const std::exception& e) {
