@@ -4,6 +4,7 @@
 #include <tuple>
 
 #include "stipple/app/commands.hpp"
+#include "stipple/app/web_page.hpp"
 #include "stipple/core/atomic_file.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/tiler/tiler.hpp"
@@ -17,6 +18,7 @@ void add_tile_command(CLI::App& cli) {
     tiler::MergeOptions merge;
     std::string merge_memory = "2G";
     bool profile = false;
+    bool page = false;
     std::string stats;
   };
   auto args = std::make_shared<Args>();
@@ -51,6 +53,9 @@ void add_tile_command(CLI::App& cli) {
       ->check(CLI::Range(1, 16))
       ->capture_default_str();
   cmd->add_flag("--force", args->options.force, "Replace an existing output directory");
+  cmd->add_flag("--page", args->page,
+                "Copy the web viewer (scripts/build-web.sh) next to tileset.json, with an "
+                "index.html that opens it: the folder can be served statically and opened by link");
   cmd->add_flag("--profile", args->profile,
                 "Print a table of the phases (wall, CPU per thread, system time, bytes read and "
                 "written, page faults, time with at most one thread runnable) and of the steps");
@@ -80,6 +85,10 @@ void add_tile_command(CLI::App& cli) {
     if (merge->parsed()) return;
     if (args->options.inputs.empty()) throw CLI::RequiredError("inputs");
     if (args->options.output.empty()) throw CLI::RequiredError("--output");
+    if (args->page && !args->subset.empty())
+      fail("--page is for a whole tileset, not a part (--subset): merge the parts first");
+    // Found before tiling: a missing viewer is said at once, not after the work.
+    if (args->page) find_web_viewer();
     if (!args->subset.empty())
       std::tie(args->options.subset_index, args->options.subset_count) =
           tiler::parse_subset(args->subset);
@@ -94,6 +103,11 @@ void add_tile_command(CLI::App& cli) {
         s.depth, s.chunks, s.root_spacing, s.seconds, double(s.points) / s.seconds / 1e6);
     if (args->profile) std::printf("\n%s", tiler::profile_table(s).c_str());
     if (!args->stats.empty()) write_file_atomically(args->stats, tiler::stats_json(s));
+    if (args->page) {
+      const auto viewer = write_web_page(args->options.output);
+      std::printf("web viewer copied from %s: serve %s and open index.html\n",
+                  viewer.string().c_str(), args->options.output.c_str());
+    }
   });
 }
 
