@@ -7,6 +7,7 @@
 #include <emscripten.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -57,6 +58,7 @@ struct Options {
   double max_sse = 16.0;
   uint64_t frames = 1;          // drawn after the tileset is streamed (frame times)
   uint64_t max_frames = 10000;  // then drawn as is, with a warning
+  bool interactive = true;      // camera controls once drawn (0: stop after the first view)
 };
 
 uint64_t number(const std::string& name, const char* value) {
@@ -90,6 +92,8 @@ Options parse(int argc, char** argv) {
       o.frames = std::max<uint64_t>(1, number(a, v));
     else if (a == "--max-frames")
       o.max_frames = number(a, v);
+    else if (a == "--interactive")
+      o.interactive = number(a, v) != 0;
     else
       fail("unknown option '{}'", a);
   }
@@ -182,6 +186,67 @@ std::string tile_problems(const tiles3d::TilesetStream& s) {
     if (count > 1) text += fmt::format(" ({} tiles)", count);
   }
   return text;
+}
+
+// The camera controls' input since the last call (the page's listeners add it up): pointer
+// drag in pixels, wheel steps, and keyboard (arrows turn, +/- or PageUp/PageDown zoom).
+struct Input {
+  double dx = 0, dy = 0, zoom = 0;
+};
+Input take_input() {
+  Input in;
+  // (No commas outside parentheses in the JS: it is a macro argument.)
+  EM_ASM(
+      {
+        const i = Module.stippleInput;
+        if (!i) return;
+        HEAPF64[$0 >> 3] = i.dx;
+        HEAPF64[($0 >> 3) + 1] = i.dy;
+        HEAPF64[($0 >> 3) + 2] = i.zoom;
+        i.dx = i.dy = i.zoom = 0;
+      },
+      &in.dx);
+  return in;
+}
+
+// After the first view: the camera orbits the drawn points' centre (drag turns it, the wheel
+// and keys zoom), and tiles stream for the new view, one engine frame per animation frame while
+// the view changes or tiles load; idle otherwise.
+[[noreturn]] void orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured) {
+  Registry& main = engine.main();
+  Camera camera;
+  main.view<Camera>().each([&](const Camera& c) { camera = c; });
+  Aabb drawn;
+  const auto& s = main.resource<tiles3d::TilesetStream>();
+  for (uint32_t t : s.draw)
+    for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
+  const glm::dvec3 target = drawn.empty() ? s.world_bounds.center() : drawn.center();
+  const glm::dvec3 offset = camera.position - target;
+  double distance = std::max(glm::length(offset), 1e-3);
+  double yaw = std::atan2(offset.x, offset.z);
+  double pitch = std::asin(std::clamp(offset.y / distance, -1.0, 1.0));
+  uint64_t moves = 0;
+  for (;;) {
+    stipple_next_frame();
+    const Input in = take_input();
+    const bool moved = in.dx != 0 || in.dy != 0 || in.zoom != 0;
+    if (moved) {
+      yaw -= in.dx * 0.005;
+      pitch = std::clamp(pitch + in.dy * 0.005, -1.55, 1.55);
+      distance *= std::exp(in.zoom * 0.1);
+      const glm::dvec3 eye =
+          target + distance * glm::dvec3(std::cos(pitch) * std::sin(yaw), std::sin(pitch),
+                                         std::cos(pitch) * std::cos(yaw));
+      main.view<Camera>().each([&](Camera& c) {
+        c.look_at(eye, target);
+        c.near_plane = std::max(distance * 1e-4, 1e-3);
+      });
+      report("cameraMoves", std::to_string(++moves));
+    }
+    if (!moved && main.resource<tiles3d::TilesetStats>().idle) continue;
+    engine.update();
+    if (!captured->rgba.empty()) show(*captured);
+  }
 }
 
 // A tileset by URL, as `stipple render URL` draws it (the same plugins, renderer choice, framing
@@ -299,6 +364,10 @@ void run_tileset(const Options& o) {
   if (!settled_ms.empty()) {
     std::sort(settled_ms.begin(), settled_ms.end());
     report("frameMs", fmt::format("{:.1f}", settled_ms[settled_ms.size() / 2]));
+  }
+  if (o.interactive) {
+    report("done", "1");
+    orbit(engine, captured);  // returns never: the page is the viewer from here on
   }
   engine.shutdown();
 }

@@ -3,8 +3,9 @@
 // a generated cloud where ../shared is absent); headless chromium (WebGPU on SwiftShader) streams
 // it through the same plugins, render graph and shaders as `stipple render`, and its canvas
 // matches the native render of the same tileset and camera (lavapipe) within the stated
-// tolerance. A 404 tile is an error on the page while the other tiles are drawn; a missing
-// tileset is an error on the page. `stipple tile --page` writes a folder that opens by link.
+// tolerance; a drag, a key and the wheel move its camera. A 404 tile is an error on the page
+// while the other tiles are drawn; a missing tileset is an error on the page. `stipple tile
+// --page` writes a folder that opens by link.
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
@@ -137,6 +138,28 @@ test('a tileset by URL matches the native render of the same camera', { skip: sk
   // Measured on autzen (9 tiles, 110,000 points, the compute rasterizer): 0.0002 and 0.
   assert.ok(d.meanDiff < 3, `mean difference ${d.meanDiff} (of 255)`);
   assert.ok(d.offFraction < 0.02, `${d.offFraction} of the pixels differ by more than 48`);
+  // Camera controls: a drag across the canvas turns the view (the image changes, still drawn).
+  await page.mouse.move(160, 120);
+  await page.mouse.down();
+  await page.mouse.move(260, 140, { steps: 5 });
+  await page.mouse.up();
+  await page.waitForFunction(() => Number(window.stipple.cameraMoves) >= 1, { timeout: 30000 });
+  let turned = d;
+  for (let i = 0; i < 60 && turned.meanDiff < 5; ++i) {
+    await new Promise((r) => setTimeout(r, 500));
+    turned = await compare(page, fs.readFileSync(ref));
+  }
+  console.log(`after a drag: ${JSON.stringify(turned)}`);
+  assert.ok(turned.meanDiff >= 5, `the view did not change: ${JSON.stringify(turned)}`);
+  assert.ok(turned.litFraction > 0.05, `only ${turned.litFraction} drawn after the drag`);
+  // The keyboard turns it, the wheel zooms.
+  await page.keyboard.press('ArrowLeft');
+  await page.waitForFunction(() => Number(window.stipple.cameraMoves) >= 2, { timeout: 30000 });
+  await page.mouse.move(160, 120);
+  await page.mouse.wheel({ deltaY: 100 });
+  await page.waitForFunction(() => Number(window.stipple.cameraMoves) >= 3, { timeout: 30000 });
+  const errors = await page.evaluate(() => window.stipple.error);
+  assert.equal(errors, undefined);
   await page.close();
 });
 
