@@ -7,10 +7,13 @@
 #include <emscripten.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -22,6 +25,7 @@
 #include "stipple/engine/engine.hpp"
 #include "stipple/engine/plugins.hpp"
 #include "stipple/engine/render_plugins.hpp"
+#include "stipple/io/fetch.hpp"
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
@@ -56,9 +60,10 @@ struct Options {
   std::string url;
   uint64_t memory_mb = 512;
   double max_sse = 16.0;
-  uint64_t frames = 1;          // drawn after the tileset is streamed (frame times)
-  uint64_t max_frames = 10000;  // then drawn as is, with a warning
-  bool interactive = true;      // camera controls once drawn (0: stop after the first view)
+  uint64_t frames = 1;             // drawn after the tileset is streamed (frame times)
+  uint64_t max_frames = 10000;     // then drawn as is, with a warning
+  std::vector<std::string> files;  // LAS files (a LAS ?url= is fetched into the page's memory)
+  bool interactive = true;         // camera controls once drawn (0: stop after the first view)
 };
 
 uint64_t number(const std::string& name, const char* value) {
@@ -131,6 +136,7 @@ void run_scene(const Options& o) {
   graph.keep_history = true;
   engine.add_plugin(std::move(graph));
   pc::PointCloudPlugin points;
+  points.inputs.files.assign(o.files.begin(), o.files.end());
   points.inputs.scene.point_count = o.scene_points;
   points.inputs.scene.seed = o.seed;
   engine.add_plugin(std::move(points));
@@ -155,7 +161,8 @@ void run_scene(const Options& o) {
   });
   // As `stipple render --renderer auto`: 1-pixel points go to the compute rasterizer.
   const char* renderer = "billboard";
-  if (o.scene_points >= 10'000'000 || settings.render.point_size <= 1.0f) {
+  const uint64_t count = o.files.empty() ? o.scene_points : main.resource<pc::SceneInfo>().points;
+  if (count >= 10'000'000 || settings.render.point_size <= 1.0f) {
     settings.compute = true;
     settings.hqs = settings.render.splat == pc::SplatMode::Blend;
     renderer = "compute";
@@ -372,15 +379,42 @@ void run_tileset(const Options& o) {
   engine.shutdown();
 }
 
+// A LAS file by URL (.las/.laz, case aside): read whole like `stipple render file.las` does.
+bool is_las_url(const std::string& url) {
+  std::string path = io::uri_path(url);
+  for (auto& c : path) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return path.ends_with(".las") || path.ends_with(".laz");
+}
+
+// Fetches `url` (the browser's fetch) into a file of the page's in-memory file system, which
+// the LAS reader opens like any file; returns its path.
+std::string fetch_to_memory(const std::string& url) {
+  io::FetchOptions options;
+  options.max_bytes = uint64_t(2) << 30;
+  const std::vector<uint8_t> bytes = io::fetch(url, options);
+  std::string name = io::uri_path(url);
+  name = name.substr(name.find_last_of('/') + 1);
+  std::filesystem::create_directories("/input");
+  const std::string path = "/input/" + (name.empty() ? std::string("input.las") : name);
+  std::ofstream out(path, std::ios::binary);
+  out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  if (!out) fail("{}: cannot be kept in the page's memory ({} bytes)", url, bytes.size());
+  return path;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   try {
-    const Options o = parse(argc, argv);
-    if (o.url.empty())
+    Options o = parse(argc, argv);
+    if (is_las_url(o.url)) {
+      o.files.push_back(fetch_to_memory(o.url));
       run_scene(o);
-    else
+    } else if (o.url.empty()) {
+      run_scene(o);
+    } else {
       run_tileset(o);
+    }
     report("done", "1");
     return 0;
   } catch (const std::exception& e) {

@@ -5,7 +5,7 @@
 // matches the native render of the same tileset and camera (lavapipe) within the stated
 // tolerance; a drag, a key and the wheel move its camera. A 404 tile is an error on the page
 // while the other tiles are drawn; a missing tileset is an error on the page. `stipple tile
-// --page` writes a folder that opens by link.
+// --page` writes a folder that opens by link. A LAS file by URL matches `stipple render` of it.
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
@@ -41,6 +41,7 @@ before(async () => {
   fs.mkdirSync(root);
   fs.symlinkSync(webDir, path.join(root, 'viewer'));
   h.tile(input, path.join(root, 'tiles'));
+  fs.symlinkSync(input, path.join(root, 'cloud.las'));
   // The same tileset with one tile below the root missing (a 404).
   fs.cpSync(path.join(root, 'tiles'), path.join(root, 'broken'), { recursive: true });
   server = await h.startNginx(root, { headers: isolation });
@@ -181,6 +182,23 @@ test('a tile that is not found (404) is an error on the page; the other tiles ar
   assert.ok(Number(state.points) > 1000, `only ${state.points} points drawn`);
   const lit = await litFraction(page);
   assert.ok(lit > 0.05, `only ${lit} of the canvas is drawn`);
+  await page.close();
+});
+
+test('a LAS file by URL matches the native render of the file', { skip: skip || false }, async () => {
+  const ref = path.join(work, 'native-las.png');
+  const native = h.stipple(['render', input, '-o', ref, '--width', '320', '--height', '240']);
+  const { page, state, log } = await open('viewer/stipple.html?url=/cloud.las&width=320&height=240');
+  assert.equal(state.error, undefined, `the page failed: ${state.error}\n${log.join('\n')}`);
+  assert.equal(state.done, '1', log.join('\n'));
+  assert.match(native, new RegExp(`renderer: ${state.renderer}`));
+  assert.match(native, new RegExp(`rendered ${state.points} points`));
+  const d = await compare(page, fs.readFileSync(ref));
+  console.log(`LAS web vs native: ${JSON.stringify(d)}; ${state.points} points, ${state.renderer}`);
+  assert.equal(d.size, undefined, `canvas size differs: ${d.size}`);
+  assert.ok(d.litFraction > 0.05, `only ${d.litFraction} of the canvas is drawn`);
+  assert.ok(d.meanDiff < 3, `mean difference ${d.meanDiff} (of 255)`);
+  assert.ok(d.offFraction < 0.02, `${d.offFraction} of the pixels differ by more than 48`);
   await page.close();
 });
 
