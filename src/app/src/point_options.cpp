@@ -7,30 +7,6 @@
 
 namespace stipple::app {
 
-std::vector<double> parse_numbers(const std::string& text, size_t expected, const char* what) {
-  std::vector<double> values;
-  size_t start = 0;
-  while (start <= text.size()) {
-    size_t comma = text.find(',', start);
-    std::string part =
-        text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-    try {
-      size_t used = 0;
-      values.push_back(std::stod(part, &used));
-      if (used != part.size()) throw std::invalid_argument(part);
-    } catch (const std::exception&) {
-      fail("{} '{}': '{}' is not a number", what, text, part);
-    }
-    if (!std::isfinite(values.back())) fail("{} '{}': values must be finite", what, text);
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  if (values.size() != expected)
-    fail("{} '{}': expected {} comma-separated numbers, got {}", what, text, expected,
-         values.size());
-  return values;
-}
-
 namespace {
 // A flag whose value is a comma-separated list, parsed straight into the settings; errors come
 // out as CLI validation errors (exit code and message like every other bad flag).

@@ -61,11 +61,15 @@ void execute_frame_graph(Registry& render) {
   const auto& target = render.resource<RenderTarget>();
   auto* requests = render.try_resource<ScreenshotRequests>();
   auto* capture = render.try_resource<FrameCapture>();
-  bool want_capture = (requests && !requests->paths.empty()) || (capture && capture->on_frame);
+  bool want_capture = (requests && (!requests->paths.empty() || requests->capture)) ||
+                      (capture && capture->on_frame);
   if (!want_capture) return;
   if (!(target.usage & WGPUTextureUsage_CopySrc)) {
     STIPPLE_WARN("this render target cannot be read back: no screenshot");
-    if (requests) requests->paths.clear();
+    if (requests) {
+      requests->paths.clear();
+      requests->capture = false;
+    }
     return;
   }
   gpu::Image image =
@@ -76,6 +80,8 @@ void execute_frame_graph(Registry& render) {
       STIPPLE_INFO("wrote {} ({}x{})", path, image.width, image.height);
     }
     requests->paths.clear();
+    if (requests->capture) render.resource<CapturedFrame>().image = image;
+    requests->capture = false;
   }
   if (capture && capture->on_frame) capture->on_frame(stats.frames, image);
 }
@@ -103,10 +109,12 @@ void finish_render_frame(Registry& render) {
 
 void extract_screenshot_requests(Registry& main) {
   auto& requests = main.resource<ScreenshotRequests>();
-  if (requests.paths.empty()) return;
+  if (requests.paths.empty() && !requests.capture) return;
   auto& render = main.resource<RenderWorldRef>()->resource<ScreenshotRequests>();
   for (auto& p : requests.paths) render.paths.push_back(std::move(p));
   requests.paths.clear();
+  render.capture = render.capture || requests.capture;
+  requests.capture = false;
 }
 
 void extract_render_stats(Registry& main) {
@@ -135,6 +143,7 @@ void RenderGraphPlugin::build(Engine& engine) {
   stats.keep_history = keep_history;
   engine.render().insert_resource(std::move(stats));
   engine.render().insert_resource(ScreenshotRequests{});
+  engine.render().insert_resource(CapturedFrame{});
   engine.main().insert_resource(ScreenshotRequests{});
   engine.main().insert_resource(RenderStatsSnapshot{});
   engine.add_system(RenderStage::Prepare, start_render_frame, "start_render_frame");
@@ -153,13 +162,14 @@ namespace {
 struct HeadlessSchedule {
   uint64_t frames = 0;
   std::string output;
+  bool capture = false;
   uint64_t frame = 0;
 };
 }  // namespace
 
 void HeadlessTargetPlugin::build(Engine& engine) {
   if (width == 0 || height == 0) fail("HeadlessTargetPlugin: the target size must not be 0");
-  engine.main().insert_resource(HeadlessSchedule{frames, output, 0});
+  engine.main().insert_resource(HeadlessSchedule{frames, output, capture, 0});
   engine.main().insert_resource(Viewport{width, height});
   HeadlessTarget target;
   target.width = width;
@@ -172,6 +182,7 @@ void HeadlessTargetPlugin::build(Engine& engine) {
         uint64_t frame = s.frame++;
         if (s.frames == 0 || frame + 1 != s.frames) return;
         if (!s.output.empty()) main.resource<ScreenshotRequests>().paths.push_back(s.output);
+        if (s.capture) main.resource<ScreenshotRequests>().capture = true;
         main.resource<AppExit>().requested = true;
       },
       "headless_schedule");

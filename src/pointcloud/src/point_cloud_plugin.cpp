@@ -51,10 +51,10 @@ struct PointPipelineCache {
   WGPUTextureFormat format = WGPUTextureFormat_Undefined;
 };
 
-PointCloudData make_data(pc::PointCloud cloud, uint64_t generation) {
+PointCloudData make_data(std::shared_ptr<const pc::PointCloud> cloud, uint64_t generation) {
   PointCloudData data;
-  data.chunk_bounds = chunk_bounds(cloud);
-  data.cloud = std::make_shared<const pc::PointCloud>(std::move(cloud));
+  data.chunk_bounds = chunk_bounds(*cloud);
+  data.cloud = std::move(cloud);
   data.generation = generation;
   return data;
 }
@@ -282,23 +282,29 @@ std::optional<PickHit> pick_point_clouds(Registry& main, const PickRay& ray) {
 
 void PointCloudPlugin::build(Engine& engine) {
   Registry& main = engine.main();
-  pc::PointCloud cloud = load_inputs(inputs);
-  if (cloud.point_count == 0) {
+  // Points in memory are shared as they are (never modified), not copied.
+  const bool in_memory = inputs.points && inputs.files.empty();
+  std::shared_ptr<const pc::PointCloud> cloud =
+      in_memory ? inputs.points : std::make_shared<const pc::PointCloud>(load_inputs(inputs));
+  if (cloud->point_count == 0) {
+    if (in_memory) fail("nothing to render: the points given hold none");
     std::string names;
     for (const auto& f : inputs.files) names += (names.empty() ? "" : ", ") + f.string();
     fail("{}: nothing to render: the {} no points", names,
          inputs.files.size() > 1 ? "inputs hold" : "input holds");
   }
   SceneInfo info;
-  info.world_bounds = cloud.world_bounds;
-  info.points = cloud.point_count;
-  info.attributes = cloud.attributes;
-  info.name = inputs.files.empty() ? "procedural scene" : inputs.files.front().filename().string();
+  info.world_bounds = cloud->world_bounds;
+  info.points = cloud->point_count;
+  info.attributes = cloud->attributes;
+  info.name = in_memory              ? "points in memory"
+              : inputs.files.empty() ? "procedural scene"
+                                     : inputs.files.front().filename().string();
   main.insert_resource(info);
 
   Entity e = main.create();
   PointCloudData data = make_data(std::move(cloud), 0);
-  if (inputs.files.empty()) data.scene = inputs.scene;
+  if (inputs.files.empty() && !in_memory) data.scene = inputs.scene;
   main.emplace<PointCloudData>(e, std::move(data));
   main.emplace<Transform>(e);
   main.emplace<SyncTo<RenderWorldTag>>(e);

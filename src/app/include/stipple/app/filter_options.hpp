@@ -9,24 +9,16 @@
 
 #include <CLI/CLI.hpp>
 
-#include "stipple/pointcloud/filters.hpp"
+#include "stipple/scene/filter_args.hpp"
 
 namespace stipple::app {
 
-struct FilterArgs {
-  pc::PointFilter filter;  // filled while the flags are parsed (values checked there)
-  std::vector<pc::ClipBox> boxes;
-  std::vector<pc::ClipPlane> planes;
-  std::vector<std::string> polygon_files;  // GeoJSON, read by make_region
-  pc::ClipMode mode = pc::ClipMode::Inside;
-};
+using scene::FilterArgs;
+using scene::make_filter;
+using scene::make_region;
 
 enum class FilterFlags { Clip, Render };
 
 void add_filter_options(CLI::App* cmd, FilterArgs& args, FilterFlags flags);
-
-pc::PointFilter make_filter(const FilterArgs& args);
-// Reads the polygon files (stipple::Error naming the file and the problem).
-pc::ClipRegion make_region(const FilterArgs& args);
 
 }  // namespace stipple::app

@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #include "stipple/pointcloud/point_renderer.hpp"
+#include "stipple/scene/scene.hpp"
 
 namespace stipple::app {
 
@@ -17,9 +18,7 @@ namespace stipple::app {
 // the parse). Malformed lists ("r,g,b") throw CLI::ValidationError naming the flag.
 void add_point_render_options(CLI::App* cmd, pc::PointRenderSettings& settings);
 
-// "1,2,3" -> {1, 2, 3}; throws stipple::Error naming `what` unless exactly `expected` finite
-// numbers.
-
-std::vector<double> parse_numbers(const std::string& text, size_t expected, const char* what);
+// "1,2,3" -> {1, 2, 3} (stipple::Error naming `what` unless exactly `expected` finite numbers).
+using scene::parse_numbers;
 
 }  // namespace stipple::app

@@ -90,9 +90,16 @@ struct RenderStatsSnapshot {
 };
 
 // Main-world resource: PNG files to write from the next drawn frame (the target as presented,
-// overlays included). Moved to the render world in Extract.
+// overlays included), and whether to keep that frame in memory (CapturedFrame). Moved to the
+// render world in Extract.
 struct ScreenshotRequests {
   std::vector<std::string> paths;
+  bool capture = false;
+};
+// Render-world resource: the frame a ScreenshotRequests::capture asked for (RGBA8, top row
+// first); empty until then.
+struct CapturedFrame {
+  gpu::Image image;
 };
 // Render-world resource: every drawn frame handed to a callback (tests compare frames).
 struct FrameCapture {
@@ -111,8 +118,9 @@ struct RenderGraphPlugin {
   void finish(Engine& engine);
 };
 
-// An offscreen RGBA8 target. With `output` set, the frame `write_frame` (0-based; default the
-// last of `frames`) is written there as PNG; with `frames` > 0 the app exits after that many.
+// An offscreen RGBA8 target. With `output` set, the last of `frames` is written there as PNG;
+// with `capture`, it is kept in the render world's CapturedFrame; with `frames` > 0 the app
+// exits after that many.
 struct HeadlessTargetPlugin {
   static constexpr std::string_view name = "HeadlessTargetPlugin";
   static constexpr std::string_view description =
@@ -121,6 +129,7 @@ struct HeadlessTargetPlugin {
   uint32_t width = 1280, height = 720;
   std::string output;
   uint64_t frames = 1;  // 0: run until something else asks to exit
+  bool capture = false;
   void build(Engine& engine);
 };
 

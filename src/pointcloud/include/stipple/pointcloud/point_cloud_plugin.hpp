@@ -28,7 +28,9 @@ class Engine;
 namespace stipple::pc {
 
 struct PointCloudInputs {
-  std::vector<std::filesystem::path> files;  // empty: the procedural scene
+  std::vector<std::filesystem::path> files;  // empty: `points`, else the procedural scene
+  // Points already in memory (a caller's arrays), drawn instead of files or the scene.
+  std::shared_ptr<const pc::PointCloud> points;
   io::SceneParams scene;
   size_t chunk_points = 1 << 20;  // smaller chunks make the point budget finer
   bool progress = true;
@@ -46,7 +48,8 @@ struct PointCloudData {
   std::optional<io::SceneParams> scene;
 };
 
-// LAS/LAZ/COPC files read whole, or the procedural scene (tilesets: tiles3d::TilesetPlugin).
+// LAS/LAZ/COPC files read whole, a copy of the points in memory, or the procedural scene
+// (tilesets: tiles3d::TilesetPlugin).
 pc::PointCloud load_inputs(const PointCloudInputs& inputs);
 std::vector<Aabb> chunk_bounds(const pc::PointCloud& cloud);
 

@@ -1,20 +1,21 @@
-#include "stipple/app/scene.hpp"
+#include "stipple/scene/scene.hpp"
 
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <stdexcept>
 #include <utility>
 
 #include <fmt/format.h>
 
-#include "stipple/app/point_options.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
 #include "stipple/engine/engine.hpp"
 #include "stipple/io/copc.hpp"
-#include "stipple/io/fetch.hpp"
 #include "stipple/io/ept.hpp"
+#include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
 #include "stipple/io/potree.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
@@ -26,7 +27,7 @@
 #include "stipple/tiles3d/render_load.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 
-namespace stipple::app {
+namespace stipple::scene {
 
 bool is_tileset_scene(const SceneOptions& options) {
   return options.inputs.size() == 1 && tiles3d::is_tileset_input(options.inputs[0]);
@@ -111,7 +112,9 @@ Renderer resolve_renderer(const SceneOptions& options, const gpu::Context& ctx,
   // tileset's size is not.
   constexpr uint64_t kComputeFrom = 10'000'000;
   uint64_t points = 0;
-  if (options.inputs.empty()) {
+  if (options.points) {
+    points = options.points->point_count;
+  } else if (options.inputs.empty()) {
     points = options.scene_points;
   } else if (is_tileset_scene(options)) {
     if (!io::is_copc_input(options.inputs[0])) {
@@ -138,6 +141,30 @@ Renderer resolve_renderer(const SceneOptions& options, const gpu::Context& ctx,
   return say(
       Renderer::Billboard,
       fmt::format("auto: {} points, under {}: point sizes above one pixel", points, kComputeFrom));
+}
+
+std::vector<double> parse_numbers(const std::string& text, size_t expected, const char* what) {
+  std::vector<double> values;
+  size_t start = 0;
+  while (start <= text.size()) {
+    size_t comma = text.find(',', start);
+    std::string part =
+        text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    try {
+      size_t used = 0;
+      values.push_back(std::stod(part, &used));
+      if (used != part.size()) throw std::invalid_argument(part);
+    } catch (const std::exception&) {
+      fail("{} '{}': '{}' is not a number", what, text, part);
+    }
+    if (!std::isfinite(values.back())) fail("{} '{}': values must be finite", what, text);
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  if (values.size() != expected)
+    fail("{} '{}': expected {} comma-separated numbers, got {}", what, text, expected,
+         values.size());
+  return values;
 }
 
 Camera frame_scene(Registry& main, uint32_t width, uint32_t height, double azimuth,
@@ -222,8 +249,11 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
       std::printf("reused %s (the input is unchanged)\n", c.path.c_str());
     return;
   }
+  if (options.points && !options.inputs.empty())
+    fail("points in memory and input files cannot be drawn together");
   pc::PointCloudPlugin points;
   points.inputs.files.assign(options.inputs.begin(), options.inputs.end());
+  points.inputs.points = options.points;
   points.inputs.scene.point_count = options.scene_points;
   points.inputs.scene.seed = options.seed;
   points.inputs.chunk_points = options.chunk_points;
@@ -237,63 +267,4 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
   engine.add_plugin(std::move(points));
 }
 
-void add_scene_options(CLI::App* cmd, SceneOptions& options) {
-  cmd->add_option_function<std::string>(
-         "--renderer",
-         [&options](const std::string& v) {
-           options.renderer = v == "compute"     ? Renderer::Compute
-                              : v == "billboard" ? Renderer::Billboard
-                                                 : Renderer::Auto;
-         },
-         "auto (compute on a GPU from 10M points, else billboard; the summary says which), "
-         "billboard (the point pipeline) or compute (compute rasterizer, 1-pixel points)")
-      ->check(CLI::IsMember({"auto", "billboard", "compute"}))
-      ->default_str("auto");
-  cmd->add_flag("--hqs", options.hqs,
-                "Compute renderer: high-quality shading (average points within 1% of the "
-                "nearest depth)");
-  cmd->add_option("--max-sse", options.max_sse,
-                  "Tilesets and COPC: refine tiles while their screen-space error exceeds this "
-                  "(pixels; default 16 for 3D Tiles, 2 for COPC, whose error is the point spacing)")
-      ->check(CLI::PositiveNumber);
-  cmd->add_option("--fill-radius", options.fill_radius,
-                  "Compute renderer: fill empty pixels from drawn ones within this radius (seed "
-                  "002 III-D; default 1 on the virtualized path, else 0)")
-      ->check(CLI::Range(0, 8));
-  cmd->add_option("--occlusion-beta", options.occlusion_beta,
-                  "Compute renderer: drop points a nearer neighbour sees at an angle of at most "
-                  "this (radians; eq. 4 of seed 002, which uses 0.1); 0: off")
-      ->check(CLI::Range(0.0f, 1.5f))
-      ->capture_default_str();
-  cmd->add_flag("--virtual", options.force_virtual,
-                "Point clouds: draw from a pointlet cache in bounded memory (seed 002; chosen "
-                "automatically for inputs larger than the host budget)");
-  cmd->add_option("--bucket", options.bucket,
-                  "Virtualized: the point bucket B, the most points drawn in a frame")
-      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 31))
-      ->capture_default_str();
-  cmd->add_option("--pointlets", options.pointlets,
-                  "Virtualized: m of k = 2^floor(log2(n / m)), about how many pointlets")
-      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 31))
-      ->capture_default_str();
-  cmd->add_option("--cache", options.cache_dir,
-                  "Virtualized: folder of the pointlet cache (default: beside the input, else "
-                  "~/.cache/stipple)");
-  cmd->add_option("--host-memory", options.host_memory,
-                  "Host memory budget, e.g. 4G (default: a quarter of RAM): larger inputs take the "
-                  "virtualized path");
-  cmd->add_option("--gpu-memory", options.gpu_memory,
-                  "Virtualized: device memory for the points, e.g. 2G (default: what the bucket "
-                  "needs, 32 bytes a point); a bucket that does not fit is lowered");
-  cmd->add_option("--budget", options.budget,
-                  "Point budget: draw at most this many points (0: all); point clouds: nearest "
-                  "chunks first; tilesets and COPC: coarser tiles where the view wants more")
-      ->capture_default_str();
-  cmd->add_option("--memory-mb", options.memory_mb,
-                  "Tilesets: resident tile memory budget in MiB (least recently used evicted)")
-      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 20))
-      ->capture_default_str();
-  add_filter_options(cmd, options.filters, FilterFlags::Render);
-}
-
-}  // namespace stipple::app
+}  // namespace stipple::scene
