@@ -54,6 +54,7 @@ std::string header_json(const std::string& path) {
 }  // namespace
 
 void add_tile(nb::module_& m);
+void add_render(nb::module_& m);
 
 }  // namespace stipple::python
 
@@ -64,4 +65,5 @@ NB_MODULE(_stipple, m) {
   m.def("read", &read_las, "path"_a, "fields"_a = nb::none());
   m.def("header_json", &header_json, "path"_a);
   add_tile(m);
+  add_render(m);
 }

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <set>
 
 #include <fmt/format.h>
@@ -234,7 +235,15 @@ ReadResult read_points(const std::string& path,
   }
   if (before_read) before_read();
   const uint64_t n = h.point_count;
-  r.data.resize(size_t(n) * r.itemsize);
+  // A crafted header must not make this allocate terabytes: LasReader has already checked an
+  // uncompressed file's count against its size; LASzip records vary in size, so for LAZ the
+  // array is allocated up front for at most kUpFront points and grows as points are decoded
+  // (a count the data does not hold ends in a decoding error naming the file).
+  constexpr uint64_t kUpFront = 1 << 20;
+  const uint64_t up_front = h.compressed ? std::min(n, kUpFront) : n;
+  if (r.itemsize > 0 && n > std::numeric_limits<size_t>::max() / r.itemsize)
+    fail("{}: the header declares {} points, more than this machine can address", path, n);
+  r.data.reserve(size_t(up_front) * r.itemsize);
   io::PointBatch batch;
   uint64_t done = 0;
   constexpr size_t kChunk = 1 << 16;
@@ -242,6 +251,7 @@ ReadResult read_points(const std::string& path,
     batch.clear();
     const size_t got = reader.read(batch, size_t(std::min<uint64_t>(kChunk, n - done)));
     if (got == 0) fail("{}: ended after {} of the {} points its header declares", path, done, n);
+    r.data.resize(size_t(done + got) * r.itemsize);
     uint8_t* base = r.data.data() + done * r.itemsize;
     for (const auto& s : r.fields) s.fill(batch, base + s.offset, r.itemsize);
     done += got;

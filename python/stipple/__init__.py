@@ -16,7 +16,7 @@ import numpy as np
 from . import _stipple
 from ._stipple import Error
 
-__all__ = ["Error", "read", "read_header", "info", "tile", "merge"]
+__all__ = ["Error", "read", "read_header", "info", "render", "tile", "merge"]
 
 
 def _path(path) -> str:
@@ -52,6 +52,153 @@ def read_header(path) -> dict:
 def info(path) -> dict:
     """What ``stipple info --json`` says about a file, as a dict."""
     return read_header(path)
+
+
+_COLUMNS = {
+    "x": np.float64,
+    "y": np.float64,
+    "z": np.float64,
+    "intensity": np.uint16,
+    "red": np.uint16,
+    "green": np.uint16,
+    "blue": np.uint16,
+    "classification": np.uint8,
+    "return_number": np.uint8,
+    "number_of_returns": np.uint8,
+}
+
+
+def _columns(points) -> dict:
+    """Points as contiguous columns of the types the library reads: a structured array (as
+    :func:`read` returns: ``x``, ``y``, ``z`` and the optional attributes by their laspy names)
+    or an (N, 3) float array of x, y, z. Columns already of the right type and layout are
+    passed without a copy."""
+    points = np.asarray(points)
+    if points.dtype.names is None:
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise ValueError(
+                f"points: expected a structured array with x, y, z or an (N, 3) array, "
+                f"got shape {points.shape}"
+            )
+        xyz = np.asarray(points, dtype=np.float64)
+        if xyz.strides[0] % 8 or xyz.strides[1] % 8:
+            xyz = np.ascontiguousarray(xyz)
+        return {name: xyz[:, i] for i, name in enumerate("xyz")}
+    missing = [n for n in "xyz" if n not in points.dtype.names]
+    if missing:
+        raise ValueError(
+            f"points: no field {', '.join(missing)} (fields: {', '.join(points.dtype.names)})"
+        )
+    columns = {}
+    for name, dtype in _COLUMNS.items():
+        if name in points.dtype.names:
+            column = points[name]
+            if (
+                column.dtype != dtype
+                or column.strides[0] % column.itemsize
+                or column.ctypes.data % column.itemsize
+            ):
+                column = np.ascontiguousarray(column, dtype=dtype)
+            columns[name] = column
+    return columns
+
+
+def _camera(camera) -> str:
+    if camera is None:
+        return ""
+    if isinstance(camera, str):
+        return camera
+    values = np.asarray(camera, dtype=np.float64).ravel()
+    if values.size != 6:
+        raise ValueError("camera: expected (eye, target) or 6 numbers eye_x..target_z")
+    return ",".join(repr(float(v)) for v in values)
+
+
+def _seq(values, n, what):
+    if values is None:
+        return None
+    values = [float(v) for v in values]
+    if len(values) != n:
+        raise ValueError(f"{what}: expected {n} numbers, got {len(values)}")
+    return values
+
+
+def render(
+    points,
+    width: int = 1280,
+    height: int = 720,
+    *,
+    camera=None,
+    azimuth: float = 30.0,
+    elevation: float = 40.0,
+    fov: float = 50.0,
+    color: str = "auto",
+    renderer: str = "auto",
+    point_size: float = 0.0,
+    point_size_mode: str = "fixed",
+    background=None,
+    constant_color=None,
+    elevation_range=None,
+    intensity_range=None,
+    edl: bool = True,
+    splat: str = "blend",
+    hqs: bool = False,
+    clod_k: float = 0.0,
+    max_sse: float = 0.0,
+    memory_mb: int = 512,
+    budget: int = 0,
+    backend: str = "",
+    frames: int = 1,
+) -> np.ndarray:
+    """Renders points headless (WebGPU) to an (height, width, 4) uint8 RGBA array, through the
+    pipeline and options of ``stipple render`` (which writes the same pixels as PNG).
+
+    ``points`` is a path (LAS/LAZ/COPC, a 3D Tiles tileset.json, Potree or EPT metadata), a
+    list of LAS/LAZ paths, a structured array as :func:`read` returns (``x``, ``y``, ``z``;
+    ``red``/``green``/``blue``, ``intensity``, ``classification``, ``return_number``,
+    ``number_of_returns`` when present) or an (N, 3) array of x, y, z. ``camera`` is
+    ``(eye, target)`` or 6 numbers in the data's coordinates (Z up), or None to frame the data
+    from ``azimuth``/``elevation`` (degrees). ``color`` is auto, rgb, intensity, classification,
+    elevation, return or constant; ``renderer`` auto, billboard or compute; ``point_size`` 0
+    sizes points from the data's density; ``background`` and ``constant_color`` are r, g, b in
+    0..1. The other options are those of ``stipple render``.
+    """
+    inputs, columns = [], None
+    if isinstance(points, (str, os.PathLike)):
+        inputs = [_path(points)]
+    elif isinstance(points, (list, tuple)) and points and all(
+        isinstance(p, (str, os.PathLike)) for p in points
+    ):
+        inputs = [_path(p) for p in points]
+    else:
+        columns = _columns(points)
+    return _stipple.render(
+        inputs,
+        columns,
+        int(width),
+        int(height),
+        _camera(camera),
+        float(azimuth),
+        float(elevation),
+        float(fov),
+        str(color),
+        str(renderer),
+        float(point_size),
+        str(point_size_mode),
+        _seq(background, 3, "background"),
+        _seq(constant_color, 3, "constant_color"),
+        _seq(elevation_range, 2, "elevation_range"),
+        _seq(intensity_range, 2, "intensity_range"),
+        bool(edl),
+        str(splat),
+        bool(hqs),
+        float(clod_k),
+        float(max_sse),
+        int(memory_mb),
+        int(budget),
+        str(backend),
+        int(frames),
+    )
 
 
 def tile(

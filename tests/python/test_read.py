@@ -116,3 +116,19 @@ def test_truncated_file_raises_with_its_name(data, tmp_path):
     with pytest.raises(stipple.Error, match="short.las"):
         (tmp_path / "short.las").write_bytes(b"LASF" + bytes(100))
         stipple.read_header(tmp_path / "short.las")
+
+
+def test_declared_count_beyond_the_file_raises_before_allocating(tmp_path):
+    # A valid file whose header then claims 4 billion points (LAS 1.2: the 32-bit count at byte
+    # 107): reading must fail with the file's name, not try to allocate ~200 GB first.
+    header = laspy.LasHeader(point_format=3, version="1.2")
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = np.arange(100.0), np.arange(100.0), np.arange(100.0)
+    for suffix in ("las", "laz"):
+        path = tmp_path / f"crafted.{suffix}"
+        las.write(path)
+        raw = bytearray(path.read_bytes())
+        raw[107:111] = (4_000_000_000).to_bytes(4, "little")
+        path.write_bytes(bytes(raw))
+        with pytest.raises(stipple.Error, match=f"crafted.{suffix}.*4000000000"):
+            stipple.read(path)
