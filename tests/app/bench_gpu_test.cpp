@@ -8,6 +8,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -95,4 +98,96 @@ TEST(BenchStream, FliesTheCameraPathOverCopc) {
       test::run_stipple("bench stream " + (test::data_dir() / "las/autzen_trim.las").string());
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.output.find("not a tileset or a COPC file"), std::string::npos) << bad.output;
+}
+
+namespace {
+
+std::vector<std::vector<std::string>> read_csv(const fs::path& path) {
+  std::vector<std::vector<std::string>> rows;
+  std::ifstream in(path);
+  for (std::string line; std::getline(in, line);) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
+    rows.push_back(std::move(cells));
+  }
+  return rows;
+}
+
+}  // namespace
+
+// `bench stream --samples` writes one row a frame with --sample-seconds 0 (and only the first and
+// last frames' rows when the interval outlasts the run): the columns bench/soak.sh checks, the
+// resident tile bytes within a budget smaller than the file's nodes and the GPU bytes within the
+// buffers reserved for them; --duration ends a run by time.
+TEST(BenchStream, SamplesEveryIntervalWithinTheBudgets) {
+  STIPPLE_REQUIRE_DATA(copc, "laz/lone-star.copc.laz");
+  const fs::path csv =
+      fs::temp_directory_path() / ("stipple_bench_samples_" + std::to_string(::getpid()) + ".csv");
+  auto r = test::run_stipple("bench stream " + copc.string() +
+                             " --frames 12 --width 320 --height 180 --memory-mb 12 --samples " +
+                             csv.string() + " --sample-seconds 0");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto rows = read_csv(csv);
+  ASSERT_EQ(rows.size(), 13u);  // header + one row a frame
+  const std::vector<std::string> header = {
+      "seconds",        "frame",     "rss_bytes",          "resident_bytes",
+      "memory_budget",  "gpu_bytes", "gpu_reserved_bytes", "resident_tiles",
+      "gpu_tiles",      "loads",     "evictions",          "errors",
+      "refused_uploads"};
+  EXPECT_EQ(rows[0], header);
+  double last_seconds = -1;
+  uint64_t last_loads = 0;
+  for (size_t i = 1; i < rows.size(); ++i) {
+    ASSERT_EQ(rows[i].size(), header.size()) << i;
+    const auto col = [&](size_t c) { return std::stoull(rows[i][c]); };
+    EXPECT_EQ(col(1), i);  // frame
+    EXPECT_GE(std::stod(rows[i][0]), last_seconds);
+    last_seconds = std::stod(rows[i][0]);
+    EXPECT_GT(col(2), 0u);         // RSS
+    EXPECT_EQ(col(4), 12u << 20);  // the budget asked for (it holds 6 of the 15 nodes)
+    EXPECT_LE(col(3), col(4)) << "resident tile bytes over the budget at frame " << i;
+    EXPECT_LE(col(5), col(6)) << "GPU bytes over the reserved buffers at frame " << i;
+    EXPECT_GE(col(9), last_loads);
+    last_loads = col(9);
+    EXPECT_EQ(col(11), 0u);  // errors
+  }
+  const auto& last = rows.back();
+  EXPECT_GT(std::stoull(last[9]), 0u);  // loads
+  EXPECT_GT(std::stoull(last[3]), 0u);  // tiles resident ...
+  EXPECT_GT(std::stoull(last[5]), 0u);  // ... and on the GPU
+  EXPECT_GT(std::stoull(last[8]), 0u);
+
+  r = test::run_stipple("bench stream " + copc.string() +
+                        " --frames 3 --width 320 --height 180 --samples " + csv.string() +
+                        " --sample-seconds 600");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  rows = read_csv(csv);
+  ASSERT_EQ(rows.size(), 3u);  // header, the first frame, the last
+  EXPECT_EQ(rows[1][1], "1");
+  EXPECT_EQ(rows[2][1], "3");
+
+  // --duration ends a run of more frames than the time allows; the last row is its last frame.
+  const fs::path json = fs::temp_directory_path() /
+                        ("stipple_bench_duration_" + std::to_string(::getpid()) + ".json");
+  r = test::run_stipple("bench stream " + copc.string() +
+                        " --frames 1000000 --duration 2 --width 160 --height 90 --json " +
+                        json.string() + " --samples " + csv.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto j = nlohmann::json::parse(std::ifstream(json));
+  const auto frames = j["frames"].get<uint64_t>();
+  EXPECT_LT(frames, 1000000u);
+  EXPECT_EQ(j["frame_wall_ms"].size(), frames);
+  rows = read_csv(csv);
+  ASSERT_GE(rows.size(), 3u);  // header, the first frame, at least one a second after
+  EXPECT_EQ(std::stoull(rows.back()[1]), frames);
+  EXPECT_GE(std::stod(rows.back()[0]), 2.0);
+  EXPECT_LT(std::stod(rows.back()[0]), 60.0);
+  fs::remove(csv);
+  fs::remove(json);
+
+  auto bad = test::run_stipple("bench stream " + copc.string() +
+                               " --frames 1 --samples /nonexistent-dir/samples.csv");
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.output.find("/nonexistent-dir/samples.csv"), std::string::npos) << bad.output;
 }

@@ -3,9 +3,14 @@
 // batches) or by billboards. Frames do not wait for loads (as in a viewer): each frame is one
 // engine update, timed; the summary is FPS statistics (average, min, max, 1% and 0.1% lows),
 // GPU ms, drawn and resident points, loads and evictions, peak resident bytes and RSS.
+// `--samples FILE.csv` adds a row every `--sample-seconds` (and after the last frame): the
+// process's RSS, the resident tile bytes against the budget, the tiles' GPU bytes as the
+// allocators account them, loads, evictions and errors (bench/soak.sh checks every row).
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <memory>
 #include <numeric>
 #include <string>
@@ -42,6 +47,45 @@ struct StreamBenchArgs {
   double max_sse = 0;  // 0: the source's default
   uint64_t memory_mb = 4096, budget = 0;
   std::string backend, json;
+  std::string samples;
+  double sample_seconds = 1.0;
+  double duration = 0;  // seconds; 0: every frame of --frames
+};
+
+// The per-interval samples, written and flushed row by row so that a long run can be watched
+// (and a crash keeps what came before it).
+class SampleWriter {
+ public:
+  explicit SampleWriter(const std::string& path) : path_(path) {
+    if (path.empty()) return;
+    file_ = std::fopen(path.c_str(), "w");
+    if (!file_) fail("bench stream: cannot write {}: {}", path, std::strerror(errno));
+    std::fputs(
+        "seconds,frame,rss_bytes,resident_bytes,memory_budget,gpu_bytes,gpu_reserved_bytes,"
+        "resident_tiles,gpu_tiles,loads,evictions,errors,refused_uploads\n",
+        file_);
+  }
+  ~SampleWriter() {
+    if (file_) std::fclose(file_);
+  }
+  SampleWriter(const SampleWriter&) = delete;
+  SampleWriter& operator=(const SampleWriter&) = delete;
+  explicit operator bool() const { return file_ != nullptr; }
+  void write(double seconds, uint32_t frame, const tiles3d::TilesetStats& s,
+             const tiles3d::TilesetGpuStats* g) {
+    const auto u = [](uint64_t v) { return static_cast<unsigned long long>(v); };
+    const int n = std::fprintf(
+        file_, "%.3f,%u,%llu,%llu,%llu,%llu,%llu,%u,%u,%llu,%llu,%llu,%llu\n", seconds, frame,
+        u(resident_bytes()), u(s.resident_bytes), u(s.memory_budget), u(g ? g->gpu_bytes : 0),
+        u(g ? g->gpu_reserved_bytes : 0), s.resident_tiles, g ? g->gpu_tiles : 0u,
+        u(s.loads_completed), u(s.evictions), u(s.errors), u(g ? g->refused_uploads : 0));
+    if (n < 0 || std::fflush(file_) != 0)
+      fail("bench stream: cannot write {}: {}", path_, std::strerror(errno));
+  }
+
+ private:
+  std::string path_;
+  std::FILE* file_ = nullptr;
 };
 
 void run_stream_bench(const StreamBenchArgs& a) {
@@ -73,8 +117,18 @@ void run_stream_bench(const StreamBenchArgs& a) {
   main.emplace<Camera>(camera, path_camera(a.path, world, 0.0, aspect));
   std::vector<double> wall_ms, gpu_ms;
   std::vector<uint64_t> drawn;
+  SampleWriter samples(a.samples);
+  const auto start = std::chrono::steady_clock::now();
+  double next_sample = 0.0;
   Progress progress("streaming", a.frames, "frames");
+  uint32_t frames = a.frames, sampled = 0;
   for (uint32_t f = 0; f < a.frames; ++f) {
+    if (a.duration > 0 && f > 0 &&
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() >=
+            a.duration) {
+      frames = f;  // the time is up: the path stops here
+      break;
+    }
     main.get<Camera>(camera) = path_camera(a.path, world, double(f) / a.frames, aspect);
     const auto t0 = std::chrono::steady_clock::now();
     engine.update();
@@ -83,9 +137,23 @@ void run_stream_bench(const StreamBenchArgs& a) {
     const auto& rs = render.resource<RenderStats>();
     gpu_ms.push_back(rs.gpu_ms.empty() ? 0.0 : rs.gpu_ms.back());
     drawn.push_back(main.resource<tiles3d::TilesetStats>().drawn_points);
+    if (samples) {
+      const double now =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (now >= next_sample || f + 1 == a.frames) {
+        samples.write(now, f + 1, main.resource<tiles3d::TilesetStats>(),
+                      render.try_resource<tiles3d::TilesetGpuStats>());
+        sampled = f + 1;
+        next_sample = a.sample_seconds > 0 ? now + a.sample_seconds : 0.0;
+      }
+    }
     progress.advance(1);
   }
   progress.finish();
+  if (samples && sampled != frames)  // --duration ended the run between samples
+    samples.write(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                  frames, main.resource<tiles3d::TilesetStats>(),
+                  render.try_resource<tiles3d::TilesetGpuStats>());
   const auto stats = main.resource<tiles3d::TilesetStats>();
   engine.shutdown();
 
@@ -98,7 +166,7 @@ void run_stream_bench(const StreamBenchArgs& a) {
       double(std::accumulate(drawn.begin(), drawn.end(), uint64_t(0))) / double(drawn.size());
   const uint64_t rss = peak_resident_bytes();
   std::printf("%s (%s, %ux%u, %u frames)\n", a.input.c_str(), a.renderer.c_str(), a.width, a.height,
-              a.frames);
+              frames);
   std::printf(
       "  FPS avg %.1f, min %.1f, max %.1f, 1%% low %.1f, 0.1%% low %.1f; GPU %.3f ms (median)\n",
       avg, 1000.0 / slowest, 1000.0 / fastest, low_fps(wall_ms, 0.01), low_fps(wall_ms, 0.001),
@@ -116,7 +184,7 @@ void run_stream_bench(const StreamBenchArgs& a) {
     j["renderer"] = a.renderer;
     j["width"] = a.width;
     j["height"] = a.height;
-    j["frames"] = a.frames;
+    j["frames"] = frames;
     j["fps"] = {{"average", avg},
                 {"min", 1000.0 / slowest},
                 {"max", 1000.0 / fastest},
@@ -160,6 +228,17 @@ void add_bench_stream_command(CLI::App& bench) {
   cmd->add_option("--backend", a->backend, "WebGPU implementation: dawn or wgpu")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
   cmd->add_option("--json", a->json, "Write the results (and every frame's times) as JSON");
+  cmd->add_option("--duration", a->duration,
+                  "Stop after this many seconds even if frames of --frames remain (0: none)")
+      ->check(CLI::Range(0.0, 1e6))
+      ->capture_default_str();
+  cmd->add_option("--samples", a->samples,
+                  "Write a CSV row every --sample-seconds: RSS, resident tile bytes, GPU bytes, "
+                  "loads, evictions, errors");
+  cmd->add_option("--sample-seconds", a->sample_seconds,
+                  "Seconds between --samples rows (0: every frame)")
+      ->check(CLI::Range(0.0, 3600.0))
+      ->capture_default_str();
   cmd->callback([a] {
     check_camera_path(a->path);
     run_stream_bench(*a);

@@ -257,6 +257,13 @@ void prepare_tileset_compute(Registry& render) {
   }
   stats.gpu_tiles = uint32_t(store.resident.size());
   stats.gpu_points = store.resident_points;
+  // Five arrays of one word a slot; the slots in use include those waiting for their frame.
+  const uint64_t slots_used = store.slots.capacity() - store.slots.free_bytes();
+  stats.gpu_bytes = (slots_used > 0 ? 5 * pc::raster_array_bytes(slots_used) : 0) +
+                    uint64_t(store.cloud.segments.front().batch_count) * pc::kGpuBatchBytes;
+  stats.gpu_reserved_bytes =
+      5 * pc::raster_array_bytes(store.capacity) + store.batch_capacity * pc::kGpuBatchBytes;
+  stats.refused_uploads = store.refused;
 }
 
 void prepare_tileset(Registry& render) {
@@ -314,6 +321,15 @@ void prepare_tileset(Registry& render) {
     stats.pages = *g.pages->stats;
     stats.allocator = g.pages->allocator->stats();
     stats.pending_frees = g.pages->pending.size();
+    stats.gpu_bytes = stats.allocator.bytes_used;
+    stats.gpu_reserved_bytes = stats.allocator.bytes_reserved;
+  } else {
+    uint64_t bytes = 0;
+    for (const auto& [id, tile] : g.tiles)
+      for (const auto& chunk : tile.gpu.chunks)
+        for (WGPUBuffer b : {chunk.points.get(), chunk.survivors.get(), chunk.extras.get()})
+          if (b) bytes += wgpuBufferGetSize(b);
+    stats.gpu_bytes = stats.gpu_reserved_bytes = bytes;
   }
 }
 

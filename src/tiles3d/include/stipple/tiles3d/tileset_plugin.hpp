@@ -102,6 +102,12 @@ struct TilesetGpuStats {
   pc::PagedPointStats pages;  // when paged
   gpu::SuballocatorStats allocator;
   uint64_t pending_frees = 0;  // ranges waiting for their frame to complete
+  // Device memory of the tiles' points as the allocators account it: `gpu_bytes` is held by
+  // uploaded tiles (and ranges waiting to be freed), `gpu_reserved_bytes` the buffers made for
+  // them (compute path: the LOD batch store's slot arrays and batch table; billboards: the
+  // suballocator's pages, or each chunk's own buffers).
+  uint64_t gpu_bytes = 0, gpu_reserved_bytes = 0;
+  uint64_t refused_uploads = 0;  // compute path: tiles that found no free slot range
 };
 
 struct TilesetPlugin {
