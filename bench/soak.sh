@@ -6,9 +6,12 @@
 # camera path (an orbit while the field of view zooms) over it for MINUTES, under a small resident
 # tile budget (MEMORY_MB, default 8) and a fine screen-space error (MAX_SSE, default 2 pixels) so
 # that tiles are evicted and fetched again all along.
-# The process's RSS is sampled every second (samples.csv in the work directory); at the end the
-# run fails if it crashed, if the peak resident tile bytes passed the budget, or if RSS grew over
-# the last half of the run (least-squares slope x half the duration > max(16 MiB, 5% of mean)).
+# `bench stream --samples` writes a row every second (samples.csv in the work directory): RSS,
+# resident tile bytes, the tiles' GPU bytes as the allocators account them, loads, evictions,
+# errors. At the end the run fails if it crashed, if the resident tile bytes passed the budget in
+# any second (or at their peak), if the GPU bytes passed theirs (GPU_MB, default MEMORY_MB: the
+# GPU holds a compacted copy of resident tiles) or their reserved buffers, or if RSS grew over the
+# last half of the run (least-squares slope x half the duration > max(16 MiB, 5% of mean)).
 #   bench/soak.sh 60                      the issue's hour
 #   STIPPLE=build/stipple POINTS=3000000 bench/soak.sh 5
 set -euo pipefail
@@ -17,6 +20,7 @@ minutes=${1:?usage: bench/soak.sh MINUTES}
 stipple=${STIPPLE:-$root/build/stipple}
 points=${POINTS:-2000000}
 memory_mb=${MEMORY_MB:-8}
+gpu_mb=${GPU_MB:-$memory_mb}
 max_sse=${MAX_SSE:-2}
 err=${FAULT_ERR:-5} trunc=${FAULT_TRUNC:-5} slow=${FAULT_SLOW:-10}
 work=${SOAK_DIR:-$root/bench/soak-out}
@@ -24,7 +28,7 @@ nginx=$(command -v nginx || echo /usr/sbin/nginx)
 [[ -x "$nginx" ]] || { echo "soak.sh: nginx not found (Debian nginx-light)" >&2; exit 2; }
 [[ -x "$stipple" ]] || { echo "soak.sh: $stipple not found (scripts/setup.sh builds it)" >&2; exit 2; }
 
-rm -rf "$work/www" "$work/tmp" "$work"/*.log && mkdir -p "$work/www" "$work/tmp"
+rm -rf "$work/www" "$work/tmp" "$work"/*.log "$work"/*.json "$work/samples.csv" && mkdir -p "$work/www" "$work/tmp"
 if [[ ! -f "$work/cloud-$points.las" ]]; then
   "$stipple" generate -o "$work/cloud-$points.las" -n "$points" >/dev/null
 fi
@@ -43,7 +47,8 @@ error_log $work/error.log;
 pid $work/nginx.pid;
 events { worker_connections 256; }
 http {
-  access_log $work/access.log;
+  log_format soak '\$remote_addr - - [\$time_local] "\$request" \$status \$body_bytes_sent \$fault';
+  access_log $work/access.log soak;
   client_body_temp_path $work/tmp; proxy_temp_path $work/tmp; fastcgi_temp_path $work/tmp;
   uwsgi_temp_path $work/tmp; scgi_temp_path $work/tmp;
   types { application/json json; application/octet-stream pnts glb subtree; }
@@ -73,54 +78,24 @@ common=(--width 960 --height 540 --memory-mb "$memory_mb" --max-sse "$max_sse")
 "$stipple" bench stream "$url" "${common[@]}" --frames 120 --json "$work/warmup.json" \
   >"$work/warmup.log" 2>&1 || { echo "FAIL: warm-up run"; tail -n 20 "$work/warmup.log"; exit 1; }
 fps=$(python3 -c "import json; print(json.load(open('$work/warmup.json'))['fps']['average'])")
-# The warm-up's average includes the first loads: the long run is faster, hence the 1.25.
-frames=$(python3 -c "print(max(120, min(1000000, int(1.25 * $fps * $minutes * 60))))")
-echo "soak: $minutes min, $frames frames at ~$fps FPS (warm-up), budget $memory_mb MiB, faults: $err% 500, $trunc% truncated, $slow% throttled"
+# Frames for twice the warm-up's rate (the long run is faster: the warm-up's average includes
+# the first loads); --duration ends the run at MINUTES, wherever the path then is.
+frames=$(python3 -c "print(max(120, min(1000000, int(2 * $fps * $minutes * 60))))")
+echo "soak: $minutes min (at most $frames frames) at ~$fps FPS (warm-up), budget $memory_mb MiB, faults: $err% 500, $trunc% truncated, $slow% throttled"
 
 "$stipple" bench stream "$url" "${common[@]}" --frames "$frames" --json "$work/soak.json" \
-  >"$work/soak.log" 2>&1 &
+  --duration $((minutes * 60)) --samples "$work/samples.csv" >"$work/soak.log" 2>&1 &
 pid=$!
-start=$(date +%s.%N)
-echo "seconds,rss_kib" >"$work/samples.csv"
-while kill -0 "$pid" 2>/dev/null; do
-  rss=$(awk '/^VmRSS:/ {print $2}' "/proc/$pid/status" 2>/dev/null || true)
-  [[ -n "$rss" ]] && echo "$(echo "$(date +%s.%N) - $start" | bc),$rss" >>"$work/samples.csv"
-  sleep 1
-done
 rc=0
 wait "$pid" || rc=$?
 requests=$(wc -l <"$work/access.log")
 codes=$(awk '{print $9}' "$work/access.log" | sort | uniq -c | tr '\n' ' ')
-echo "requests: $requests (status: $codes)"
+faults=$(awk '$7 != "/tiles/tileset.json" {print $11}' "$work/access.log" | sort | uniq -c | tr '\n' ' ')
+echo "requests: $requests (status: $codes; content requests by fault: $faults)"
 if [[ $rc -ne 0 ]]; then
   echo "FAIL: bench stream exited $rc"
   tail -n 20 "$work/soak.log"
   exit 1
 fi
 tail -n 3 "$work/soak.log"
-python3 - "$work" <<'PY'
-import csv, json, sys
-work = sys.argv[1]
-j = json.load(open(f"{work}/soak.json"))
-rows = [(float(r["seconds"]), int(r["rss_kib"]) / 1024.0) for r in csv.DictReader(open(f"{work}/samples.csv"))]
-ok = True
-print(f"loads {j['loads']}, evictions {j['evictions']}, errors {j['errors']}; "
-      f"peak resident {j['peak_resident_bytes'] / 2**20:.1f} MiB of {j['memory_budget'] / 2**20:.1f}")
-if j["peak_resident_bytes"] > j["memory_budget"]:
-    print("FAIL: resident tile bytes passed the budget"); ok = False
-half = [r for r in rows if r[0] >= rows[-1][0] / 2] if rows else []
-if len(half) >= 3:
-    n = len(half); mx = sum(t for t, _ in half) / n; my = sum(m for _, m in half) / n
-    slope = sum((t - mx) * (m - my) for t, m in half) / max(1e-9, sum((t - mx) ** 2 for t, _ in half))
-    span = half[-1][0] - half[0][0]
-    growth = slope * span
-    limit = max(16.0, 0.05 * my)
-    print(f"RSS: {len(rows)} samples, first {rows[0][1]:.0f} MiB, max {max(m for _, m in rows):.0f} MiB, "
-          f"last half mean {my:.0f} MiB, slope {slope * 60:.2f} MiB/min ({growth:+.1f} MiB over "
-          f"{span:.0f} s, limit {limit:.0f})")
-    if growth > limit:
-        print("FAIL: RSS grows over the last half"); ok = False
-else:
-    print("RSS: too few samples for a slope")
-sys.exit(0 if ok else 1)
-PY
+python3 "$root/bench/soak_check.py" "$work" "$gpu_mb"
