@@ -471,6 +471,105 @@ INSTANTIATE_TEST_SUITE_P(Tiler, TilerSplit,
                            return fmt::format("{}_{}parts", info.param.input, info.param.parts);
                          });
 
+// A merge refuses parts whose part.json was altered out of the tiling's ranges (cube edge, root
+// spacing, precision), parts of different inputs, colour or levels, and a tile file that two
+// parts hold (the second used to replace the first silently); each error names the part.
+TEST(TilerMerge, RefusesInconsistentOrOutOfRangeParts) {
+  fs::path las = generated_las(30000, "gen30k.las");
+  const fs::path root = temp_dir() / "merge_checks";
+  fs::remove_all(root);
+  fs::create_directories(root);
+  std::vector<std::string> parts;
+  for (uint32_t i = 0; i < 4; ++i) {
+    tiler::TileOptions o;
+    o.inputs = {las.string()};
+    o.output = (root / fmt::format("part{}", i)).string();
+    o.crs = "EPSG:32633";
+    o.max_node_points = 2000;
+    o.threads = 1;
+    o.force = true;
+    o.subset_index = i, o.subset_count = 4;
+    tiler::build_tileset(o);
+    parts.push_back(o.output);
+  }
+  tiler::MergeOptions m;
+  m.parts = parts;
+  m.force = true;
+  m.threads = 1;
+  m.output = (root / "merged").string();
+  ASSERT_EQ(tiler::merge_parts(m).points, 30000u);
+
+  // Runs the merge on copies of the parts with part `which` edited; returns the error.
+  int run = 0;
+  auto merge_edited = [&](uint32_t which, const std::function<void(nlohmann::json&)>& edit,
+                          const std::function<void(const fs::path&)>& touch = {}) {
+    const fs::path dir = root / fmt::format("case{}", run++);
+    tiler::MergeOptions e = m;
+    e.parts.clear();
+    for (uint32_t i = 0; i < 4; ++i) {
+      const fs::path to = dir / fmt::format("part{}", i);
+      fs::create_directories(to);
+      fs::copy(parts[i], to, fs::copy_options::recursive);
+      if (i == which) {
+        nlohmann::json j = nlohmann::json::parse(std::ifstream(to / "part.json"));
+        edit(j);
+        std::ofstream(to / "part.json") << j.dump();
+        if (touch) touch(to);
+      }
+      e.parts.push_back(to.string());
+    }
+    e.output = (dir / "merged").string();
+    try {
+      tiler::merge_parts(e);
+    } catch (const Error& err) {
+      EXPECT_FALSE(fs::exists(e.output)) << "a failed merge left " << e.output;
+      return std::string(err.what());
+    }
+    return std::string("merged");
+  };
+  auto expect_error = [](const std::string& what, const std::string& part,
+                         const std::string& message) {
+    EXPECT_NE(what.find(part), std::string::npos) << what;
+    EXPECT_NE(what.find(message), std::string::npos) << what;
+  };
+  // Out of range in the first part read (the others are compared with it).
+  expect_error(merge_edited(0, [](auto& j) { j["cube"][3] = 0.0; }), "part0", "out of range");
+  expect_error(merge_edited(0, [](auto& j) { j["cube"][3] = 1e300; }), "part0", "out of range");
+  expect_error(merge_edited(0, [](auto& j) { j["cube"][0] = -1e12; }), "part0", "out of range");
+  expect_error(merge_edited(0, [](auto& j) { j["root_spacing"] = 0.0; }), "part0",
+               "root spacing 0 is out of range");
+  expect_error(merge_edited(0, [](auto& j) { j["root_spacing"] = -3.0; }), "part0", "out of range");
+  expect_error(merge_edited(0, [](auto& j) { j["root_spacing"] = 1e-30; }), "part0",
+               "out of range");
+  expect_error(merge_edited(0, [](auto& j) { j["precision"] = 0.0; }), "part0",
+               "precision 0 is out of range");
+  // A part of other inputs, colour or levels than the first.
+  expect_error(merge_edited(2, [](auto& j) { j["inputs"][0] = "/elsewhere/other.las"; }), "part2",
+               "its inputs differs");
+  expect_error(merge_edited(2, [](auto& j) { j["rgb"] = !j["rgb"].template get<bool>(); }), "part2",
+               "its rgb differs");
+  expect_error(
+      merge_edited(3, [](auto& j) { j["gps_time"] = !j["gps_time"].template get<bool>(); }),
+      "part3", "its gps_time differs");
+  expect_error(
+      merge_edited(1, [](auto& j) { j["max_level"] = j["max_level"].template get<int>() + 1; }),
+      "part1", "its max_level differs");
+  expect_error(merge_edited(1, [](auto& j) { j["level"] = j["level"].template get<int>() + 1; }),
+               "part1", "its level differs");
+  // A tile file of part 0 also in part 3: refused, not overwritten.
+  std::string taken;
+  for (const auto& f : fs::directory_iterator(fs::path(parts[0]) / "tiles"))
+    if (f.is_regular_file()) taken = f.path().filename().string();
+  ASSERT_FALSE(taken.empty());
+  expect_error(merge_edited(
+                   3, [](auto&) {},
+                   [&](const fs::path& part) { std::ofstream(part / "tiles" / taken) << "other"; }),
+               "part3", "tile file " + taken + " is in another part too");
+  // The unedited copies still merge.
+  EXPECT_EQ(merge_edited(1, [](auto&) {}), "merged");
+  fs::remove_all(root);
+}
+
 TEST(Tiler, InputWithoutCrsIsRefused) {
   fs::path las = generated_las(400000, "gen400k.las");
   tiler::TileOptions o;

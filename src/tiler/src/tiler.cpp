@@ -1345,11 +1345,14 @@ void Tiler::write_part() {
   write_file(dir_ / "part.json", text.data(), text.size());
 }
 
-// Hard links where the file system allows (parts stay intact for a re-run), else copies.
-void link_or_copy(const fs::path& from, const fs::path& to) {
+// Hard links where the file system allows (parts stay intact for a re-run), else copies. A
+// file of that name from another part is refused, not replaced: two parts never hold one tile.
+void link_or_copy(const fs::path& from, const fs::path& to, const fs::path& part) {
   std::error_code ec;
+  if (fs::exists(fs::symlink_status(to, ec)))
+    fail("{}: tile file {} is in another part too", part.string(), to.filename().string());
   fs::create_hard_link(from, to, ec);
-  if (ec) fs::copy_file(from, to, fs::copy_options::overwrite_existing);
+  if (ec) fs::copy_file(from, to, fs::copy_options::none);
 }
 
 TileStats Tiler::merge(const std::vector<nlohmann::json>& parts,
@@ -1408,7 +1411,7 @@ TileStats Tiler::merge(const std::vector<nlohmann::json>& parts,
     }
     if (fs::is_directory(dirs[i] / "tiles"))
       for (const auto& e : fs::directory_iterator(dirs[i] / "tiles")) {
-        link_or_copy(e.path(), dir_ / "tiles" / e.path().filename());
+        link_or_copy(e.path(), dir_ / "tiles" / e.path().filename(), dirs[i]);
         ++tiles;
       }
     for (const auto& r : p["roots"]) {
@@ -1512,6 +1515,27 @@ bool part_json_shape_ok(const nlohmann::json& p) {
          p["max_level"].get<uint64_t>() <= 30;
 }
 
+// The numbers the merge computes with, in the ranges a tiling gives them: a cube of finite
+// corner and an edge of 1 m to 10^8 m (make_frame_and_cube makes it at least 2 m), a root
+// spacing between edge / 2^20 and 10^8 m, a positive finite precision and frame origin.
+void check_part_ranges(const nlohmann::json& p, const fs::path& file) {
+  const auto& c = p["cube"];
+  const double edge = c[3].get<double>(), spacing = p["root_spacing"].get<double>(),
+               precision = p["precision"].get<double>();
+  bool finite = std::isfinite(precision);
+  for (size_t i = 0; i < 3; ++i)
+    finite = finite && std::isfinite(c[i].get<double>()) && std::abs(c[i].get<double>()) <= 1e9 &&
+             std::isfinite(p["frame_origin"][i].get<double>());
+  if (!finite || !(edge >= 1.0 && edge <= 1e8))
+    fail("{}: cube [{}, {}, {}] of edge {} (or frame origin) is out of range (edge 1 m to 1e8 m)",
+         file.string(), c[0].get<double>(), c[1].get<double>(), c[2].get<double>(), edge);
+  if (!(spacing >= edge / double(1 << 20) && spacing <= 1e8))
+    fail("{}: root spacing {} is out of range (cube edge / 2^20 = {} to 1e8 m)", file.string(),
+         spacing, edge / double(1 << 20));
+  if (!(precision > 0))
+    fail("{}: precision {} is out of range (positive and finite)", file.string(), precision);
+}
+
 TileStats merge_parts_checked(const MergeOptions& options) {
   if (options.parts.empty()) fail("tile merge: no parts");
   std::vector<nlohmann::json> parts;
@@ -1536,9 +1560,11 @@ TileStats merge_parts_checked(const MergeOptions& options) {
     if (n != count)
       fail("{}: part {}/{} of another split (the first part is of {})", dir, index, n, count);
     if (!seen.insert(index).second) fail("{}: part {}/{} is given twice", dir, index, n);
+    check_part_ranges(p, file);
     if (!parts.empty()) {
       for (const char* key : {"cube", "root_spacing", "format", "compression", "implicit",
-                              "subtree_levels", "max_node_points", "frame_origin", "precision"})
+                              "subtree_levels", "max_node_points", "frame_origin", "precision",
+                              "inputs", "rgb", "gps_time", "level", "max_level"})
         if (p[key] != parts.front()[key])
           fail("{}: its {} differs from {}'s: the parts are of different tilings", dir, key,
                options.parts.front());
@@ -1564,8 +1590,8 @@ TileStats merge_parts_checked(const MergeOptions& options) {
   o.implicit = f["implicit"].get<bool>();
   o.subtree_levels = f["subtree_levels"].get<int>();
   o.max_node_points = f["max_node_points"].get<size_t>();
-  for (const auto& p : parts)
-    for (const auto& in : p["inputs"]) o.inputs.push_back(in.get<std::string>());
+  // Every part names the same inputs (checked above): the split tiled them once.
+  for (const auto& in : f["inputs"]) o.inputs.push_back(in.get<std::string>());
   Tiler tiler(o);
   return tiler.merge(parts, dirs);
 }
