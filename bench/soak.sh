@@ -5,7 +5,7 @@
 # come through a location throttled to 32 KiB/s. `stipple bench stream` flies its scripted
 # camera path (an orbit while the field of view zooms) over it for MINUTES, under a small resident
 # tile budget (MEMORY_MB, default 8) and a fine screen-space error (MAX_SSE, default 2 pixels) so
-# that tiles are evicted and fetched again all along.
+# that tiles are evicted and fetched again all along (one orbit and two zooms a minute).
 # `bench stream --samples` writes a row every second (samples.csv in the work directory): RSS,
 # resident tile bytes, the tiles' GPU bytes as the allocators account them, loads, evictions,
 # errors. At the end the run fails if it crashed, if the resident tile bytes passed the budget in
@@ -21,6 +21,10 @@ stipple=${STIPPLE:-$root/build/stipple}
 points=${POINTS:-2000000}
 memory_mb=${MEMORY_MB:-8}
 gpu_mb=${GPU_MB:-$memory_mb}
+# The flight: an orbit a minute (TURNS over the run), zooming in and out every half minute
+# (ZOOM_CYCLES), so that tiles are fetched and evicted all along, not only in the first minutes.
+turns=${TURNS:-$minutes}
+zooms=${ZOOM_CYCLES:-$((2 * minutes))}
 max_sse=${MAX_SSE:-2}
 err=${FAULT_ERR:-5} trunc=${FAULT_TRUNC:-5} slow=${FAULT_SLOW:-10}
 work=${SOAK_DIR:-$root/bench/soak-out}
@@ -72,7 +76,8 @@ nginx_pid=$!
 trap 'kill $nginx_pid 2>/dev/null || true' EXIT
 for _ in $(seq 50); do curl -sf -o /dev/null "http://127.0.0.1:$port/tiles/tileset.json" && break; sleep 0.1; done
 url="http://127.0.0.1:$port/tiles/tileset.json"
-common=(--width 960 --height 540 --memory-mb "$memory_mb" --max-sse "$max_sse")
+common=(--width 960 --height 540 --memory-mb "$memory_mb" --max-sse "$max_sse" --turns "$turns"
+  --zoom-cycles "$zooms")
 
 # Warm-up: frames per second on this machine, to size the run.
 "$stipple" bench stream "$url" "${common[@]}" --frames 120 --json "$work/warmup.json" \
@@ -81,7 +86,7 @@ fps=$(python3 -c "import json; print(json.load(open('$work/warmup.json'))['fps']
 # Frames for twice the warm-up's rate (the long run is faster: the warm-up's average includes
 # the first loads); --duration ends the run at MINUTES, wherever the path then is.
 frames=$(python3 -c "print(max(120, min(1000000, int(2 * $fps * $minutes * 60))))")
-echo "soak: $minutes min (at most $frames frames) at ~$fps FPS (warm-up), budget $memory_mb MiB, faults: $err% 500, $trunc% truncated, $slow% throttled"
+echo "soak: $minutes min (at most $frames frames) at ~$fps FPS (warm-up), $turns turns, $zooms zooms, budget $memory_mb MiB, faults: $err% 500, $trunc% truncated, $slow% throttled"
 
 "$stipple" bench stream "$url" "${common[@]}" --frames "$frames" --json "$work/soak.json" \
   --duration $((minutes * 60)) --samples "$work/samples.csv" >"$work/soak.log" 2>&1 &
