@@ -1,6 +1,7 @@
 #include "stipple/renderer/gpu.hpp"
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
 #include <thread>
 
@@ -580,7 +581,16 @@ ShaderModule create_shader(Context& ctx, std::string_view wgsl, std::string_view
     std::string message;
   } scope;
   wgpuDevicePushErrorScope(ctx.device.get(), WGPUErrorFilter_Validation);
-  ShaderModule module(wgpuDeviceCreateShaderModule(ctx.device.get(), &desc));
+  // STIPPLE_SHADER_CHECKS=off (wgpu-native only): our shaders without naga's inserted bounds
+  // checks, to measure what they cost (bench raster); the driver's robust buffer access stays.
+  static const bool unchecked = [] {
+    const char* env = std::getenv("STIPPLE_SHADER_CHECKS");
+    return env && std::string_view(env) == "off";
+  }();
+  ShaderModule module(unchecked && has_proc("wgpuDeviceCreateShaderModuleTrusted")
+                          ? wgpuDeviceCreateShaderModuleTrusted(ctx.device.get(), &desc,
+                                                                WGPUShaderRuntimeChecks_None)
+                          : wgpuDeviceCreateShaderModule(ctx.device.get(), &desc));
   WGPUPopErrorScopeCallbackInfo cb = WGPU_POP_ERROR_SCOPE_CALLBACK_INFO_INIT;
   cb.mode = WGPUCallbackMode_AllowProcessEvents;
   cb.callback = [](WGPUPopErrorScopeStatus, WGPUErrorType type, WGPUStringView message,
