@@ -68,8 +68,17 @@ struct Options {
 
 uint64_t number(const std::string& name, const char* value) {
   char* end = nullptr;
+  // strtoull wraps a leading '-' around: refused, like anything that is not all digits.
   unsigned long long v = std::strtoull(value, &end, 10);
-  if (!*value || *end) fail("{}: not a number: '{}'", name, value);
+  if (!*value || *end || *value == '-') fail("{}: not a number: '{}'", name, value);
+  return v;
+}
+
+double real_number(const std::string& name, const char* value) {
+  char* end = nullptr;
+  double v = std::strtod(value, &end);
+  if (!*value || *end || !std::isfinite(v) || v <= 0)
+    fail("{}: not a positive number: '{}'", name, value);
   return v;
 }
 
@@ -92,7 +101,7 @@ Options parse(int argc, char** argv) {
     else if (a == "--memory-mb")
       o.memory_mb = number(a, v);
     else if (a == "--max-sse")
-      o.max_sse = double(number(a, v));
+      o.max_sse = real_number(a, v);
     else if (a == "--frames")
       o.frames = std::max<uint64_t>(1, number(a, v));
     else if (a == "--max-frames")

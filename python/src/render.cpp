@@ -132,8 +132,12 @@ nb::ndarray<nb::numpy, uint8_t, nb::ndim<3>> render(
   }
 
   scene::RenderResult r;
+  // The column arrays are read without the GIL: hold a reference to each here, so that another
+  // thread changing the caller's dict meanwhile cannot free them.
+  std::vector<nb::object> keep_alive;
+  if (columns)
+    for (auto item : *columns) keep_alive.push_back(nb::borrow(item.second));
   {
-    // The columns stay referenced by the caller's dict while the GIL is released.
     nb::gil_scoped_release release;
     if (columns) o.scene.points = scene::points_from_columns(points);
     r = scene::render_image(o);

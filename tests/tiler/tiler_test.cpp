@@ -545,7 +545,7 @@ TEST(TilerMerge, RefusesInconsistentOrOutOfRangeParts) {
                "precision 0 is out of range");
   // A part of other inputs, colour or levels than the first.
   expect_error(merge_edited(2, [](auto& j) { j["inputs"][0] = "/elsewhere/other.las"; }), "part2",
-               "its inputs differs");
+               "its inputs differ");
   expect_error(merge_edited(2, [](auto& j) { j["rgb"] = !j["rgb"].template get<bool>(); }), "part2",
                "its rgb differs");
   expect_error(

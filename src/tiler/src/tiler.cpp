@@ -1571,10 +1571,20 @@ TileStats merge_parts_checked(const MergeOptions& options) {
     if (!parts.empty()) {
       for (const char* key : {"cube", "root_spacing", "format", "compression", "implicit",
                               "subtree_levels", "max_node_points", "frame_origin", "precision",
-                              "inputs", "rgb", "gps_time", "level", "max_level"})
+                              "rgb", "gps_time", "level", "max_level"})
         if (p[key] != parts.front()[key])
           fail("{}: its {} differs from {}'s: the parts are of different tilings", dir, key,
                options.parts.front());
+      // Inputs by file name: parts tiled on other machines see the same files under other
+      // mounts or relative paths; the cube, equal above, ties them to the same data.
+      auto names = [](const nlohmann::json& inputs) {
+        std::vector<std::string> n;
+        for (const auto& in : inputs) n.push_back(fs::path(in.get<std::string>()).filename());
+        return n;
+      };
+      if (names(p["inputs"]) != names(parts.front()["inputs"]))
+        fail("{}: its inputs differ from {}'s: the parts are of different tilings", dir,
+             options.parts.front());
     }
     parts.push_back(std::move(p));
     dirs.push_back(dir);
