@@ -138,3 +138,31 @@ export async function launchBrowser({ webgpu = false } = {}) {
        '--ignore-gpu-blocklist', '--window-size=800,600'];
   return puppeteer.launch({ executablePath: chromiumPath, headless: true, args });
 }
+
+// Per-pixel comparison of the page's canvas (#canvas) with a PNG (decoded by the browser): the
+// mean largest channel difference, the fraction of pixels off by more than 48, and the fraction
+// of each image that is lit (brighter than the dark background).
+export async function compareCanvas(page, png) {
+  return page.evaluate(async (b64) => {
+    const bytes = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
+    const bitmap = await createImageBitmap(new Blob([bytes], { type: 'image/png' }));
+    const ref = new OffscreenCanvas(bitmap.width, bitmap.height).getContext('2d');
+    ref.drawImage(bitmap, 0, 0);
+    const canvas = document.getElementById('canvas');
+    if (canvas.width !== bitmap.width || canvas.height !== bitmap.height)
+      return { size: `${canvas.width}x${canvas.height} vs ${bitmap.width}x${bitmap.height}` };
+    const a = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
+    const b = ref.getImageData(0, 0, bitmap.width, bitmap.height).data;
+    let sum = 0, off = 0, lit = 0, refLit = 0;
+    for (let i = 0; i < a.length; i += 4) {
+      let d = 0;
+      for (let c = 0; c < 3; ++c) d = Math.max(d, Math.abs(a[i + c] - b[i + c]));
+      sum += d;
+      if (d > 48) ++off;
+      if (a[i] + a[i + 1] + a[i + 2] > 60) ++lit;
+      if (b[i] + b[i + 1] + b[i + 2] > 60) ++refLit;
+    }
+    const n = a.length / 4;
+    return { meanDiff: sum / n, offFraction: off / n, litFraction: lit / n, refLit: refLit / n };
+  }, png.toString('base64'));
+}

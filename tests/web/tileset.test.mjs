@@ -77,32 +77,6 @@ async function open(page_path) {
   return { page, state, log };
 }
 
-// Per-pixel comparison of the page's canvas with a PNG (decoded by the browser).
-async function compare(page, png) {
-  return page.evaluate(async (b64) => {
-    const bytes = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
-    const bitmap = await createImageBitmap(new Blob([bytes], { type: 'image/png' }));
-    const ref = new OffscreenCanvas(bitmap.width, bitmap.height).getContext('2d');
-    ref.drawImage(bitmap, 0, 0);
-    const canvas = document.getElementById('canvas');
-    if (canvas.width !== bitmap.width || canvas.height !== bitmap.height)
-      return { size: `${canvas.width}x${canvas.height} vs ${bitmap.width}x${bitmap.height}` };
-    const a = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
-    const b = ref.getImageData(0, 0, bitmap.width, bitmap.height).data;
-    let sum = 0, off = 0, lit = 0, refLit = 0;
-    for (let i = 0; i < a.length; i += 4) {
-      let d = 0;
-      for (let c = 0; c < 3; ++c) d = Math.max(d, Math.abs(a[i + c] - b[i + c]));
-      sum += d;
-      if (d > 48) ++off;
-      if (a[i] + a[i + 1] + a[i + 2] > 60) ++lit;
-      if (b[i] + b[i + 1] + b[i + 2] > 60) ++refLit;
-    }
-    const n = a.length / 4;
-    return { meanDiff: sum / n, offFraction: off / n, litFraction: lit / n, refLit: refLit / n };
-  }, png.toString('base64'));
-}
-
 // The background's colour is dark: a pixel brighter than this is a drawn point.
 async function litFraction(page) {
   return page.evaluate(() => {
@@ -128,7 +102,7 @@ test('a tileset by URL matches the native render of the same camera', { skip: sk
   assert.ok(Number(state.tiles) > 1, `only ${state.tiles} tiles drawn: the root did not refine`);
   // The same renderer as `stipple render --renderer auto` chose.
   assert.match(native, new RegExp(`renderer: ${state.renderer}`));
-  const d = await compare(page, fs.readFileSync(ref));
+  const d = await h.compareCanvas(page, fs.readFileSync(ref));
   console.log(`web vs native: ${JSON.stringify(d)}; ${state.tiles} tiles, ${state.points} points, ` +
               `${state.renderer}, point size ${state.pointSize}, ${state.ms} ms, ` +
               `${state.frameMs} ms a frame once streamed, ${state.adapter}`);
@@ -148,7 +122,7 @@ test('a tileset by URL matches the native render of the same camera', { skip: sk
   let turned = d;
   for (let i = 0; i < 60 && turned.meanDiff < 5; ++i) {
     await new Promise((r) => setTimeout(r, 500));
-    turned = await compare(page, fs.readFileSync(ref));
+    turned = await h.compareCanvas(page, fs.readFileSync(ref));
   }
   console.log(`after a drag: ${JSON.stringify(turned)}`);
   assert.ok(turned.meanDiff >= 5, `the view did not change: ${JSON.stringify(turned)}`);
@@ -193,7 +167,7 @@ test('a LAS file by URL matches the native render of the file', { skip: skip || 
   assert.equal(state.done, '1', log.join('\n'));
   assert.match(native, new RegExp(`renderer: ${state.renderer}`));
   assert.match(native, new RegExp(`rendered ${state.points} points`));
-  const d = await compare(page, fs.readFileSync(ref));
+  const d = await h.compareCanvas(page, fs.readFileSync(ref));
   console.log(`LAS web vs native: ${JSON.stringify(d)}; ${state.points} points, ${state.renderer}`);
   assert.equal(d.size, undefined, `canvas size differs: ${d.size}`);
   assert.ok(d.litFraction > 0.05, `only ${d.litFraction} of the canvas is drawn`);

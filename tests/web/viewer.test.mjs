@@ -55,31 +55,6 @@ async function open(query, before = null) {
   return { page, state, log };
 }
 
-// Per-pixel comparison of the page's canvas with a PNG (decoded by the browser).
-async function compare(page, png) {
-  return page.evaluate(async (b64) => {
-    const bytes = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
-    const bitmap = await createImageBitmap(new Blob([bytes], { type: 'image/png' }));
-    const ref = new OffscreenCanvas(bitmap.width, bitmap.height).getContext('2d');
-    ref.drawImage(bitmap, 0, 0);
-    const canvas = document.getElementById('canvas');
-    if (canvas.width !== bitmap.width || canvas.height !== bitmap.height)
-      return { size: `${canvas.width}x${canvas.height} vs ${bitmap.width}x${bitmap.height}` };
-    const a = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
-    const b = ref.getImageData(0, 0, bitmap.width, bitmap.height).data;
-    let sum = 0, off = 0, lit = 0;
-    for (let i = 0; i < a.length; i += 4) {
-      let d = 0;
-      for (let c = 0; c < 3; ++c) d = Math.max(d, Math.abs(a[i + c] - b[i + c]));
-      sum += d;
-      if (d > 48) ++off;
-      if (a[i] + a[i + 1] + a[i + 2] > 60) ++lit;
-    }
-    const n = a.length / 4;
-    return { meanDiff: sum / n, offFraction: off / n, litFraction: lit / n };
-  }, png.toString('base64'));
-}
-
 // Two sizes of the built-in scene: 200,000 points at 320x240 are 1-pixel points (the compute
 // rasterizer, as `stipple render --renderer auto` chooses), 50,000 larger ones (billboards).
 for (const [points, renderer] of [['200000', 'compute'], ['50000', 'billboard']]) {
@@ -91,7 +66,7 @@ for (const [points, renderer] of [['200000', 'compute'], ['50000', 'billboard']]
     assert.equal(state.done, '1', log.join('\n'));
     assert.equal(state.points, points);
     assert.equal(state.renderer, renderer);
-    const d = await compare(page, fs.readFileSync(ref));
+    const d = await h.compareCanvas(page, fs.readFileSync(ref));
     console.log(`web vs native: ${JSON.stringify(d)}; ${state.renderer}, ${state.ms} ms, ${state.adapter}`);
     assert.equal(d.size, undefined, `canvas size differs: ${d.size}`);
     // The scene covers most of the image, not a blank canvas.
