@@ -135,8 +135,9 @@ void report(const char* key, const std::string& value) {
   EM_ASM({ Module.stippleReport(UTF8ToString($0), UTF8ToString($1)); }, key, value.c_str());
 }
 
-void run_scene(const Options& o) {
-  Engine engine;
+// What every page draws with: the engine's core plugins, the device (compute rasterizer
+// features requested, the renderer chosen once the adapter is known) and the frame graph.
+void add_core_plugins(Engine& engine) {
   engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
   GpuPlugin gpu;
   gpu.options.optional_features = pc::compute_raster_features();
@@ -144,6 +145,11 @@ void run_scene(const Options& o) {
   RenderGraphPlugin graph;
   graph.keep_history = true;
   engine.add_plugin(std::move(graph));
+}
+
+void run_scene(const Options& o) {
+  Engine engine;
+  add_core_plugins(engine);
   pc::PointCloudPlugin points;
   points.inputs.files.assign(o.files.begin(), o.files.end());
   points.inputs.scene.point_count = o.scene_points;
@@ -271,13 +277,7 @@ Input take_input() {
 // point size to their density, and `frames` more frames are drawn: then it reports done.
 void run_tileset(const Options& o) {
   Engine engine;
-  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
-  GpuPlugin gpu;
-  gpu.options.optional_features = pc::compute_raster_features();
-  engine.add_plugin(std::move(gpu));
-  RenderGraphPlugin graph;
-  graph.keep_history = true;
-  engine.add_plugin(std::move(graph));
+  add_core_plugins(engine);
   // As `stipple render --renderer auto` for a tileset: the compute rasterizer (blending as HQS)
   // when the memory budget holds 10M points or more, else billboards.
   const bool compute = (o.memory_mb << 20) / pc::kRasterPointBytes >= 10'000'000;
