@@ -10,6 +10,7 @@
 #include <initializer_list>
 #include <optional>
 #include <string_view>
+#include <unordered_map>
 
 #include <fmt/format.h>
 
@@ -40,21 +41,40 @@ std::string unit_name(uint16_t code) {
   }
 }
 
-// RAII for the PROJ objects used below.
-struct Proj {
-  PJ_CONTEXT* ctx = proj_context_create();
-  std::vector<PJ*> objects;
-  Proj() {
-    // PROJ's own messages (e.g. a missing proj.db) would bypass our logger; a missing name is
-    // not an error for us.
-    if (ctx) {
-      proj_log_level(ctx, PJ_LOG_NONE);
-      proj_log_func(ctx, nullptr, [](void*, int, const char*) {});
+// One PROJ context per thread, kept for the thread's life: creating a context and opening its
+// database (proj.db, sqlite) costs far more than the look-ups made through it, and a tiler or
+// viewer that opens thousands of files (or a fuzzer that opens millions) would pay that per file.
+// A context is not thread-safe, hence one per thread.
+PJ_CONTEXT* thread_context() {
+  struct Context {
+    PJ_CONTEXT* ctx = proj_context_create();
+    Context() {
+      // PROJ's own messages (e.g. a missing proj.db) would bypass our logger; a missing name is
+      // not an error for us.
+      if (ctx) {
+        proj_log_level(ctx, PJ_LOG_NONE);
+        proj_log_func(ctx, nullptr, [](void*, int, const char*) {});
+      }
     }
-  }
+    ~Context() {
+      if (ctx) proj_context_destroy(ctx);
+    }
+    Context(const Context&) = delete;
+    Context& operator=(const Context&) = delete;
+  };
+  thread_local Context context;
+  return context.ctx;
+}
+
+// The PROJ objects made for one look-up, destroyed after it (the context stays).
+struct Proj {
+  PJ_CONTEXT* ctx = thread_context();
+  std::vector<PJ*> objects;
+  Proj() = default;
+  Proj(const Proj&) = delete;
+  Proj& operator=(const Proj&) = delete;
   ~Proj() {
     for (PJ* o : objects) proj_destroy(o);
-    if (ctx) proj_context_destroy(ctx);
   }
   PJ* keep(PJ* o) {
     if (o) objects.push_back(o);
@@ -82,12 +102,36 @@ struct CrsFacts {
   bool readable = false;  // PROJ read the definition
 };
 
+// A CRS from a definition: "AUTHORITY:CODE" (what the GeoTIFF keys give) or the text of a WKT
+// VLR. proj_create takes any text, and one that is neither WKT, a PROJ string nor a code it
+// looks up as an object name, a search of the whole database (0.4-0.5 s natively, seconds under
+// ASan): every damaged WKT VLR would pay that. So WKT goes to PROJ's WKT parser alone; an
+// authority and a numeric code, an OGC URN or a PROJ string to proj_create; anything else
+// nowhere (the WKT tree reader below still reads what it can).
+PJ* create_crs(PJ_CONTEXT* ctx, const std::string& definition) {
+  const size_t mark = definition.find_first_of("[(:");
+  if (mark != std::string::npos && definition[mark] != ':')
+    return proj_create_from_wkt(ctx, definition.c_str(), nullptr, nullptr, nullptr);
+  auto all = [](std::string_view s, auto pred) {
+    return std::all_of(s.begin(), s.end(),
+                       [&](char c) { return pred(static_cast<unsigned char>(c)); });
+  };
+  const std::string_view d = definition;
+  const bool code = mark != std::string::npos && mark > 0 && mark <= 16 &&
+                    d.size() - mark - 1 <= 10 && d.size() > mark + 1 &&
+                    all(d.substr(0, mark), [](int c) { return std::isalnum(c) || c == '_'; }) &&
+                    all(d.substr(mark + 1), [](int c) { return std::isdigit(c); });
+  if (code || d.starts_with("urn:ogc:def:crs:") || d.starts_with("+proj="))
+    return proj_create(ctx, definition.c_str());
+  return nullptr;
+}
+
 // A CRS definition ("EPSG:n" or WKT) through PROJ.
-CrsFacts facts_from_proj(const std::string& definition) {
+CrsFacts facts_from_proj_uncached(const std::string& definition) {
   CrsFacts f;
   Proj p;
   if (!p.ctx) return f;
-  PJ* obj = p.keep(proj_create(p.ctx, definition.c_str()));
+  PJ* obj = p.keep(create_crs(p.ctx, definition));
   if (!obj) return f;
   f.readable = true;
   PJ* horizontal = obj;
@@ -109,6 +153,20 @@ CrsFacts facts_from_proj(const std::string& definition) {
         unit) {
       f.linear_unit = unit;
     }
+  }
+  return f;
+}
+
+// facts_from_proj, remembered per thread: the files of one survey share their CRS, and even with
+// the context kept a look-up runs several queries on PROJ's database. Bounded: definitions over
+// 16 KiB are not kept, and the table starts over at 64 entries.
+CrsFacts facts_from_proj(const std::string& definition) {
+  thread_local std::unordered_map<std::string, CrsFacts> seen;
+  if (const auto it = seen.find(definition); it != seen.end()) return it->second;
+  CrsFacts f = facts_from_proj_uncached(definition);
+  if (definition.size() <= (16u << 10)) {
+    if (seen.size() >= 64) seen.clear();
+    seen.emplace(definition, f);
   }
   return f;
 }
