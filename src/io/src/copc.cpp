@@ -21,6 +21,9 @@ constexpr size_t kHeader14 = 375;  // LAS 1.4 header size: COPC files have exact
 constexpr size_t kVlrHeader = 54;
 constexpr size_t kInfoSize = 160;
 constexpr size_t kEntrySize = 32;
+// Problems listed one by one for a page; past this they are counted. A damaged page can have
+// thousands (every entry), and formatting each message was most of the time spent on it.
+constexpr size_t kMaxPageErrors = 32;
 constexpr uint64_t kMaxPrefixBytes = 64ull << 20;  // header and VLRs read at open
 
 using detail::load;
@@ -176,30 +179,43 @@ CopcInfo parse_copc_info(std::span<const uint8_t> p, const std::string& name) {
 
 namespace {
 
-// Throws for an entry that cannot be used.
-void check_entry(const CopcEntry& e, size_t i, const std::string& name, uint64_t file_size) {
+// A message for entry_problem, formatted only when it is to be said.
+template <typename... Args>
+std::string said(bool say, fmt::format_string<Args...> format, Args&&... args) {
+  return say ? fmt::format(format, std::forward<Args>(args)...) : std::string("-");
+}
+
+// Why an entry cannot be used, or nothing. Returned, not thrown: a damaged page has an error per
+// entry (thousands), and unwinding a throw for each took most of the time of reading one.
+// With `say` false the answer is only empty or not (no message is formatted).
+std::string entry_problem(const CopcEntry& e, size_t i, const std::string& name, uint64_t file_size,
+                          bool say = true) {
   const CopcKey& k = e.key;
   if (k.d < 0 || k.d > kMaxCopcDepth)
-    fail("{}: hierarchy entry {}: depth {} is outside 0-{}", name, i, k.d, kMaxCopcDepth);
+    return said(say, "{}: hierarchy entry {}: depth {} is outside 0-{}", name, i, k.d,
+                kMaxCopcDepth);
   const int64_t cells = int64_t(1) << k.d;
   if (k.x < 0 || k.y < 0 || k.z < 0 || k.x >= cells || k.y >= cells || k.z >= cells)
-    fail("{}: hierarchy entry {}: key {} is outside its level's {} cells per axis", name, i,
-         k.str(), cells);
+    return said(say, "{}: hierarchy entry {}: key {} is outside its level's {} cells per axis",
+                name, i, k.str(), cells);
   if (e.point_count < -1)
-    fail("{}: node {}: point count {} is negative", name, k.str(), e.point_count);
-  if (e.byte_size < 0) fail("{}: node {}: byte size {} is negative", name, k.str(), e.byte_size);
+    return said(say, "{}: node {}: point count {} is negative", name, k.str(), e.point_count);
+  if (e.byte_size < 0)
+    return said(say, "{}: node {}: byte size {} is negative", name, k.str(), e.byte_size);
   if (e.point_count == -1 && (e.byte_size == 0 || e.byte_size % int32_t(kEntrySize) != 0))
-    fail("{}: node {}: child hierarchy page of {} bytes is not a positive multiple of 32", name,
-         k.str(), e.byte_size);
+    return said(say,
+                "{}: node {}: child hierarchy page of {} bytes is not a positive multiple of 32",
+                name, k.str(), e.byte_size);
   if (e.point_count > 0 && e.byte_size == 0)
-    fail("{}: node {}: {} points in a chunk of 0 bytes", name, k.str(), e.point_count);
+    return said(say, "{}: node {}: {} points in a chunk of 0 bytes", name, k.str(), e.point_count);
   if (e.byte_size > 0) {
     if (e.offset < kHeader14 || e.offset > UINT64_MAX - uint64_t(e.byte_size))
-      fail("{}: node {}: offset {} is inside the header", name, k.str(), e.offset);
+      return said(say, "{}: node {}: offset {} is inside the header", name, k.str(), e.offset);
     if (file_size > 0 && e.offset + uint64_t(e.byte_size) > file_size)
-      fail("{}: node {}: bytes {}-{} are past the end of the file ({} bytes)", name, k.str(),
-           e.offset, e.offset + uint64_t(e.byte_size) - 1, file_size);
+      return said(say, "{}: node {}: bytes {}-{} are past the end of the file ({} bytes)", name,
+                  k.str(), e.offset, e.offset + uint64_t(e.byte_size) - 1, file_size);
   }
+  return {};
 }
 
 }  // namespace
@@ -211,6 +227,8 @@ std::vector<CopcEntry> parse_copc_page(std::span<const uint8_t> bytes, const std
          bytes.size());
   std::vector<CopcEntry> out;
   out.reserve(bytes.size() / kEntrySize);
+  const size_t errors_before = errors ? errors->size() : 0;
+  size_t unsaid = 0;
   for (size_t i = 0; i < bytes.size() / kEntrySize; ++i) {
     const uint8_t* p = bytes.data() + i * kEntrySize;
     CopcEntry e;
@@ -218,18 +236,19 @@ std::vector<CopcEntry> parse_copc_page(std::span<const uint8_t> bytes, const std
     e.offset = load<uint64_t>(p + 16);
     e.byte_size = load<int32_t>(p + 24);
     e.point_count = load<int32_t>(p + 28);
-    if (!errors) {
-      check_entry(e, i, name, file_size);
-    } else {
-      try {
-        check_entry(e, i, name, file_size);
-      } catch (const Error& err) {
-        errors->push_back(err.what());
-        continue;
-      }
+    const bool say = !errors || errors->size() - errors_before < kMaxPageErrors;
+    if (std::string problem = entry_problem(e, i, name, file_size, say); !problem.empty()) {
+      if (!errors) fail("{}", problem);
+      if (say)
+        errors->push_back(std::move(problem));
+      else
+        ++unsaid;
+      continue;
     }
     out.push_back(e);
   }
+  if (unsaid)
+    errors->push_back(fmt::format("{}: {} more entries cannot be used (not listed)", name, unsaid));
   return out;
 }
 
@@ -306,6 +325,14 @@ Expansion read_copc_page(uint32_t tile, const PendingChildren& pending, size_t t
     std::vector<std::string> bad;
     std::vector<CopcEntry> entries = parse_copc_page(bytes, name, file.file_size, &bad);
     for (auto& message : bad) e.errors.emplace_back(-1, std::move(message));
+    // Problems of the entries' tree, listed up to kMaxPageErrors, then counted.
+    size_t unsaid = 0;
+    auto problem = [&]<typename... Args>(fmt::format_string<Args...> format, Args&&... args) {
+      if (e.errors.size() < kMaxPageErrors)
+        e.errors.emplace_back(-1, fmt::format(format, std::forward<Args>(args)...));
+      else
+        ++unsaid;
+    };
     std::sort(entries.begin(), entries.end(), [](const CopcEntry& a, const CopcEntry& b) {
       return std::tie(a.key.d, a.key.x, a.key.y, a.key.z) <
              std::tie(b.key.d, b.key.x, b.key.y, b.key.z);
@@ -316,13 +343,12 @@ Expansion read_copc_page(uint32_t tile, const PendingChildren& pending, size_t t
       const CopcEntry& en = entries[i];
       const CopcKey& k = en.key;
       if (i > 0 && entries[i - 1].key == k) {
-        e.errors.emplace_back(-1, fmt::format("{}: node {} is listed twice", name, k.str()));
+        problem("{}: node {} is listed twice", name, k.str());
         continue;
       }
       if (k == root) {
         if (en.point_count == -1) {
-          e.errors.emplace_back(
-              -1, fmt::format("{}: node {} points to a page of its own (a cycle)", name, k.str()));
+          problem("{}: node {} points to a page of its own (a cycle)", name, k.str());
         } else if (en.point_count > 0) {
           e.contents.push_back(node_uri(file, en));
           e.content_points = uint64_t(en.point_count);
@@ -333,16 +359,14 @@ Expansion read_copc_page(uint32_t tile, const PendingChildren& pending, size_t t
       const int shift = k.d - root.d;
       if (shift <= 0 || (k.x >> shift) != root.x || (k.y >> shift) != root.y ||
           (k.z >> shift) != root.z) {
-        e.errors.emplace_back(
-            -1, fmt::format("{}: node {} is not below the page's node", name, k.str()));
+        problem("{}: node {} is not below the page's node", name, k.str());
         continue;
       }
       int32_t parent = -1;
       if (shift > 1) {
         auto it = index.find({k.d - 1, k.x >> 1, k.y >> 1, k.z >> 1});
         if (it == index.end()) {
-          e.errors.emplace_back(
-              -1, fmt::format("{}: node {} has no parent in the hierarchy", name, k.str()));
+          problem("{}: node {} has no parent in the hierarchy", name, k.str());
           continue;
         }
         parent = it->second;
@@ -365,6 +389,9 @@ Expansion read_copc_page(uint32_t tile, const PendingChildren& pending, size_t t
       index[{k.d, k.x, k.y, k.z}] = local;
       e.tiles.push_back(std::move(t));
     }
+    if (unsaid)
+      e.errors.emplace_back(
+          -1, fmt::format("{}: {} more problems with its entries (not listed)", name, unsaid));
     e.subtrees = 1;
     if (!own)
       e.errors.emplace_back(
