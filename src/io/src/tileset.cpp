@@ -615,7 +615,10 @@ std::vector<std::pair<uint32_t, std::string>> attach_children(Tileset& ts, Expan
   for (auto& c : e.contents) ts.tiles[e.tile].contents.push_back(std::move(c));
   ts.tiles[e.tile].content_points += e.content_points;
   const uint32_t depth = ts.tiles[e.tile].depth + 1;
-  ts.tiles.reserve(base + e.tiles.size());
+  // Geometric growth: reserving the exact size here reallocated (and moved) the whole array on
+  // every expansion, quadratic in the number of tiles over a tree's reading.
+  if (ts.tiles.capacity() < base + e.tiles.size())
+    ts.tiles.reserve(std::max(base + e.tiles.size(), 2 * ts.tiles.capacity()));
   for (size_t i = 0; i < e.tiles.size(); ++i) {
     Tile& t = e.tiles[i];
     if (t.parent < 0) {
