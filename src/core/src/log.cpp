@@ -22,10 +22,16 @@ void init_logging(int verbosity) {
 }
 
 void warn_once(const std::string& message) {
+  // Nothing is remembered while warnings are not shown (a fuzzer, a quiet library user): the
+  // set would grow with every distinct message, for nothing.
+  if (!spdlog::default_logger_raw()->should_log(spdlog::level::warn)) return;
   static std::mutex mutex;
   static std::unordered_set<std::string> said;
   {
     std::lock_guard lock(mutex);
+    // Bounded: messages name files and values, and a long session (a viewer streaming a
+    // damaged dataset) must not keep every one. Past the bound a message may be said again.
+    if (said.size() >= 4096) said.clear();
     if (!said.insert(message).second) return;
   }
   spdlog::warn("{}", message);
