@@ -389,6 +389,16 @@ struct LasReader::Impl {
       const size_t n = static_cast<size_t>(
           std::min<uint64_t>({header.point_count, kRgbProbePoints,
                               std::max<uint64_t>(1, (64u << 20) / layout.record_length)}));
+      // A file shorter than its header says fails here as fetch() would, but before the buffer
+      // for up to 64K records is allocated and zeroed (a cut file's header still counts all of
+      // its points: megabytes for nothing).
+      const uint64_t available =
+          src->size() > header.offset_to_points
+              ? (src->size() - header.offset_to_points) / layout.record_length
+              : 0;
+      if (!laz && available < n)
+        fail("{}: file ends early while reading points (point {} of {})", header.path, available,
+             header.point_count);
       prefix.resize(n * layout.record_length);
       fetch(prefix.data(), n);
       prefix_points = n;
