@@ -87,7 +87,7 @@ tar -C "$stage" -cf - fuzz | xz -T"$jobs" -6 >"$out.tmp"
 mv "$out.tmp" "$out"
 size=$(stat -c %s "$out")
 echo "fuzz-pack: $out: $((size / 1048576)) MiB (${#built[@]} targets: ${built[*]}; ${#libs[@]} libraries)"
-if [[ $size -gt $((60 * 1048576)) ]]; then
-  echo "fuzz-pack: over 60 MiB" >&2
+if [[ $size -gt $((40 * 1048576)) ]]; then
+  echo "fuzz-pack: over 40 MiB" >&2
   exit 1
 fi

@@ -2,15 +2,16 @@
 # run.sh [-j CORES] [-t SECONDS] [TARGET...]: the fuzzing campaign of a package made by
 # bench/fuzz-pack.sh (this file is its run.sh). Every target (default: all in ./targets) runs at
 # once for SECONDS (default 3600), the CORES (default: nproc) shared out among them as libFuzzer
-# -fork jobs (each target at least one); crashes, leaks, timeouts and out-of-memory inputs do
-# not stop a target (-ignore_crashes etc.): each is left in out/<target>/ and counted. Each
-# starts from the kept corpus, the seeds (the LAS readers: the heads of real LAS/LAZ files;
-# fuzz_tileset and fuzz_las_roundtrip, input generators, get 4 KiB inputs) and the regression
-# inputs; afterwards the new corpus is minimised (-merge=1) into out/corpus/<target>/ (bring it
-# back to tests/fuzz/corpus/). Prints one line per target, as bench/fuzz.sh does: executions,
-# executions per second, coverage (edges: cov, features: ft), corpus files, crashes; the
-# whole output is also in out/summary.txt.
-#   fuzz/run.sh -j 16 -t 3600
+# -fork jobs: each target at least one, the rest in proportion to what one execution of the
+# target costs (cost_of below; FUZZ_EVEN=1 shares them equally). Crashes, leaks, timeouts and
+# out-of-memory inputs do not stop a target (-ignore_crashes etc.): each is left in
+# out/<target>/ and counted. Each starts from the kept corpus, the seeds (the LAS readers also
+# the heads of real LAS/LAZ files) and the regression inputs, inputs capped in length per target
+# (max_len_of below); afterwards the new corpus is minimised (-merge=1) into out/corpus/<target>/
+# (bring it back to tests/fuzz/corpus/). Prints one line per target, as bench/fuzz.sh does:
+# forks, executions, executions per second, coverage (edges: cov, features: ft), corpus files,
+# crashes; the whole output is also in out/summary.txt.
+#   fuzz/run.sh -j 16 -t 900
 #   fuzz/run.sh -j 4 -t 60 fuzz_las fuzz_tiles
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -20,7 +21,7 @@ while getopts "j:t:h" opt; do
   case $opt in
     j) cores=$OPTARG ;;
     t) seconds=$OPTARG ;;
-    *) sed -n '2,14p' "$0"; exit 2 ;;
+    *) sed -n '2,15p' "$0"; exit 2 ;;
   esac
 done
 shift $((OPTIND - 1))
@@ -42,14 +43,48 @@ for t in "${targets[@]}"; do
   fi
 done
 
+# The longest input each target is given (libFuzzer truncates longer corpus files): what its
+# parser needs to reach everything, no more. A COPC page of 8 KiB is 256 entries (coverage is
+# the same as with whole 64 KiB inputs, at 20 times the rate); the two input generators and the
+# JSON readers need no more than 4 KiB. Not fuzz_las: cut to 16 KiB its kept corpus loses a
+# third of its coverage (EVLRs and point counts past the cut), so it keeps the corpus's longest
+# (64 KiB) and its harness decodes only the first and last points instead.
+max_len_of() {
+  case $1 in
+    fuzz_copc) echo 8192 ;;
+    fuzz_tileset | fuzz_las_roundtrip | fuzz_part | fuzz_json) echo 4096 ;;
+    *) echo 0 ;;  # libFuzzer's default: the longest corpus file
+  esac
+}
+# What one execution costs, relative (microseconds a core: about the inverse of the rates
+# measured on 2 shared cores, scaled to the 16-core machine's rates of the targets measured
+# there; see bench/RESULTS.md): the cores left after one fork per target are shared out in
+# proportion, so that the slow targets get more -fork jobs. FUZZ_EVEN=1: an equal share.
+cost_of() {
+  [[ ${FUZZ_EVEN:-0} == 1 ]] && { echo 1; return; }
+  case $1 in
+    fuzz_las) echo 200 ;;
+    fuzz_copc) echo 400 ;;
+    fuzz_tileset) echo 3300 ;;
+    fuzz_las_roundtrip) echo 2000 ;;
+    fuzz_part) echo 1200 ;;
+    fuzz_tiles) echo 350 ;;
+    fuzz_ept) echo 250 ;;
+    fuzz_potree) echo 950 ;;
+    fuzz_pointlets) echo 300 ;;
+    fuzz_json) echo 300 ;;
+    *) echo 1000 ;;
+  esac
+}
+
 n=${#targets[@]}
 campaign() {
   local t=$1 forks=$2 dir="$out/$t" max_len=()
   rm -rf "$dir" && mkdir -p "$dir/work" "$dir/seeds"
-  case $t in
-    fuzz_las | fuzz_copc) cp "$here/las-heads"/* "$dir/seeds/" 2>/dev/null || true ;;
-    fuzz_tileset | fuzz_las_roundtrip) max_len=(-max_len=4096) ;;
-  esac
+  [[ $t == fuzz_las || $t == fuzz_copc ]] && { cp "$here/las-heads"/* "$dir/seeds/" 2>/dev/null || true; }
+  local len
+  len=$(max_len_of "$t")
+  [[ $len -gt 0 ]] && max_len=(-max_len="$len")
   [[ $t == fuzz_las_roundtrip ]] || cp "$here/seeds"/* "$dir/seeds/" 2>/dev/null || true
   cp "$dir/seeds"/* "$dir/work/" 2>/dev/null || true
   cp "$here/corpus/$t"/* "$dir/work/" 2>/dev/null || true
@@ -75,12 +110,27 @@ campaign() {
 }
 
 echo "$n targets, $cores cores, $seconds s each (all at once); output in $out"
-i=0
+# Forks: each target one, the cores left over in proportion to cost_of (largest remainders
+# first), so that the forks add up to the cores (or to the targets, when there are fewer cores).
+declare -A forks=()
+total=0 left=$((cores - n))
+for t in "${targets[@]}"; do total=$((total + $(cost_of "$t"))); forks[$t]=1; done
+if [[ $left -gt 0 ]]; then
+  declare -A rest=()
+  for t in "${targets[@]}"; do
+    share=$((left * $(cost_of "$t")))
+    forks[$t]=$((1 + share / total))
+    rest[$t]=$((share % total))
+  done
+  given=0
+  for t in "${targets[@]}"; do given=$((given + forks[$t] - 1)); done
+  while read -r t; do
+    [[ $given -lt $left ]] || break
+    forks[$t]=$((forks[$t] + 1)) given=$((given + 1))
+  done < <(for t in "${targets[@]}"; do echo "${rest[$t]} $t"; done | sort -rn | cut -d' ' -f2)
+fi
 for t in "${targets[@]}"; do
-  forks=$((cores / n + (i < cores % n ? 1 : 0)))
-  [[ $forks -ge 1 ]] || forks=1
-  campaign "$t" "$forks" >"$out/$t.line" &
-  i=$((i + 1))
+  campaign "$t" "${forks[$t]}" >"$out/$t.line" &
 done
 wait
 {

@@ -4,7 +4,7 @@
 # each (default: every one in tests/fuzz/CMakeLists.txt) for SECONDS, JOBS at a time (default:
 # the number of cores), starting from the kept corpus in tests/fuzz/corpus/<target>/, the
 # generated seeds (tests/fuzz/seeds/) and, for the LAS readers, the heads of the real files in
-# ../shared/data (the input generators, fuzz_tileset and fuzz_las_roundtrip, get 4 KiB inputs). After
+# ../shared/data, inputs capped in length per target as bench/fuzz-run.sh caps them. After
 # the run the kept corpus is replaced by the minimised union of old and new (libFuzzer -merge=1),
 # so the next campaign, and CI's short runs, start where this one stopped.
 # Prints one line per target: executions, executions per second, coverage (edges: cov, features:
@@ -49,7 +49,7 @@ campaign() {
   rm -rf "$out/$t" && mkdir -p "$work" "$kept"
   # Seeds: the heads of the real LAS/LAZ files for the targets that read LAS, the generated
   # files of tests/fuzz/seeds for the others. They are not kept (every run adds them again).
-  local seeds="$out/$t/seeds" max_len=()
+  local seeds="$out/$t/seeds" max_len=() len
   mkdir -p "$seeds"
   case $t in
     fuzz_las | fuzz_copc)
@@ -59,8 +59,10 @@ campaign() {
         done < <(find ../shared/data -type f \( -name '*.las' -o -name '*.laz' \) -print0)
       fi
       ;;
-    fuzz_tileset | fuzz_las_roundtrip) max_len=(-max_len=4096) ;;  # generators: short inputs
   esac
+  # The input length cap of bench/fuzz-run.sh (max_len_of there: why each).
+  len=$(bash -c "source <(sed -n '/^max_len_of()/,/^}/p' bench/fuzz-run.sh); max_len_of $t")
+  [[ $len -gt 0 ]] && max_len=(-max_len="$len")
   [[ $t == fuzz_las_roundtrip ]] || find tests/fuzz/seeds -type f -exec cp {} "$seeds"/ \;
   cp "$seeds"/* "$work"/ 2>/dev/null || true
   cp "$kept"/* "$work"/ 2>/dev/null || true
