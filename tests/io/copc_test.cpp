@@ -85,6 +85,18 @@ TEST(Copc, HierarchyEntriesAreValidated) {
   EXPECT_NE(msg(entry(1, 0, 0, 0, 1000, -4, 1)).find("negative"), std::string::npos);
   EXPECT_NE(msg(entry(1, 0, 0, 0, 1000, 0, 5)).find("0 bytes"), std::string::npos);
   EXPECT_NE(msg(entry(1, 0, 0, 0, 10, 10, 5)).find("inside the header"), std::string::npos);
+
+  // A page of 1,000 bad entries: 32 problems listed, the rest counted in one more line.
+  std::vector<uint8_t> bad;
+  for (int i = 0; i < 1000; ++i) {
+    auto e = entry(31, 0, 0, 0, 1000, 10, 1);
+    bad.insert(bad.end(), e.begin(), e.end());
+  }
+  std::vector<std::string> errors{"earlier"};
+  EXPECT_TRUE(parse_copc_page(bad, "p", 10'000, &errors).empty());
+  ASSERT_EQ(errors.size(), 1u + 32u + 1u);
+  EXPECT_NE(errors[32].find("entry 31: depth 31"), std::string::npos) << errors[32];
+  EXPECT_NE(errors.back().find("968 more entries"), std::string::npos) << errors.back();
 }
 
 TEST(Copc, PagesBecomeTilesAndBadEntriesBecomeErrors) {
