@@ -71,8 +71,8 @@ cost_of() {
     fuzz_tiles) echo 350 ;;
     fuzz_ept) echo 250 ;;
     fuzz_potree) echo 950 ;;
-    fuzz_pointlets) echo 300 ;;
-    fuzz_json) echo 300 ;;
+    fuzz_pointlets) echo 70 ;;
+    fuzz_json) echo 200 ;;
     *) echo 1000 ;;
   esac
 }
