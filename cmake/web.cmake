@@ -25,3 +25,14 @@ target_compile_definitions(stipple_web_headers INTERFACE FMT_HEADER_ONLY=1)
 foreach(name spdlog::spdlog glm::glm nlohmann_json::nlohmann_json Threads::Threads)
   add_library(${name} ALIAS stipple_web_headers)
 endforeach()
+
+# LASzip 3.5.0 compiled to WebAssembly by scripts/build-web.sh (the native build's Debian
+# liblaszip, from its source tarball): the LAZ and COPC readers. Not searched for (emscripten's
+# toolchain confines find_library to its sysroot): its one place is .deps/laszip-wasm.
+set(STIPPLE_WEB_LASZIP ${CMAKE_SOURCE_DIR}/.deps/laszip-wasm CACHE PATH
+  "LASzip built for WebAssembly (scripts/build-web.sh)")
+set(LASZIP_LIBRARY ${STIPPLE_WEB_LASZIP}/lib/liblaszip.a)
+set(LASZIP_INCLUDE_DIR ${STIPPLE_WEB_LASZIP}/include)
+if(NOT EXISTS ${LASZIP_LIBRARY} OR NOT EXISTS ${LASZIP_INCLUDE_DIR}/laszip/laszip_api.h)
+  message(FATAL_ERROR "${LASZIP_LIBRARY} not found: run scripts/build-web.sh --deps")
+endif()

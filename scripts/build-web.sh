@@ -6,9 +6,11 @@
 #   - emscripten 3.1.69 and node-acorn from Debian trixie, and binaryen 108 from bookworm
 #     (for wasm-emscripten-finalize), downloaded and unpacked into .deps/emscripten, never
 #     installed (installing trixie's packages would upgrade libc);
-#   - binaryen@120.0.0 from npm (the version emscripten 3.1.69 expects: wasm-opt and friends).
+#   - binaryen@120.0.0 from npm (the version emscripten 3.1.69 expects: wasm-opt and friends);
+#   - LASzip 3.5.0 (the native build's Debian liblaszip) compiled to WebAssembly from Debian
+#     trixie's orig source tarball (checksum as in trixie's Sources index) into .deps/laszip-wasm.
 #   scripts/build-web.sh            toolchain + build
-#   scripts/build-web.sh --deps     toolchain only
+#   scripts/build-web.sh --deps     toolchain and LASzip only
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 export CCACHE_BASEDIR="$root" CCACHE_NOHASHDIR=1
@@ -78,6 +80,51 @@ FROZEN_CACHE = True
 CFG
 cmp -s "$em/config.py.tmp" "$em/config.py" 2>/dev/null && rm "$em/config.py.tmp" || mv "$em/config.py.tmp" "$em/config.py"
 export EM_CONFIG="$em/config.py"
+
+# ---- LASzip 3.5.0 for WebAssembly (.deps/laszip-wasm) ------------------------------------
+# The same LASzip as the native build's (Debian's liblaszip 3.5.0), from Debian's upstream
+# tarball: the .dsc of trixie's 3.5.0-2 is gone from the mirror, the orig tarball is not. Static,
+# with the web build's threads and native WebAssembly exceptions (cmake/web.cmake), or it would
+# not link with libstipple.
+lz_ver=3.5.0
+lz_sha256=b95adc812795b373d418ee7851938131bc33a54c452924183fe72597b5283907
+lz="$root/.deps/laszip-wasm"
+lz_flags="-pthread -fwasm-exceptions"
+if [[ ! -f "$lz/.built-$lz_ver" ]]; then
+  tarball="$root/.deps/laszip_$lz_ver.orig.tar.xz"
+  if ! echo "$lz_sha256  $tarball" | sha256sum -c --status 2>/dev/null; then
+    log "downloading laszip_$lz_ver.orig.tar.xz (Debian trixie's source)"
+    src=$(mktemp -d)
+    echo "deb-src http://deb.debian.org/debian trixie main" > "$src/sources.list"
+    mkdir -p "$src/lists/partial"
+    apt_src=(-o Dir::Etc::SourceList="$src/sources.list" -o Dir::Etc::SourceParts=/dev/null
+             -o Dir::State::Lists="$src/lists" -o Debug::NoLocking=1)
+    apt-get -qq "${apt_src[@]}" update >/dev/null 2>&1 || true
+    # --download-only fails on the missing .dsc after the tarball is in: the checksum decides.
+    (cd "$src" && apt-get -qq "${apt_src[@]}" source --download-only "laszip=$lz_ver-2" >/dev/null 2>&1) || true
+    [[ -f "$src/laszip_$lz_ver.orig.tar.xz" ]] && mv "$src/laszip_$lz_ver.orig.tar.xz" "$tarball"
+    rm -rf "$src"
+    echo "$lz_sha256  $tarball" | sha256sum -c --status 2>/dev/null || {
+      echo "build-web: laszip_$lz_ver.orig.tar.xz is missing or its checksum differs" >&2
+      exit 1
+    }
+  fi
+  log "building LASzip $lz_ver for WebAssembly into .deps/laszip-wasm"
+  tmp=$(mktemp -d)
+  tar xf "$tarball" -C "$tmp"
+  cmake -S "$tmp/LASzip-$lz_ver" -B "$tmp/build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+    -DCMAKE_TOOLCHAIN_FILE="$emroot/cmake/Modules/Platform/Emscripten.cmake" \
+    -DLASZIP_BUILD_STATIC=ON -DCMAKE_C_FLAGS="$lz_flags" -DCMAKE_CXX_FLAGS="$lz_flags" \
+    -DCMAKE_INSTALL_PREFIX="$lz" >/dev/null
+  out=$(cmake --build "$tmp/build" -j"$(nproc)" --target laszip 2>&1) || { printf '%s\n' "$out" >&2; exit 1; }
+  rm -rf "$lz" && mkdir -p "$lz/lib" "$lz/include/laszip"
+  cp "$(find "$tmp/build" -name liblaszip.a | head -n1)" "$lz/lib/"
+  cp "$tmp/LASzip-$lz_ver/include/laszip/laszip_api.h" \
+    "$tmp/build/include/laszip/laszip_api_version.h" "$lz/include/laszip/"
+  rm -rf "$tmp"
+  touch "$lz/.built-$lz_ver"
+fi
+
 
 [[ $deps_only -eq 1 ]] && exit 0
 
