@@ -3,7 +3,9 @@
 // `stipple render` renders for the same options: the built-in scene, or a 3D Tiles tileset by
 // URL (--url, from the page's ?url=), streamed frame by frame with the camera, one engine frame
 // per animation frame; draws the image on the page's canvas and reports on the page
-// (window.stipple: done, error, tile problems, stats).
+// (window.stipple: done, error, tile problems, stats, camera). Once drawn, the camera follows
+// the page's pointer (mouse and touch), wheel and keys; a LAS/LAZ file dropped on the page (or
+// chosen with its button) is opened next, as a ?url= of it would be.
 #include <emscripten.h>
 
 #include <algorithm>
@@ -147,7 +149,11 @@ void add_core_plugins(Engine& engine) {
   engine.add_plugin(std::move(graph));
 }
 
-void run_scene(const Options& o) {
+std::string orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured, glm::dvec3 target,
+                  bool streams, uint32_t height);
+
+// Returns the path of a file to open next (dropped on the page), or "" when not interactive.
+std::string run_scene(const Options& o) {
   Engine engine;
   add_core_plugins(engine);
   pc::PointCloudPlugin points;
@@ -155,7 +161,8 @@ void run_scene(const Options& o) {
   points.inputs.scene.point_count = o.scene_points;
   points.inputs.scene.seed = o.seed;
   engine.add_plugin(std::move(points));
-  engine.add_plugin(HeadlessTargetPlugin{o.width, o.height, "", 1});
+  // Frames until the page moves on (the camera controls draw more of them).
+  engine.add_plugin(HeadlessTargetPlugin{o.width, o.height, "", 0});
   auto captured = std::make_shared<gpu::Image>();
   engine.render().insert_resource(
       FrameCapture{[captured](uint64_t, const gpu::Image& image) { *captured = image; }});
@@ -183,8 +190,7 @@ void run_scene(const Options& o) {
     renderer = "compute";
   }
   const double start = emscripten_get_now();
-  engine.run();
-  engine.shutdown();
+  engine.run(1);
   const double ms = emscripten_get_now() - start;
   if (captured->rgba.empty()) fail("no frame was drawn");
   show(*captured);
@@ -195,6 +201,14 @@ void run_scene(const Options& o) {
   report("points", std::to_string(main.resource<pc::SceneInfo>().points));
   report("pointSize", fmt::format("{:.3f}", settings.render.point_size));
   report("ms", fmt::format("{:.1f}", ms));
+  report("done", "1");
+  std::string next;
+  if (o.interactive) {
+    const glm::dvec3 target = main.resource<pc::SceneInfo>().world_bounds.center();
+    next = orbit(engine, captured, target, false, o.height);
+  }
+  engine.shutdown();
+  return next;
 }
 
 // The tile problems so far (failed tiles, content warnings), one line per kind with how many
@@ -210,10 +224,11 @@ std::string tile_problems(const tiles3d::TilesetStream& s) {
   return text;
 }
 
-// The camera controls' input since the last call (the page's listeners add it up): pointer
-// drag in pixels, wheel steps, and keyboard (arrows turn, +/- or PageUp/PageDown zoom).
+// The camera controls' input since the last call (the page's listeners add it up, mouse and
+// touch alike): turning drag in pixels, zoom steps (wheel, keys, pinch), panning drag in pixels
+// (two fingers, or the mouse's right button).
 struct Input {
-  double dx = 0, dy = 0, zoom = 0;
+  double dx = 0, dy = 0, zoom = 0, pan_x = 0, pan_y = 0;
 };
 Input take_input() {
   Input in;
@@ -225,49 +240,92 @@ Input take_input() {
         HEAPF64[$0 >> 3] = i.dx;
         HEAPF64[($0 >> 3) + 1] = i.dy;
         HEAPF64[($0 >> 3) + 2] = i.zoom;
-        i.dx = i.dy = i.zoom = 0;
+        HEAPF64[($0 >> 3) + 3] = i.panX;
+        HEAPF64[($0 >> 3) + 4] = i.panY;
+        i.dx = i.dy = i.zoom = i.panX = i.panY = 0;
       },
       &in.dx);
   return in;
 }
 
-// After the first view: the camera orbits the drawn points' centre (drag turns it, the wheel
-// and keys zoom), and tiles stream for the new view, one engine frame per animation frame while
-// the view changes or tiles load; idle otherwise.
-[[noreturn]] void orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured) {
+// The path of a file the page has put in its file system to be opened next (dropped, or chosen
+// with its button), or "" (then none is waiting).
+std::string take_open() {
+  char path[4096] = {};
+  EM_ASM(
+      {
+        const p = Module.stippleOpen;
+        if (!p) return;
+        Module.stippleOpen = null;
+        stringToUTF8(p, $0, $1);
+      },
+      path, sizeof(path));
+  return path;
+}
+
+// The camera for the page (window.stipple.camera, JSON): turn angles in radians, distance and
+// target in world units. Tests read it to see the controls move the camera.
+void report_camera(double yaw, double pitch, double distance, const glm::dvec3& target) {
+  report("camera",
+         fmt::format(
+             R"({{"yaw":{:.6f},"pitch":{:.6f},"distance":{:.6g},"target":[{:.6g},{:.6g},{:.6g}]}})",
+             yaw, pitch, distance, target.x, target.y, target.z));
+}
+
+// After the first view: the camera orbits `target` (drag turns it, the wheel, keys and pinch
+// zoom, a two-finger or right-button drag moves the target across the view). A tileset streams
+// for the new view (`streams`), one engine frame per animation frame while the view changes or
+// tiles load; idle otherwise. Returns the path of a file to open next, once the page has one.
+std::string orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured, glm::dvec3 target,
+                  bool streams, uint32_t height) {
   Registry& main = engine.main();
   Camera camera;
   main.view<Camera>().each([&](const Camera& c) { camera = c; });
-  Aabb drawn;
-  const auto& s = main.resource<tiles3d::TilesetStream>();
-  for (uint32_t t : s.draw)
-    for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
-  const glm::dvec3 target = drawn.empty() ? s.world_bounds.center() : drawn.center();
   const glm::dvec3 offset = camera.position - target;
   double distance = std::max(glm::length(offset), 1e-3);
   double yaw = std::atan2(offset.x, offset.z);
   double pitch = std::asin(std::clamp(offset.y / distance, -1.0, 1.0));
+  report_camera(yaw, pitch, distance, target);
   uint64_t moves = 0;
   for (;;) {
     stipple_next_frame();
+    if (std::string next = take_open(); !next.empty()) return next;
     const Input in = take_input();
-    const bool moved = in.dx != 0 || in.dy != 0 || in.zoom != 0;
+    const bool moved = in.dx != 0 || in.dy != 0 || in.zoom != 0 || in.pan_x != 0 || in.pan_y != 0;
     if (moved) {
       yaw -= in.dx * 0.005;
       pitch = std::clamp(pitch + in.dy * 0.005, -1.55, 1.55);
       distance *= std::exp(in.zoom * 0.1);
-      const glm::dvec3 eye =
-          target + distance * glm::dvec3(std::cos(pitch) * std::sin(yaw), std::sin(pitch),
-                                         std::cos(pitch) * std::cos(yaw));
+      const glm::dvec3 dir(std::cos(pitch) * std::sin(yaw), std::sin(pitch),
+                           std::cos(pitch) * std::cos(yaw));
+      if (in.pan_x != 0 || in.pan_y != 0) {
+        // A pixel at the target's depth, in world units: the points under the fingers follow
+        // them. (The view is never straight up or down: pitch stops short of the poles.)
+        const double pixel = 2.0 * distance * std::tan(camera.fov_y / 2) / double(height);
+        const glm::dvec3 right = glm::normalize(glm::cross(-dir, glm::dvec3(0, 1, 0)));
+        const glm::dvec3 up = glm::cross(right, -dir);
+        target += (-in.pan_x * right + in.pan_y * up) * pixel;
+      }
+      const glm::dvec3 eye = target + distance * dir;
       main.view<Camera>().each([&](Camera& c) {
         c.look_at(eye, target);
         c.near_plane = std::max(distance * 1e-4, 1e-3);
       });
       report("cameraMoves", std::to_string(++moves));
+      report_camera(yaw, pitch, distance, target);
     }
-    if (!moved && main.resource<tiles3d::TilesetStats>().idle) continue;
+    if (!moved && (!streams || main.resource<tiles3d::TilesetStats>().idle)) continue;
     engine.update();
+    if (!streams) engine.wait_for_render();
     if (!captured->rgba.empty()) show(*captured);
+  }
+}
+
+// Until the page has a file to open (after an error, or a view that is not interactive).
+std::string wait_for_open() {
+  for (;;) {
+    stipple_next_frame();
+    if (std::string next = take_open(); !next.empty()) return next;
   }
 }
 
@@ -275,7 +333,8 @@ Input take_input() {
 // and point size), one engine frame per animation frame while its tiles stream in. Once the
 // streamer is idle the camera is fitted to the drawn points (streamed again for that view), the
 // point size to their density, and `frames` more frames are drawn: then it reports done.
-void run_tileset(const Options& o) {
+// Returns the path of a file to open next (dropped on the page), or "" when not interactive.
+std::string run_tileset(const Options& o) {
   Engine engine;
   add_core_plugins(engine);
   // As `stipple render --renderer auto` for a tileset: the compute rasterizer (blending as HQS)
@@ -381,11 +440,18 @@ void run_tileset(const Options& o) {
     std::sort(settled_ms.begin(), settled_ms.end());
     report("frameMs", fmt::format("{:.1f}", settled_ms[settled_ms.size() / 2]));
   }
+  report("done", "1");
+  std::string next;
   if (o.interactive) {
-    report("done", "1");
-    orbit(engine, captured);  // returns never: the page is the viewer from here on
+    Aabb drawn;
+    const auto& s = main.resource<tiles3d::TilesetStream>();
+    for (uint32_t t : s.draw)
+      for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
+    next = orbit(engine, captured, drawn.empty() ? s.world_bounds.center() : drawn.center(), true,
+                 o.height);
   }
   engine.shutdown();
+  return next;
 }
 
 // A LAS file by URL (.las/.laz, case aside): read whole like `stipple render file.las` does.
@@ -411,24 +477,46 @@ std::string fetch_to_memory(const std::string& url) {
   return path;
 }
 
+// Options for a file the page put in its file system: the page's view, the file instead of
+// its ?url= (the same path as a LAS ?url=, which is fetched into the file system first).
+Options with_file(Options o, const std::string& path) {
+  o.url.clear();
+  o.files = {path};
+  return o;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  Options o;
   try {
-    Options o = parse(argc, argv);
-    if (is_las_url(o.url)) {
-      o.files.push_back(fetch_to_memory(o.url));
-      run_scene(o);
-    } else if (o.url.empty()) {
-      run_scene(o);
-    } else {
-      run_tileset(o);
-    }
-    report("done", "1");
-    return 0;
+    o = parse(argc, argv);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "stipple: %s\n", e.what());
     report("error", e.what());
     return 1;
+  }
+  // One view after another: the page's ?url= (or the built-in scene), then each file dropped on
+  // the page. An error is shown and the page waits for a file to open instead.
+  for (;;) {
+    std::string next;
+    try {
+      if (is_las_url(o.url)) {
+        o.files.push_back(fetch_to_memory(o.url));
+        o.url.clear();
+        next = run_scene(o);
+      } else if (o.url.empty()) {
+        next = run_scene(o);
+      } else {
+        next = run_tileset(o);
+      }
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "stipple: %s\n", e.what());
+      report("error", e.what());
+      if (!o.interactive) return 1;
+      next = wait_for_open();
+    }
+    if (next.empty()) return 0;
+    o = with_file(o, next);
   }
 }
