@@ -27,6 +27,7 @@
 #include "stipple/engine/engine.hpp"
 #include "stipple/engine/plugins.hpp"
 #include "stipple/engine/render_plugins.hpp"
+#include "stipple/io/copc.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
@@ -61,8 +62,8 @@ struct Options {
   // A tileset (tileset.json URL): as `stipple render URL`, with its defaults.
   std::string url;
   uint64_t memory_mb = 512;
-  double max_sse = 16.0;
-  uint64_t frames = 1;             // drawn after the tileset is streamed (frame times)
+  double max_sse = 0;   // 0: the source's default, as `stipple render` (COPC 2, 3D Tiles 16)
+  uint64_t frames = 1;  // drawn after the tileset is streamed (frame times)
   uint64_t max_frames = 10000;     // then drawn as is, with a warning
   std::vector<std::string> files;  // LAS files (a LAS ?url= is fetched into the page's memory)
   bool interactive = true;         // camera controls once drawn (0: stop after the first view)
@@ -116,7 +117,6 @@ Options parse(int argc, char** argv) {
   if (o.width == 0 || o.height == 0 || o.width > 8192 || o.height > 8192)
     fail("the image size must be 1..8192 pixels a side");
   if (o.memory_mb == 0 || o.memory_mb > (uint64_t(1) << 20)) fail("--memory-mb: 1..1048576");
-  if (o.max_sse <= 0) fail("--max-sse: a positive number of pixels");
   return o;
 }
 
@@ -160,7 +160,10 @@ std::string run_scene(const Options& o) {
   points.inputs.files.assign(o.files.begin(), o.files.end());
   points.inputs.scene.point_count = o.scene_points;
   points.inputs.scene.seed = o.seed;
+  // The file read (a LAZ decoded by LASzip) or the scene generated: loadMs on the page.
+  const double load_start = emscripten_get_now();
   engine.add_plugin(std::move(points));
+  const double load_ms = emscripten_get_now() - load_start;
   // Frames until the page moves on (the camera controls draw more of them).
   engine.add_plugin(HeadlessTargetPlugin{o.width, o.height, "", 0});
   auto captured = std::make_shared<gpu::Image>();
@@ -201,6 +204,7 @@ std::string run_scene(const Options& o) {
   report("points", std::to_string(main.resource<pc::SceneInfo>().points));
   report("pointSize", fmt::format("{:.3f}", settings.render.point_size));
   report("ms", fmt::format("{:.1f}", ms));
+  report("loadMs", fmt::format("{:.1f}", load_ms));
   report("done", "1");
   std::string next;
   if (o.interactive) {
@@ -338,15 +342,22 @@ std::string run_tileset(const Options& o) {
   Engine engine;
   add_core_plugins(engine);
   // As `stipple render --renderer auto` for a tileset: the compute rasterizer (blending as HQS)
-  // when the memory budget holds 10M points or more, else billboards.
-  const bool compute = (o.memory_mb << 20) / pc::kRasterPointBytes >= 10'000'000;
+  // when the memory budget holds 10M points or more, else billboards; for COPC, when its header
+  // counts 10M points or more. COPC refines down to 2 px by default (its error is the spacing).
+  const bool copc = io::is_copc_input(o.url);
+  const uint64_t points =
+      copc ? io::open_copc(o.url, [](const std::string& uri) { return io::fetch(uri); })
+                 ->header.point_count
+           : (o.memory_mb << 20) / pc::kRasterPointBytes;
+  const bool compute = points >= 10'000'000;
+  const double max_sse = o.max_sse > 0 ? o.max_sse : copc ? 2.0 : 16.0;
   tiles3d::TilesetPlugin tiles;
   tiles.compute = compute;
   tiles.raster.hqs = compute && tiles.render.splat == pc::SplatMode::Blend;
   tiles.raster.fill_radius = 0;
   tiles.raster.occlusion_beta = 0.0f;
   tiles.uri = o.url;
-  tiles.streamer.traversal.max_sse = o.max_sse;
+  tiles.streamer.traversal.max_sse = max_sse;
   tiles.streamer.traversal.memory_budget = o.memory_mb << 20;
   tiles.streamer.traversal.point_budget = 0;
   engine.add_plugin(std::move(tiles));
@@ -501,7 +512,15 @@ int main(int argc, char** argv) {
   for (;;) {
     std::string next;
     try {
-      if (is_las_url(o.url)) {
+      // COPC streams like a tileset (by URL or from the page's file system), as `stipple
+      // render` streams it; other LAS/LAZ files are read whole.
+      if (o.files.size() == 1 && io::is_copc_input(o.files[0])) {
+        o.url = o.files[0];
+        o.files.clear();
+      }
+      if (!o.url.empty() && io::is_copc_input(o.url)) {
+        next = run_tileset(o);
+      } else if (is_las_url(o.url)) {
         o.files.push_back(fetch_to_memory(o.url));
         o.url.clear();
         next = run_scene(o);
