@@ -10,9 +10,11 @@
 # (max_len_of below); afterwards the new corpus is minimised (-merge=1) into out/corpus/<target>/
 # (bring it back to tests/fuzz/corpus/). Prints one line per target, as bench/fuzz.sh does:
 # forks, executions, executions per second, coverage (edges: cov, features: ft), corpus files,
-# crashes; the whole output is also in out/summary.txt.
+# crashes; the whole output is also in out/summary.txt. TARGET:N gives that target N forks
+# outright (the cores left are shared among the others as above).
 #   fuzz/run.sh -j 16 -t 900
 #   fuzz/run.sh -j 4 -t 60 fuzz_las fuzz_tiles
+#   fuzz/run.sh -j 16 -t 540 fuzz_pointlets:2 fuzz_json:5 fuzz_potree:9
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 cores=$(nproc)
@@ -26,6 +28,15 @@ while getopts "j:t:h" opt; do
 done
 shift $((OPTIND - 1))
 if [[ $# -gt 0 ]]; then targets=("$@"); else mapfile -t targets <"$here/targets"; fi
+# TARGET:N, forks given outright.
+declare -A fixed=()
+for i in "${!targets[@]}"; do
+  if [[ ${targets[$i]} == *:* ]]; then
+    n_forks=${targets[$i]#*:} targets[$i]=${targets[$i]%%:*}
+    [[ $n_forks =~ ^[1-9][0-9]*$ ]] || { echo "run.sh: bad fork count in ${targets[$i]}:$n_forks" >&2; exit 2; }
+    fixed[${targets[$i]}]=$n_forks
+  fi
+done
 out=${FUZZ_OUT:-$here/out}
 mkdir -p "$out/corpus"
 export LD_LIBRARY_PATH="$here/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
@@ -113,21 +124,30 @@ echo "$n targets, $cores cores, $seconds s each (all at once); output in $out"
 # Forks: each target one, the cores left over in proportion to cost_of (largest remainders
 # first), so that the forks add up to the cores (or to the targets, when there are fewer cores).
 declare -A forks=()
-total=0 left=$((cores - n))
-for t in "${targets[@]}"; do total=$((total + $(cost_of "$t"))); forks[$t]=1; done
-if [[ $left -gt 0 ]]; then
+shared=()
+left=$cores
+for t in "${targets[@]}"; do
+  if [[ -n ${fixed[$t]:-} ]]; then
+    forks[$t]=${fixed[$t]} left=$((left - fixed[$t]))
+  else
+    shared+=("$t")
+  fi
+done
+total=0 left=$((left - ${#shared[@]}))
+for t in "${shared[@]}"; do total=$((total + $(cost_of "$t"))); forks[$t]=1; done
+if [[ $left -gt 0 && ${#shared[@]} -gt 0 ]]; then
   declare -A rest=()
-  for t in "${targets[@]}"; do
+  for t in "${shared[@]}"; do
     share=$((left * $(cost_of "$t")))
     forks[$t]=$((1 + share / total))
     rest[$t]=$((share % total))
   done
   given=0
-  for t in "${targets[@]}"; do given=$((given + forks[$t] - 1)); done
+  for t in "${shared[@]}"; do given=$((given + forks[$t] - 1)); done
   while read -r t; do
     [[ $given -lt $left ]] || break
     forks[$t]=$((forks[$t] + 1)) given=$((given + 1))
-  done < <(for t in "${targets[@]}"; do echo "${rest[$t]} $t"; done | sort -rn | cut -d' ' -f2)
+  done < <(for t in "${shared[@]}"; do echo "${rest[$t]} $t"; done | sort -rn | cut -d' ' -f2)
 fi
 for t in "${targets[@]}"; do
   campaign "$t" "${forks[$t]}" >"$out/$t.line" &
