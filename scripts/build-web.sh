@@ -8,9 +8,13 @@
 #     installed (installing trixie's packages would upgrade libc);
 #   - binaryen@120.0.0 from npm (the version emscripten 3.1.69 expects: wasm-opt and friends);
 #   - LASzip 3.5.0 (the native build's Debian liblaszip) compiled to WebAssembly from Debian
-#     trixie's orig source tarball (checksum as in trixie's Sources index) into .deps/laszip-wasm.
+#     trixie's orig source tarball (checksum as in trixie's Sources index) into .deps/laszip-wasm;
+#   - the tile decoders, the native build's Debian bookworm versions compiled to WebAssembly from
+#     their orig source tarballs (checksums as in bookworm's Sources index), decoders only:
+#     meshoptimizer 0.18 (.deps/meshopt-wasm), Draco 1.5.5 (.deps/draco-wasm), zstd 1.5.4
+#     (.deps/zstd-wasm), Brotli 1.0.9 (.deps/brotli-wasm).
 #   scripts/build-web.sh            toolchain + build
-#   scripts/build-web.sh --deps     toolchain and LASzip only
+#   scripts/build-web.sh --deps     toolchain, LASzip and the decoders only
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 export CCACHE_BASEDIR="$root" CCACHE_NOHASHDIR=1
@@ -81,6 +85,55 @@ CFG
 cmp -s "$em/config.py.tmp" "$em/config.py" 2>/dev/null && rm "$em/config.py.tmp" || mv "$em/config.py.tmp" "$em/config.py"
 export EM_CONFIG="$em/config.py"
 
+# ---- Debian orig source tarballs ------------------------------------------------------------
+# fetch_orig SUITE SOURCE=VERSION TARBALL SHA256: Debian's upstream tarball of a source package
+# into .deps/ (kept: a rebuild does not download again), through apt with a private source list
+# (the system's apt state is left alone). The checksum, as in the suite's Sources index, decides.
+fetch_orig() {
+  local suite=$1 spec=$2 name=$3 sha=$4
+  local tarball="$root/.deps/$name"
+  echo "$sha  $tarball" | sha256sum -c --status 2>/dev/null && return 0
+  log "downloading $name (Debian $suite's source)"
+  local src
+  src=$(mktemp -d)
+  echo "deb-src http://deb.debian.org/debian $suite main" > "$src/sources.list"
+  mkdir -p "$src/lists/partial"
+  local apt_src=(-o Dir::Etc::SourceList="$src/sources.list" -o Dir::Etc::SourceParts=/dev/null
+                 -o Dir::State::Lists="$src/lists" -o Debug::NoLocking=1)
+  apt-get -qq "${apt_src[@]}" update >/dev/null 2>&1 || true
+  # --download-only fails where the .dsc is gone from the mirror (trixie's laszip) after the
+  # tarball is in: the checksum decides.
+  (cd "$src" && apt-get -qq "${apt_src[@]}" source --download-only "$spec" >/dev/null 2>&1) || true
+  [[ -f "$src/$name" ]] && mv "$src/$name" "$tarball"
+  rm -rf "$src"
+  echo "$sha  $tarball" | sha256sum -c --status 2>/dev/null || {
+    echo "build-web: $name is missing or its checksum differs" >&2
+    exit 1
+  }
+}
+
+# em_lib OUT.a DIR FLAGS... -- SOURCES...: compiles SOURCES (relative to DIR) with emcc, with the
+# web build's threads and native WebAssembly exceptions (cmake/web.cmake, or they would not link
+# with libstipple), through a throwaway ninja file (a core each), and archives them; quiet unless
+# a compile fails.
+em_lib() {
+  local out=$1 dir=$2 flags=() f b
+  shift 2
+  while [[ $1 != -- ]]; do flags+=("$1"); shift; done
+  shift
+  b=$(mktemp -d)
+  {
+    echo "rule cc"
+    echo "  command = $emroot/emcc -O2 -pthread -fwasm-exceptions ${flags[*]} -c \$in -o \$out"
+    for f in "$@"; do echo "build $b/${f//\//_}.o: cc $dir/$f"; done
+  } > "$b/build.ninja"
+  local log
+  log=$(ninja -C "$b" -j "$(nproc)" 2>&1) || { printf '%s\n' "$log" >&2; exit 1; }
+  rm -f "$out"
+  "$emroot/emar" rcs "$out" "$b"/*.o
+  rm -rf "$b"
+}
+
 # ---- LASzip 3.5.0 for WebAssembly (.deps/laszip-wasm) ------------------------------------
 # The same LASzip as the native build's (Debian's liblaszip 3.5.0), from Debian's upstream
 # tarball: the .dsc of trixie's 3.5.0-2 is gone from the mirror, the orig tarball is not. Static,
@@ -92,23 +145,7 @@ lz="$root/.deps/laszip-wasm"
 lz_flags="-pthread -fwasm-exceptions"
 if [[ ! -f "$lz/.built-$lz_ver" ]]; then
   tarball="$root/.deps/laszip_$lz_ver.orig.tar.xz"
-  if ! echo "$lz_sha256  $tarball" | sha256sum -c --status 2>/dev/null; then
-    log "downloading laszip_$lz_ver.orig.tar.xz (Debian trixie's source)"
-    src=$(mktemp -d)
-    echo "deb-src http://deb.debian.org/debian trixie main" > "$src/sources.list"
-    mkdir -p "$src/lists/partial"
-    apt_src=(-o Dir::Etc::SourceList="$src/sources.list" -o Dir::Etc::SourceParts=/dev/null
-             -o Dir::State::Lists="$src/lists" -o Debug::NoLocking=1)
-    apt-get -qq "${apt_src[@]}" update >/dev/null 2>&1 || true
-    # --download-only fails on the missing .dsc after the tarball is in: the checksum decides.
-    (cd "$src" && apt-get -qq "${apt_src[@]}" source --download-only "laszip=$lz_ver-2" >/dev/null 2>&1) || true
-    [[ -f "$src/laszip_$lz_ver.orig.tar.xz" ]] && mv "$src/laszip_$lz_ver.orig.tar.xz" "$tarball"
-    rm -rf "$src"
-    echo "$lz_sha256  $tarball" | sha256sum -c --status 2>/dev/null || {
-      echo "build-web: laszip_$lz_ver.orig.tar.xz is missing or its checksum differs" >&2
-      exit 1
-    }
-  fi
+  fetch_orig trixie "laszip=$lz_ver-2" "laszip_$lz_ver.orig.tar.xz" "$lz_sha256"
   log "building LASzip $lz_ver for WebAssembly into .deps/laszip-wasm"
   tmp=$(mktemp -d)
   tar xf "$tarball" -C "$tmp"
@@ -123,6 +160,107 @@ if [[ ! -f "$lz/.built-$lz_ver" ]]; then
     "$tmp/build/include/laszip/laszip_api_version.h" "$lz/include/laszip/"
   rm -rf "$tmp"
   touch "$lz/.built-$lz_ver"
+fi
+
+
+# ---- Tile decoders for WebAssembly (.deps/*-wasm) -------------------------------------------
+# The native build's Debian bookworm versions, from their upstream tarballs, so the web io module
+# runs the same decoding code: Draco pnts and meshopt glb tiles (`stipple tile --compress`),
+# zstandard EPT nodes, BROTLI Potree 2.0 nodes. Decoders only, compiled straight from their
+# source files (not through the projects' own builds, which would build the encoders, tools and,
+# for Draco under emscripten, its JavaScript decoder): a fraction of the CPU time, in CI too.
+dec_ver=1  # the recipe below: bump to rebuild every decoder
+mo_ver=0.18
+mo="$root/.deps/meshopt-wasm"
+if [[ ! -f "$mo/.built-$mo_ver-$dec_ver" ]]; then
+  fetch_orig bookworm "meshoptimizer=$mo_ver+dfsg-2" "meshoptimizer_$mo_ver+dfsg.orig.tar.xz" \
+    881ea2cc687f1fef5ce70484e0ca6504e13856dd856677749f3763bc685956d3
+  log "building meshoptimizer $mo_ver (vertex and index codecs) for WebAssembly into .deps/meshopt-wasm"
+  tmp=$(mktemp -d)
+  tar xf "$root/.deps/meshoptimizer_$mo_ver+dfsg.orig.tar.xz" -C "$tmp"
+  s="$tmp/meshoptimizer-$mo_ver/src"
+  rm -rf "$mo" && mkdir -p "$mo/lib" "$mo/include"
+  em_lib "$mo/lib/libmeshoptimizer.a" "$s" -- vertexcodec.cpp vertexfilter.cpp indexcodec.cpp
+  cp "$s/meshoptimizer.h" "$mo/include/"
+  rm -rf "$tmp"
+  touch "$mo/.built-$mo_ver-$dec_ver"
+fi
+
+# Draco: the point cloud decoder (3DTILES_draco_point_compression holds point clouds, never
+# meshes), with the native package's features less the mesh ones (draco_features.h).
+dr_ver=1.5.5
+dr="$root/.deps/draco-wasm"
+if [[ ! -f "$dr/.built-$dr_ver-$dec_ver" ]]; then
+  fetch_orig bookworm "draco=$dr_ver+dfsg-2" "draco_$dr_ver+dfsg.orig.tar.xz" \
+    0d4ff5b218a2f9d836c6f44202918402591407b5f59a5103ec288c5600ab087f
+  log "building the Draco $dr_ver point cloud decoder for WebAssembly into .deps/draco-wasm"
+  tmp=$(mktemp -d)
+  # The sources only: the 63 MB of test data stay in the tarball.
+  tar xf "$root/.deps/draco_$dr_ver+dfsg.orig.tar.xz" -C "$tmp" --wildcards '*/src/draco'
+  s=$(echo "$tmp"/*/src)
+  rm -rf "$dr" && mkdir -p "$dr/lib" "$dr/include/draco"
+  {
+    echo "#ifndef DRACO_FEATURES_H_"
+    echo "#define DRACO_FEATURES_H_"
+    for f in POINT_CLOUD_COMPRESSION NORMAL_ENCODING BACKWARDS_COMPATIBILITY \
+      ATTRIBUTE_INDICES_DEDUPLICATION ATTRIBUTE_VALUES_DEDUPLICATION; do
+      echo "#define DRACO_${f}_SUPPORTED"
+    done
+    echo "#endif"
+  } > "$dr/include/draco/draco_features.h"
+  em_lib "$dr/lib/libdraco.a" "$s/draco" -I"$s" -I"$dr/include" -- \
+    attributes/{attribute_octahedron_transform,attribute_quantization_transform}.cc \
+    attributes/{attribute_transform,geometry_attribute,point_attribute}.cc \
+    compression/attributes/{attributes_decoder,kd_tree_attributes_decoder}.cc \
+    compression/attributes/sequential_{attribute_decoder,attribute_decoders_controller}.cc \
+    compression/attributes/sequential_{integer,normal,quantization}_attribute_decoder.cc \
+    compression/bit_coders/{adaptive_rans,direct,rans,symbol}_bit_decoder.cc \
+    compression/{decode,draco_compression_options}.cc compression/entropy/symbol_decoding.cc \
+    compression/point_cloud/point_cloud_{decoder,kd_tree_decoder,sequential_decoder}.cc \
+    compression/point_cloud/algorithms/dynamic_integer_points_kd_tree_decoder.cc \
+    compression/point_cloud/algorithms/float_points_tree_decoder.cc \
+    core/{bit_utils,bounding_box,data_buffer,decoder_buffer,divide,draco_types}.cc \
+    core/{hash_utils,options,quantization_utils}.cc \
+    metadata/{metadata_decoder,geometry_metadata,metadata}.cc point_cloud/point_cloud.cc
+  (cd "$s" && find draco -name '*.h' -exec cp --parents {} "$dr/include/" \;)
+  rm -rf "$tmp"
+  touch "$dr/.built-$dr_ver-$dec_ver"
+fi
+
+zs_ver=1.5.4
+zs="$root/.deps/zstd-wasm"
+if [[ ! -f "$zs/.built-$zs_ver-$dec_ver" ]]; then
+  fetch_orig bookworm "libzstd=$zs_ver+dfsg2-5" "libzstd_$zs_ver+dfsg2.orig.tar.xz" \
+    8cf4bbb65e77ec348d052c8d6230eba66d435bddf64c8b5be2fcb16880c19953
+  log "building the zstd $zs_ver decoder for WebAssembly into .deps/zstd-wasm"
+  tmp=$(mktemp -d)
+  tar xf "$root/.deps/libzstd_$zs_ver+dfsg2.orig.tar.xz" -C "$tmp" "zstd-$zs_ver/lib"
+  s="$tmp/zstd-$zs_ver/lib"
+  rm -rf "$zs" && mkdir -p "$zs/lib" "$zs/include"
+  # No x86 assembly (huf_decompress_amd64.S), no multithreading (a decoder needs none).
+  em_lib "$zs/lib/libzstd.a" "$s" -DZSTD_DISABLE_ASM -- \
+    common/{debug,entropy_common,error_private,fse_decompress,xxhash,zstd_common}.c \
+    decompress/{huf_decompress,zstd_ddict,zstd_decompress,zstd_decompress_block}.c
+  cp "$s/zstd.h" "$s/zstd_errors.h" "$zs/include/"
+  rm -rf "$tmp"
+  touch "$zs/.built-$zs_ver-$dec_ver"
+fi
+
+br_ver=1.0.9
+br="$root/.deps/brotli-wasm"
+if [[ ! -f "$br/.built-$br_ver-$dec_ver" ]]; then
+  fetch_orig bookworm "brotli=$br_ver-2" "brotli_$br_ver.orig.tar.gz" \
+    f9e8d81d0405ba66d181529af42a3354f838c939095ff99930da6aa9cdf6fe46
+  log "building the Brotli $br_ver decoder for WebAssembly into .deps/brotli-wasm"
+  tmp=$(mktemp -d)
+  tar xf "$root/.deps/brotli_$br_ver.orig.tar.gz" -C "$tmp" "brotli-$br_ver/c"
+  s="$tmp/brotli-$br_ver/c"
+  rm -rf "$br" && mkdir -p "$br/lib" "$br/include"
+  em_lib "$br/lib/libbrotlidec.a" "$s" -I"$s/include" -- \
+    common/{constants,context,dictionary,platform,transform}.c dec/{bit_reader,decode,huffman,state}.c
+  cp -r "$s/include/brotli" "$br/include/"
+  rm -rf "$tmp"
+  touch "$br/.built-$br_ver-$dec_ver"
 fi
 
 

@@ -7,9 +7,7 @@
 #include <tuple>
 
 #include <fmt/format.h>
-#ifndef STIPPLE_NO_ZSTD
 #include <zstd.h>
-#endif
 #include <nlohmann/json.hpp>
 
 #include "batch_content.hpp"
@@ -301,12 +299,6 @@ PointContent decode_ept_node(const EptCloud& c, std::span<const uint8_t> bytes,
   std::vector<uint8_t> raw;
   std::span<const uint8_t> data = bytes;
   if (c.data_type == "zstandard") {
-#ifdef STIPPLE_NO_ZSTD
-    fail(
-        "{}: zstandard EPT nodes are not decoded by the web build (no zstd for WebAssembly): "
-        "binary nodes are",
-        uri);
-#else
     const unsigned long long size = ZSTD_getFrameContentSize(bytes.data(), bytes.size());
     if (size == ZSTD_CONTENTSIZE_ERROR || size == ZSTD_CONTENTSIZE_UNKNOWN)
       fail("{}: not a zstd frame with its size", uri);
@@ -319,7 +311,6 @@ PointContent decode_ept_node(const EptCloud& c, std::span<const uint8_t> bytes,
       fail("{}: zstd data cannot be decoded ({})", uri,
            ZSTD_isError(got) ? ZSTD_getErrorName(got) : "short");
     data = raw;
-#endif
   }
   if (data.size() != points * c.record_size)
     fail("{}: {} bytes for {} points of {} bytes", uri, data.size(), points, c.record_size);

@@ -6,9 +6,7 @@
 #include <map>
 #include <set>
 
-#ifndef STIPPLE_NO_MESHOPT
 #include <meshoptimizer.h>
-#endif
 #include <glm/gtc/quaternion.hpp>
 #include <glm/mat4x4.hpp>
 #include <nlohmann/json.hpp>
@@ -155,14 +153,6 @@ struct Gltf {
     if (stride == 0 || stride > 256 || count > limits.max_points * 4)
       fail("{}: compressed bufferView {} has invalid byteStride {} or count {}", name, view, stride,
            count);
-#ifdef STIPPLE_NO_MESHOPT
-    // The web build has no meshoptimizer (not packaged for WebAssembly): the tile fails, with
-    // the reason, and the others are drawn.
-    fail(
-        "{}: bufferView {} is compressed with EXT_meshopt_compression, which the web build does "
-        "not decode (no meshoptimizer for WebAssembly): tile with --compress none",
-        name, view);
-#else
     const uint8_t* src = buffers[b].data() + offset;
     owned.emplace_back(size_t(count * stride));
     auto& out = owned.back();
@@ -197,7 +187,6 @@ struct Gltf {
     }
     if (rc != 0) fail("{}: meshopt data of bufferView {} cannot be decoded ({})", name, view, rc);
     return out;
-#endif
   }
 
   // Reads accessor `index` as doubles (normalized integers mapped to [0,1] / [-1,1]).

@@ -5,9 +5,7 @@
 #include <cstring>
 #include <set>
 
-#ifndef STIPPLE_NO_DRACO
 #include <draco/compression/decode.h>
-#endif
 #include <nlohmann/json.hpp>
 
 #include "stipple/core/error.hpp"
@@ -159,25 +157,6 @@ glm::vec3 oct_decode(float x, float y) {  // x, y in [-1, 1]
   return len > 0 ? v / len : glm::vec3(0, 0, 1);
 }
 
-#ifdef STIPPLE_NO_DRACO
-// The web build has no Draco decoder (not packaged for WebAssembly): Draco content fails before
-// any attribute is asked for (see decode_pnts), so these are never reached with data.
-namespace draco {
-struct PointAttribute;
-}
-struct DracoCloud {
-  bool cloud = false;
-  const draco::PointAttribute* attribute(const json&, const std::string&,
-                                         const std::string&) const {
-    return nullptr;
-  }
-};
-template <typename T>
-std::vector<T> draco_values(const draco::PointAttribute*, size_t, int, const std::string& name,
-                            const std::string& key) {
-  fail("{}: Draco attribute {} cannot be read by the web build", name, key);
-}
-#else
 // The Draco point cloud of 3DTILES_draco_point_compression, decoded once for both tables.
 struct DracoCloud {
   std::unique_ptr<draco::PointCloud> cloud;
@@ -212,8 +191,6 @@ std::vector<T> draco_values(const draco::PointAttribute* a, size_t count, int co
   }
   return out;
 }
-
-#endif
 
 void decode_batch_table(PointContent& c, const json& bt, std::span<const uint8_t> body,
                         const DracoCloud* draco, const std::string& name) {
@@ -389,13 +366,6 @@ static PointContent decode_pnts_unchecked(std::span<const uint8_t> data, const s
       std::memcpy(&draco_points, p + 11, 4);
       if (draco_points < 0 || uint64_t(draco_points) != n)
         fail("{}: Draco header says {} points, POINTS_LENGTH says {}", name, draco_points, n);
-#ifdef STIPPLE_NO_DRACO
-      fail(
-          "{}: the points are compressed with Draco (3DTILES_draco_point_compression), which the "
-          "web build does not decode (no Draco decoder for WebAssembly): tile with --compress "
-          "none",
-          name);
-#else
       draco::DecoderBuffer buffer;
       buffer.Init(reinterpret_cast<const char*>(p), size_t(length));
       draco::Decoder decoder;
@@ -407,7 +377,6 @@ static PointContent decode_pnts_unchecked(std::span<const uint8_t> data, const s
         fail("{}: Draco data holds {} points, POINTS_LENGTH says {}", name,
              draco.cloud->num_points(), n);
       c.format = "pnts+draco";
-#endif
     }
   }
   auto from_draco = [&](const char* key) -> const draco::PointAttribute* {

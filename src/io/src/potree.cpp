@@ -6,9 +6,7 @@
 #include <filesystem>
 #include <map>
 
-#ifndef STIPPLE_NO_BROTLI
 #include <brotli/decode.h>
-#endif
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -289,13 +287,6 @@ std::vector<uint8_t> brotli_records(const PotreeCloud& c, std::span<const uint8_
   if (n == 0) return {};
   if (packed * n > (size_t(2) << 30))
     fail("{}: {} points of {} bytes is over 2 GiB once decompressed", uri, n, packed);
-#ifdef STIPPLE_NO_BROTLI
-  (void)bytes;
-  fail(
-      "{}: BROTLI Potree nodes are not decoded by the web build (no Brotli for WebAssembly): "
-      "DEFAULT nodes are",
-      uri);
-#else
   std::vector<uint8_t> raw(packed * n);
   size_t got = raw.size();
   if (BrotliDecoderDecompress(bytes.size(), bytes.data(), &got, raw.data()) !=
@@ -329,7 +320,6 @@ std::vector<uint8_t> brotli_records(const PotreeCloud& c, std::span<const uint8_
     }
   }
   return records;
-#endif
 }
 
 }  // namespace
