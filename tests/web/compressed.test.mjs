@@ -1,33 +1,67 @@
-// Compressed tiles in the browser: autzen (../shared/data) tiled by `stipple tile --compress
+// Compressed content in the browser: autzen (../shared/data) tiled by `stipple tile --compress
 // meshopt` (glb, EXT_meshopt_compression) and `--format pnts --compress draco`
-// (3DTILES_draco_point_compression), served by nginx on loopback, opened by URL in headless
+// (3DTILES_draco_point_compression), and generated EPT (zstandard nodes) and Potree 2.0 (BROTLI
+// nodes) clouds from the tests' writers, served by nginx on loopback, opened by URL in headless
 // chromium (WebGPU on SwiftShader). The web build decodes them with the native build's
-// meshoptimizer and Draco compiled to WebAssembly (scripts/build-web.sh --deps): every tile is
-// drawn, none fails, and the canvas matches `stipple render` of the same tileset and camera
-// (lavapipe) within the tolerance of tileset.test.mjs. Skipped where ../shared is absent.
+// meshoptimizer, Draco, zstd and Brotli compiled to WebAssembly (scripts/build-web.sh --deps):
+// none fails, the page draws as many points as `stipple render` of the same input and camera,
+// and its canvas matches the native render (lavapipe) within the tolerance of tileset.test.mjs.
+// The autzen tilesets are skipped where ../shared is absent, EPT and Potree where the writers
+// are not built.
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
+import { spawnSync } from 'node:child_process';
 import * as h from './harness.mjs';
 
 const webDir = process.env.STIPPLE_WEB_DIR || path.join(h.sourceDir, 'build-web');
 const autzen = path.join(h.sourceDir, '../shared/data/las/autzen_trim.las');
 const skip =
   h.skipReason({ modules: ['puppeteer-core'], browser: true, server: true }) ||
-  (fs.existsSync(path.join(webDir, 'stipple.wasm')) ? null : `${webDir} not built (scripts/build-web.sh)`) ||
-  (fs.existsSync(autzen) ? null : `${autzen} not found (../shared absent)`);
+  (fs.existsSync(path.join(webDir, 'stipple.wasm')) ? null : `${webDir} not built (scripts/build-web.sh)`);
+const noAutzen = fs.existsSync(autzen) ? null : `${autzen} not found (../shared absent)`;
+const writers = {
+  ept: process.env.STIPPLE_WRITE_EPT || path.join(h.sourceDir, 'build/tests/stipple_write_ept'),
+  potree: process.env.STIPPLE_WRITE_POTREE || path.join(h.sourceDir, 'build/tests/stipple_write_potree'),
+};
 const work = skip ? null : h.tempDir('compressed');
 let server, browser;
 
-// Each tileset: the tiler's options, the extension its content must name (or the test would pass
-// on uncompressed tiles) and the content's extension.
-const tilesets = {
-  meshopt: { args: ['--compress', 'meshopt'], marker: 'EXT_meshopt_compression', ext: '.glb' },
+function write(writer, args) {
+  const r = spawnSync(writer, args, { encoding: 'utf8' });
+  if (r.status !== 0) throw new Error(`${writer} ${args.join(' ')} failed (${r.status}): ${r.stderr}`);
+}
+
+// Each input: how it is made, what the page opens, and the compression its content must use (or
+// the test would pass on uncompressed content): a marker in every content file, or in the
+// cloud's metadata.
+const inputs = {
+  meshopt: {
+    skip: noAutzen,
+    make: (dir) => h.tile(autzen, dir, ['--compress', 'meshopt']),
+    open: 'tileset.json',
+    marker: 'EXT_meshopt_compression',
+    ext: '.glb',
+  },
   draco: {
-    args: ['--format', 'pnts', '--compress', 'draco'],
+    skip: noAutzen,
+    make: (dir) => h.tile(autzen, dir, ['--format', 'pnts', '--compress', 'draco']),
+    open: 'tileset.json',
     marker: '3DTILES_draco_point_compression',
     ext: '.pnts',
+  },
+  ept: {
+    skip: fs.existsSync(writers.ept) ? null : `${writers.ept} not built`,
+    make: (dir) => write(writers.ept, [dir, '20000', 'zstandard']),
+    open: 'ept.json',
+    metadata: /"dataType":\s*"zstandard"/,
+  },
+  potree: {
+    skip: fs.existsSync(writers.potree) ? null : `${writers.potree} not built`,
+    make: (dir) => write(writers.potree, [dir, '20000', '500', '2', 'int64', 'brotli']),
+    open: 'metadata.json',
+    metadata: /"encoding":\s*"BROTLI"/,
   },
 };
 
@@ -41,7 +75,7 @@ before(async () => {
   const root = path.join(work, 'www');
   fs.mkdirSync(root);
   fs.symlinkSync(webDir, path.join(root, 'viewer'));
-  for (const [name, t] of Object.entries(tilesets)) h.tile(autzen, path.join(root, name), t.args);
+  for (const [name, t] of Object.entries(inputs)) if (!t.skip) t.make(path.join(root, name));
   server = await h.startNginx(root, { headers: isolation });
   browser = await h.launchBrowser({ webgpu: true });
 });
@@ -52,23 +86,27 @@ after(async () => {
   if (work) fs.rmSync(work, { recursive: true, force: true });
 });
 
-for (const [name, t] of Object.entries(tilesets)) {
-  test(`a ${name} tileset by URL matches the native render`, { skip: skip || false }, async () => {
+for (const [name, t] of Object.entries(inputs)) {
+  test(`${name}: the page matches the native render`, { skip: skip || t.skip || false }, async () => {
     const dir = path.join(work, 'www', name);
-    const contents = h.contentFiles(dir);
-    assert.ok(contents.length > 1, `${contents.length} content files`);
-    for (const f of contents) {
-      assert.equal(path.extname(f), t.ext, f);
-      assert.ok(fs.readFileSync(path.join(dir, f)).includes(t.marker), `${f} does not use ${t.marker}`);
+    if (t.marker) {
+      const contents = h.contentFiles(dir);
+      assert.ok(contents.length > 1, `${contents.length} content files`);
+      for (const f of contents) {
+        assert.equal(path.extname(f), t.ext, f);
+        assert.ok(fs.readFileSync(path.join(dir, f)).includes(t.marker), `${f} does not use ${t.marker}`);
+      }
+    } else {
+      assert.match(fs.readFileSync(path.join(dir, t.open), 'utf8'), t.metadata);
     }
     const ref = path.join(work, `native-${name}.png`);
-    const native = h.stipple(['render', path.join(dir, 'tileset.json'), '-o', ref, '--width', '320',
+    const native = h.stipple(['render', path.join(dir, t.open), '-o', ref, '--width', '320',
                               '--height', '240', '--max-sse', '1']);
     const page = await browser.newPage();
     const log = [];
     page.on('pageerror', (e) => log.push(`page error: ${e}`));
     page.on('console', (m) => log.push(`page ${m.type()}: ${m.text()}`));
-    await page.goto(server.url(`viewer/stipple.html?url=/${name}/tileset.json&width=320&height=240&max-sse=1`));
+    await page.goto(server.url(`viewer/stipple.html?url=/${name}/${t.open}&width=320&height=240&max-sse=1`));
     await page
       .waitForFunction(() => window.stipple && (window.stipple.done || window.stipple.error), {
         timeout: 240000,
@@ -80,11 +118,12 @@ for (const [name, t] of Object.entries(tilesets)) {
     }));
     assert.equal(state.error, undefined, `the page failed: ${state.error}\n${log.join('\n')}`);
     assert.equal(state.done, '1', log.join('\n'));
-    // A tile the build cannot decode would be a listed problem with the others drawn.
+    // Content the build cannot decode would be a listed problem, the rest drawn.
     assert.equal(state.errors, '0', state.problems);
-    assert.ok(Number(state.tiles) > 1, `only ${state.tiles} tiles drawn: the root did not refine`);
+    assert.ok(Number(state.tiles) > 1, `only ${state.tiles} tiles (nodes) drawn: the root did not refine`);
     assert.ok(Number(state.points) > 1000, `only ${state.points} points drawn`);
     assert.match(native, new RegExp(`renderer: ${state.renderer}`));
+    assert.match(native, new RegExp(`rendered ${state.points} points`));
     const d = await h.compareCanvas(page, fs.readFileSync(ref));
     console.log(`${name}: web vs native: ${JSON.stringify(d)}; ${state.tiles} tiles, ` +
                 `${state.points} points, ${state.renderer}, ${state.ms} ms`);
