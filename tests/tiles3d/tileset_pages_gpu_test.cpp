@@ -67,6 +67,9 @@ PagedRun stream(const std::string& backend, bool pipelined, const fs::path& tile
     // Two more frames: the pipelined render world draws what the last update extracted.
     engine.update();
     engine.update();
+    // `last` is written by the render thread when pipelined: read it once that frame is drawn
+    // (ThreadSanitizer reported the copy racing the next capture).
+    engine.wait_for_render();
     out.frames.push_back(last);
   }
   const auto& stats = main.resource<tiles3d::TilesetStats>();
