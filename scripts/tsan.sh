@@ -62,7 +62,7 @@ run() {  # run LOG NAME ARGS...: one test process, its summary line and report c
   rc=$?
   set -e
   races=$(grep -c '^WARNING: ThreadSanitizer' "$log" || true)
-  grep -E '^\[  (PASSED|FAILED) |tests? ran|ThreadSanitizer: (library|SEGV)' "$log" | tail -n 3 || true
+  grep -E '^\[  (PASSED|FAILED|SKIPPED) |tests? ran|ThreadSanitizer: (library|SEGV)' "$log" | tail -n 3 || true
   echo "   exit $rc, ThreadSanitizer reports: $races, $((SECONDS - start)) s (log: $log)"
   [[ $rc -eq 0 && $races -eq 0 ]] || status=1
 }
