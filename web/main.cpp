@@ -5,7 +5,11 @@
 // per animation frame; draws the image on the page's canvas and reports on the page
 // (window.stipple: done, error, tile problems, stats, camera). Once drawn, the camera follows
 // the page's pointer (mouse and touch), wheel and keys; a LAS/LAZ file dropped on the page (or
-// chosen with its button) is opened next, as a ?url= of it would be.
+// chosen with its button) is opened next, as a ?url= of it would be. The points' look comes
+// from `stipple render`'s options of the same names (?color=, ?point-size=, ?no-edl=,
+// ?edl-strength=, ?edl-radius=; ?edl=0 or 1 too), and changes with the page's controls
+// (Module.stippleControls) while the view runs; the stats panel's figures (window.stipple.stats)
+// are those of native `stipple view`'s panel, a few times a second.
 #include <emscripten.h>
 
 #include <algorithm>
@@ -18,6 +22,7 @@
 #include <fstream>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -67,6 +72,8 @@ struct Options {
   uint64_t max_frames = 10000;     // then drawn as is, with a warning
   std::vector<std::string> files;  // LAS files (a LAS ?url= is fetched into the page's memory)
   bool interactive = true;         // camera controls once drawn (0: stop after the first view)
+  // Colour mode, EDL and point size (0: from the data's density), as `stipple render`'s.
+  pc::PointRenderSettings render;
 };
 
 uint64_t number(const std::string& name, const char* value) {
@@ -83,6 +90,15 @@ double real_number(const std::string& name, const char* value) {
   if (!*value || *end || !std::isfinite(v) || v <= 0)
     fail("{}: not a positive number: '{}'", name, value);
   return v;
+}
+
+// `stipple render`'s ranges for the same options (src/app/point_options.cpp).
+float ranged_number(const std::string& name, const char* value, double lo, double hi) {
+  char* end = nullptr;
+  double v = std::strtod(value, &end);
+  if (!*value || *end || !std::isfinite(v) || v < lo || v > hi)
+    fail("{}: not a number in [{} - {}]: '{}'", name, lo, hi, value);
+  return float(v);
 }
 
 Options parse(int argc, char** argv) {
@@ -111,6 +127,18 @@ Options parse(int argc, char** argv) {
       o.max_frames = number(a, v);
     else if (a == "--interactive")
       o.interactive = number(a, v) != 0;
+    else if (a == "--color")
+      o.render.color = pc::parse_color_mode(v);
+    else if (a == "--point-size")
+      o.render.point_size = ranged_number(a, v, 0.0, 64.0);
+    else if (a == "--edl")  // the page's checkbox: 1 on, 0 off
+      o.render.edl = number(a, v) != 0;
+    else if (a == "--no-edl")  // `stipple render --no-edl`, as ?no-edl=1
+      o.render.edl = number(a, v) == 0;
+    else if (a == "--edl-strength")
+      o.render.edl_strength = ranged_number(a, v, 0.0, 10000.0);
+    else if (a == "--edl-radius")
+      o.render.edl_radius = ranged_number(a, v, 0.5, 16.0);
     else
       fail("unknown option '{}'", a);
   }
@@ -149,8 +177,110 @@ void add_core_plugins(Engine& engine) {
   engine.add_plugin(std::move(graph));
 }
 
+// The page's controls as the view now draws (window.stipple.controls, JSON): the colour mode
+// asked for and the one shown (auto, or a mode the data lacks, resolves as in `stipple render`'s
+// summary), EDL and the point size in pixels. The page sets its controls from it.
+void report_controls(Registry& main) {
+  const auto& render = main.resource<pc::PointDrawSettings>().render;
+  const char* shown = pc::color_mode_name(
+      pc::resolve_color_mode(main.resource<pc::SceneInfo>().attributes, render.color));
+  report("controls",
+         fmt::format(
+             R"({{"color":"{}","shown":"{}","edl":{},"edlStrength":{:.6g},"pointSize":{:.6g}}})",
+             pc::color_mode_name(render.color), shown, render.edl ? 1 : 0,
+             double(render.edl_strength), double(render.point_size)));
+}
+
+// The page's controls, when one changed since the last call: applied to the draw settings (the
+// colour mode and its ramps, EDL and the point size are uniforms of the next frame on both
+// renderers, as in native `stipple view`'s panel: nothing is read or uploaded again). Returns
+// whether anything changed (a frame is to be drawn).
+bool take_controls(Registry& main) {
+  double values[3] = {};  // edl on, strength, point size
+  char color[32] = {};
+  // (No commas outside parentheses in the JS: it is a macro argument.)
+  const int changed = EM_ASM_INT(
+      {
+        const c = Module.stippleControls;
+        if (!c || !c.changed) return 0;
+        c.changed = false;
+        HEAPF64[$0 >> 3] = c.edl ? 1 : 0;
+        HEAPF64[($0 >> 3) + 1] = c.edlStrength;
+        HEAPF64[($0 >> 3) + 2] = c.pointSize;
+        stringToUTF8(String(c.color), $1, $2);
+        return 1;
+      },
+      values, color, sizeof(color));
+  if (!changed) return false;
+  auto& render = main.resource<pc::PointDrawSettings>().render;
+  try {
+    render.color = pc::parse_color_mode(color);
+  } catch (const std::exception& e) {
+    STIPPLE_WARN("{}", e.what());
+  }
+  render.edl = values[0] != 0;
+  // The ranges of `stipple render`'s --edl-strength and --point-size (a size stays as it was
+  // where the page sends none).
+  if (std::isfinite(values[1])) render.edl_strength = float(std::clamp(values[1], 0.0, 1e4));
+  if (std::isfinite(values[2]) && values[2] > 0)
+    render.point_size = float(std::clamp(values[2], 0.0, 64.0));
+  report_controls(main);
+  return true;
+}
+
+// The stats panel's figures (window.stipple.stats, JSON), those of native `stipple view`'s panel:
+// frame time and frames per second (over the last half second of drawn frames: 0 while the view
+// is idle), points drawn of the scene's, for a tileset its tiles resident, loading and failed,
+// resident bytes against the memory budget and the tiles' GPU bytes; the renderer and adapter.
+// Reported at most every 250 ms (`force`: now).
+class StatsPanel {
+ public:
+  explicit StatsPanel(std::string renderer) : renderer_(std::move(renderer)) {}
+  // A drawn frame took `ms` (engine update and render).
+  void frame(double ms) {
+    frame_ms_ = ms;
+    ++window_frames_;
+  }
+  void publish(Engine& engine, bool force = false) {
+    const double now = emscripten_get_now();
+    if (window_start_ == 0) window_start_ = now;
+    if (now - window_start_ >= 500) {
+      fps_ = window_frames_ * 1e3 / (now - window_start_);
+      window_start_ = now;
+      window_frames_ = 0;
+    }
+    if (!force && now - last_ < 250) return;
+    last_ = now;
+    Registry& main = engine.main();
+    const auto& render_stats = engine.render().resource<RenderStats>();
+    const auto& d = main.resource<GpuContext>()->description;
+    std::string tiles;
+    if (const auto* stream = main.try_resource<tiles3d::TilesetStream>()) {
+      const auto& stats = main.resource<tiles3d::TilesetStats>();
+      const auto s = stream->streamer->stats();
+      const auto* gpu = engine.render().try_resource<tiles3d::TilesetGpuStats>();
+      tiles =
+          fmt::format(R"(,"tilesDrawn":{},"tilesResident":{},"tilesLoading":{},"tilesFailed":{},)"
+                      R"("residentBytes":{},"budgetBytes":{},"gpuBytes":{})",
+                      stats.drawn_tiles, s.loaded, s.in_flight + s.queued, s.failed,
+                      stats.resident_bytes, stats.memory_budget, gpu ? gpu->gpu_bytes : 0);
+    }
+    report("stats",
+           fmt::format(
+               R"({{"frameMs":{:.2f},"fps":{:.1f},"pointsDrawn":{},"points":{},"renderer":"{}",)"
+               R"j("adapter":"{} {} ({})"{}}})j",
+               frame_ms_, fps_, render_stats.points_drawn, main.resource<pc::SceneInfo>().points,
+               renderer_, d.vendor, d.architecture, d.backend, tiles));
+  }
+
+ private:
+  std::string renderer_;
+  double frame_ms_ = 0, fps_ = 0, last_ = 0, window_start_ = 0;
+  uint32_t window_frames_ = 0;
+};
+
 std::string orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured, glm::dvec3 target,
-                  bool streams, uint32_t height);
+                  bool streams, uint32_t height, StatsPanel& panel);
 
 // Returns the path of a file to open next (dropped on the page), or "" when not interactive.
 std::string run_scene(const Options& o) {
@@ -160,6 +290,7 @@ std::string run_scene(const Options& o) {
   points.inputs.files.assign(o.files.begin(), o.files.end());
   points.inputs.scene.point_count = o.scene_points;
   points.inputs.scene.seed = o.seed;
+  points.settings.render = o.render;
   // The file read (a LAZ decoded by LASzip) or the scene generated: loadMs on the page.
   const double load_start = emscripten_get_now();
   engine.add_plugin(std::move(points));
@@ -180,14 +311,16 @@ std::string run_scene(const Options& o) {
   const Camera camera = fit.camera();
   main.emplace<Camera>(main.create(), camera);
   auto& settings = main.resource<pc::PointDrawSettings>();
+  const bool sized_by_data = settings.render.point_size <= 0;
   main.view<pc::PointCloudData>().each([&](const pc::PointCloudData& data) {
     if (settings.render.point_size <= 0)
       settings.render.point_size = pc::auto_point_size(*data.cloud, camera, o.height);
   });
-  // As `stipple render --renderer auto`: 1-pixel points go to the compute rasterizer.
+  // As `stipple render --renderer auto`: 10M points, or 1-pixel points sized by the data's
+  // density (not a --point-size given), go to the compute rasterizer.
   const char* renderer = "billboard";
   const uint64_t count = o.files.empty() ? o.scene_points : main.resource<pc::SceneInfo>().points;
-  if (count >= 10'000'000 || settings.render.point_size <= 1.0f) {
+  if (count >= 10'000'000 || (sized_by_data && settings.render.point_size <= 1.0f)) {
     settings.compute = true;
     settings.hqs = settings.render.splat == pc::SplatMode::Blend;
     renderer = "compute";
@@ -205,11 +338,15 @@ std::string run_scene(const Options& o) {
   report("pointSize", fmt::format("{:.3f}", settings.render.point_size));
   report("ms", fmt::format("{:.1f}", ms));
   report("loadMs", fmt::format("{:.1f}", load_ms));
+  report_controls(main);
+  StatsPanel panel(renderer);
+  panel.frame(ms);
+  panel.publish(engine, true);
   report("done", "1");
   std::string next;
   if (o.interactive) {
     const glm::dvec3 target = main.resource<pc::SceneInfo>().world_bounds.center();
-    next = orbit(engine, captured, target, false, o.height);
+    next = orbit(engine, captured, target, false, o.height, panel);
   }
   engine.shutdown();
   return next;
@@ -281,7 +418,7 @@ void report_camera(double yaw, double pitch, double distance, const glm::dvec3& 
 // for the new view (`streams`), one engine frame per animation frame while the view changes or
 // tiles load; idle otherwise. Returns the path of a file to open next, once the page has one.
 std::string orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured, glm::dvec3 target,
-                  bool streams, uint32_t height) {
+                  bool streams, uint32_t height, StatsPanel& panel) {
   Registry& main = engine.main();
   Camera camera;
   main.view<Camera>().each([&](const Camera& c) { camera = c; });
@@ -290,10 +427,12 @@ std::string orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured, g
   double yaw = std::atan2(offset.x, offset.z);
   double pitch = std::asin(std::clamp(offset.y / distance, -1.0, 1.0));
   report_camera(yaw, pitch, distance, target);
-  uint64_t moves = 0;
+  uint64_t moves = 0, frames = 0;
   for (;;) {
     stipple_next_frame();
+    panel.publish(engine);
     if (std::string next = take_open(); !next.empty()) return next;
+    const bool restyled = take_controls(main);
     const Input in = take_input();
     const bool moved = in.dx != 0 || in.dy != 0 || in.zoom != 0 || in.pan_x != 0 || in.pan_y != 0;
     if (moved) {
@@ -318,10 +457,14 @@ std::string orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured, g
       report("cameraMoves", std::to_string(++moves));
       report_camera(yaw, pitch, distance, target);
     }
-    if (!moved && (!streams || main.resource<tiles3d::TilesetStats>().idle)) continue;
+    if (!moved && !restyled && (!streams || main.resource<tiles3d::TilesetStats>().idle)) continue;
+    const double start = emscripten_get_now();
     engine.update();
     if (!streams) engine.wait_for_render();
+    panel.frame(emscripten_get_now() - start);
     if (!captured->rgba.empty()) show(*captured);
+    // Frames drawn since the first view (tests wait for the one after a control's change).
+    report("viewFrames", std::to_string(++frames));
   }
 }
 
@@ -356,6 +499,7 @@ std::string run_tileset(const Options& o) {
   tiles.raster.hqs = compute && tiles.render.splat == pc::SplatMode::Blend;
   tiles.raster.fill_radius = 0;
   tiles.raster.occlusion_beta = 0.0f;
+  tiles.render = o.render;
   tiles.uri = o.url;
   tiles.streamer.traversal.max_sse = max_sse;
   tiles.streamer.traversal.memory_budget = o.memory_mb << 20;
@@ -372,7 +516,9 @@ std::string run_tileset(const Options& o) {
     fit.add_corners(main.resource<tiles3d::TilesetStream>().world_bounds);
     main.emplace<Camera>(main.create(), fit.camera());
   }
-  main.resource<pc::PointDrawSettings>().render.point_size = 2.0f;  // fitted once streamed
+  // Fitted once streamed, unless given (as `stipple render --point-size`).
+  const bool auto_size = o.render.point_size <= 0;
+  if (auto_size) main.resource<pc::PointDrawSettings>().render.point_size = 2.0f;
   // What the frames did (the system below): done once `frames` frames after the stream settled.
   struct Progress {
     uint64_t settled = 0;
@@ -381,7 +527,7 @@ std::string run_tileset(const Options& o) {
   auto progress = std::make_shared<Progress>();
   engine.add_system(
       MainStage::Update,
-      [progress, o](Registry& r) {
+      [progress, o, auto_size](Registry& r) {
         Progress& p = *progress;
         auto& s = r.resource<tiles3d::TilesetStream>();
         const auto& stats = r.resource<tiles3d::TilesetStats>();
@@ -400,7 +546,7 @@ std::string run_tileset(const Options& o) {
             (stats.loads_completed > 0 || stats.errors > 0) && stats.resident_points == 0)
           fail("{}: nothing to render: the tiles in view hold no points{}", o.url,
                s.first_problem.empty() ? "" : fmt::format(" ({})", s.first_problem));
-        if (p.settled++ == 0 && stats.drawn_points > 0) {
+        if (p.settled++ == 0 && auto_size && stats.drawn_points > 0) {
           Aabb drawn;
           for (uint32_t t : s.draw)
             for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
@@ -414,6 +560,7 @@ std::string run_tileset(const Options& o) {
       "web_render_when_streamed");
 
   report("renderer", compute ? "compute" : "billboard");
+  StatsPanel panel(compute ? "compute" : "billboard");
   const double start = emscripten_get_now();
   std::vector<double> settled_ms;  // frame times once streamed
   size_t problems = 0;
@@ -422,6 +569,8 @@ std::string run_tileset(const Options& o) {
     engine.update();
     // Frames drawn once streamed (the system above ran before this frame was drawn).
     if (progress->settled > 0) settled_ms.push_back(emscripten_get_now() - frame_start);
+    panel.frame(emscripten_get_now() - frame_start);
+    panel.publish(engine);
     if (!captured->rgba.empty()) show(*captured);
     const auto& s = main.resource<tiles3d::TilesetStream>();
     const auto& stats = main.resource<tiles3d::TilesetStats>();
@@ -451,6 +600,8 @@ std::string run_tileset(const Options& o) {
     std::sort(settled_ms.begin(), settled_ms.end());
     report("frameMs", fmt::format("{:.1f}", settled_ms[settled_ms.size() / 2]));
   }
+  report_controls(main);
+  panel.publish(engine, true);
   report("done", "1");
   std::string next;
   if (o.interactive) {
@@ -459,7 +610,7 @@ std::string run_tileset(const Options& o) {
     for (uint32_t t : s.draw)
       for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
     next = orbit(engine, captured, drawn.empty() ? s.world_bounds.center() : drawn.center(), true,
-                 o.height);
+                 o.height, panel);
   }
   engine.shutdown();
   return next;
