@@ -169,36 +169,45 @@ fi
 # zstandard EPT nodes, BROTLI Potree 2.0 nodes. Decoders only, compiled straight from their
 # source files (not through the projects' own builds, which would build the encoders, tools and,
 # for Draco under emscripten, its JavaScript decoder): a fraction of the CPU time, in CI too.
-dec_ver=1  # the recipe below: bump to rebuild every decoder
-mo_ver=0.18
-mo="$root/.deps/meshopt-wasm"
-if [[ ! -f "$mo/.built-$mo_ver-$dec_ver" ]]; then
-  fetch_orig bookworm "meshoptimizer=$mo_ver+dfsg-2" "meshoptimizer_$mo_ver+dfsg.orig.tar.xz" \
-    881ea2cc687f1fef5ce70484e0ca6504e13856dd856677749f3763bc685956d3
-  log "building meshoptimizer $mo_ver (vertex and index codecs) for WebAssembly into .deps/meshopt-wasm"
+dec_ver=1  # the recipes below: bump to rebuild every decoder
+
+# wasm_decoder DIR VERSION SOURCE=DEBVERSION TARBALL SHA256 WHAT RECIPE [TAR_ARGS...]: unless
+# .deps/DIR/.built-VERSION-$dec_ver is there, fetches Debian's TARBALL, unpacks TAR_ARGS of it
+# (all of it without) into a scratch folder, empties .deps/DIR (lib/ and include/ made) and runs
+# RECIPE SCRATCH DIR_PATH, which compiles the decoder into DIR_PATH/lib and copies its headers;
+# the stamp is written once it has.
+wasm_decoder() {
+  local dir=$1 ver=$2 spec=$3 tarball=$4 sha=$5 what=$6 recipe=$7
+  shift 7
+  local out="$root/.deps/$dir" tmp
+  [[ -f "$out/.built-$ver-$dec_ver" ]] && return 0
+  fetch_orig bookworm "$spec" "$tarball" "$sha"
+  log "building $what for WebAssembly into .deps/$dir"
   tmp=$(mktemp -d)
-  tar xf "$root/.deps/meshoptimizer_$mo_ver+dfsg.orig.tar.xz" -C "$tmp"
-  s="$tmp/meshoptimizer-$mo_ver/src"
-  rm -rf "$mo" && mkdir -p "$mo/lib" "$mo/include"
-  em_lib "$mo/lib/libmeshoptimizer.a" "$s" -- vertexcodec.cpp vertexfilter.cpp indexcodec.cpp
-  cp "$s/meshoptimizer.h" "$mo/include/"
+  tar xf "$root/.deps/$tarball" -C "$tmp" "$@"
+  rm -rf "$out" && mkdir -p "$out/lib" "$out/include"
+  "$recipe" "$tmp" "$out"
   rm -rf "$tmp"
-  touch "$mo/.built-$mo_ver-$dec_ver"
-fi
+  touch "$out/.built-$ver-$dec_ver"
+}
+
+mo_ver=0.18
+meshopt_recipe() {
+  local s="$1/meshoptimizer-$mo_ver/src"
+  em_lib "$2/lib/libmeshoptimizer.a" "$s" -- vertexcodec.cpp vertexfilter.cpp indexcodec.cpp
+  cp "$s/meshoptimizer.h" "$2/include/"
+}
+wasm_decoder meshopt-wasm "$mo_ver" "meshoptimizer=$mo_ver+dfsg-2" "meshoptimizer_$mo_ver+dfsg.orig.tar.xz" \
+  881ea2cc687f1fef5ce70484e0ca6504e13856dd856677749f3763bc685956d3 \
+  "meshoptimizer $mo_ver (vertex and index codecs)" meshopt_recipe
 
 # Draco: the point cloud decoder (3DTILES_draco_point_compression holds point clouds, never
 # meshes), with the native package's features less the mesh ones (draco_features.h).
 dr_ver=1.5.5
-dr="$root/.deps/draco-wasm"
-if [[ ! -f "$dr/.built-$dr_ver-$dec_ver" ]]; then
-  fetch_orig bookworm "draco=$dr_ver+dfsg-2" "draco_$dr_ver+dfsg.orig.tar.xz" \
-    0d4ff5b218a2f9d836c6f44202918402591407b5f59a5103ec288c5600ab087f
-  log "building the Draco $dr_ver point cloud decoder for WebAssembly into .deps/draco-wasm"
-  tmp=$(mktemp -d)
-  # The sources only: the 63 MB of test data stay in the tarball.
-  tar xf "$root/.deps/draco_$dr_ver+dfsg.orig.tar.xz" -C "$tmp" --wildcards '*/src/draco'
-  s=$(echo "$tmp"/*/src)
-  rm -rf "$dr" && mkdir -p "$dr/lib" "$dr/include/draco"
+draco_recipe() {
+  local s dr=$2
+  s=$(echo "$1"/*/src)
+  mkdir -p "$dr/include/draco"
   {
     echo "#ifndef DRACO_FEATURES_H_"
     echo "#define DRACO_FEATURES_H_"
@@ -223,46 +232,35 @@ if [[ ! -f "$dr/.built-$dr_ver-$dec_ver" ]]; then
     core/{hash_utils,options,quantization_utils}.cc \
     metadata/{metadata_decoder,geometry_metadata,metadata}.cc point_cloud/point_cloud.cc
   (cd "$s" && find draco -name '*.h' -exec cp --parents {} "$dr/include/" \;)
-  rm -rf "$tmp"
-  touch "$dr/.built-$dr_ver-$dec_ver"
-fi
+}
+# The sources only: the 63 MB of test data stay in the tarball.
+wasm_decoder draco-wasm "$dr_ver" "draco=$dr_ver+dfsg-2" "draco_$dr_ver+dfsg.orig.tar.xz" \
+  0d4ff5b218a2f9d836c6f44202918402591407b5f59a5103ec288c5600ab087f \
+  "the Draco $dr_ver point cloud decoder" draco_recipe --wildcards '*/src/draco'
 
 zs_ver=1.5.4
-zs="$root/.deps/zstd-wasm"
-if [[ ! -f "$zs/.built-$zs_ver-$dec_ver" ]]; then
-  fetch_orig bookworm "libzstd=$zs_ver+dfsg2-5" "libzstd_$zs_ver+dfsg2.orig.tar.xz" \
-    8cf4bbb65e77ec348d052c8d6230eba66d435bddf64c8b5be2fcb16880c19953
-  log "building the zstd $zs_ver decoder for WebAssembly into .deps/zstd-wasm"
-  tmp=$(mktemp -d)
-  tar xf "$root/.deps/libzstd_$zs_ver+dfsg2.orig.tar.xz" -C "$tmp" "zstd-$zs_ver/lib"
-  s="$tmp/zstd-$zs_ver/lib"
-  rm -rf "$zs" && mkdir -p "$zs/lib" "$zs/include"
+zstd_recipe() {
+  local s="$1/zstd-$zs_ver/lib"
   # No x86 assembly (huf_decompress_amd64.S), no multithreading (a decoder needs none).
-  em_lib "$zs/lib/libzstd.a" "$s" -DZSTD_DISABLE_ASM -- \
+  em_lib "$2/lib/libzstd.a" "$s" -DZSTD_DISABLE_ASM -- \
     common/{debug,entropy_common,error_private,fse_decompress,xxhash,zstd_common}.c \
     decompress/{huf_decompress,zstd_ddict,zstd_decompress,zstd_decompress_block}.c
-  cp "$s/zstd.h" "$s/zstd_errors.h" "$zs/include/"
-  rm -rf "$tmp"
-  touch "$zs/.built-$zs_ver-$dec_ver"
-fi
+  cp "$s/zstd.h" "$s/zstd_errors.h" "$2/include/"
+}
+wasm_decoder zstd-wasm "$zs_ver" "libzstd=$zs_ver+dfsg2-5" "libzstd_$zs_ver+dfsg2.orig.tar.xz" \
+  8cf4bbb65e77ec348d052c8d6230eba66d435bddf64c8b5be2fcb16880c19953 \
+  "the zstd $zs_ver decoder" zstd_recipe "zstd-$zs_ver/lib"
 
 br_ver=1.0.9
-br="$root/.deps/brotli-wasm"
-if [[ ! -f "$br/.built-$br_ver-$dec_ver" ]]; then
-  fetch_orig bookworm "brotli=$br_ver-2" "brotli_$br_ver.orig.tar.gz" \
-    f9e8d81d0405ba66d181529af42a3354f838c939095ff99930da6aa9cdf6fe46
-  log "building the Brotli $br_ver decoder for WebAssembly into .deps/brotli-wasm"
-  tmp=$(mktemp -d)
-  tar xf "$root/.deps/brotli_$br_ver.orig.tar.gz" -C "$tmp" "brotli-$br_ver/c"
-  s="$tmp/brotli-$br_ver/c"
-  rm -rf "$br" && mkdir -p "$br/lib" "$br/include"
-  em_lib "$br/lib/libbrotlidec.a" "$s" -I"$s/include" -- \
+brotli_recipe() {
+  local s="$1/brotli-$br_ver/c"
+  em_lib "$2/lib/libbrotlidec.a" "$s" -I"$s/include" -- \
     common/{constants,context,dictionary,platform,transform}.c dec/{bit_reader,decode,huffman,state}.c
-  cp -r "$s/include/brotli" "$br/include/"
-  rm -rf "$tmp"
-  touch "$br/.built-$br_ver-$dec_ver"
-fi
-
+  cp -r "$s/include/brotli" "$2/include/"
+}
+wasm_decoder brotli-wasm "$br_ver" "brotli=$br_ver-2" "brotli_$br_ver.orig.tar.gz" \
+  f9e8d81d0405ba66d181529af42a3354f838c939095ff99930da6aa9cdf6fe46 \
+  "the Brotli $br_ver decoder" brotli_recipe "brotli-$br_ver/c"
 
 [[ $deps_only -eq 1 ]] && exit 0
 
