@@ -10,8 +10,7 @@
 #include <fstream>
 #include <tuple>
 
-#include <brotli/encode.h>
-
+#include "potree_brotli.hpp"
 #include "potree_writer.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/io/fetch.hpp"
@@ -38,22 +37,11 @@ void seed(const fs::path& dir) {
                     fs::copy_options::overwrite_existing);
 }
 
-// Brotli at PotreeConverter's quality (6), for BROTLI nodes.
-std::vector<uint8_t> brotli(const std::vector<uint8_t>& in) {
-  std::vector<uint8_t> out(BrotliEncoderMaxCompressedSize(in.size()));
-  size_t size = out.size();
-  if (!BrotliEncoderCompress(6, BROTLI_DEFAULT_WINDOW, BROTLI_DEFAULT_MODE, in.size(), in.data(),
-                             &size, out.data()))
-    throw std::runtime_error("brotli failed");
-  out.resize(size);
-  return out;
-}
-
 void reads_every_node_and_attribute(bool brotli_nodes) {
   const fs::path dir = fresh_temp_dir(brotli_nodes ? "potree2-brotli" : "potree2");
   const auto points = potree_points(20000);
   const PotreeWriteResult w =
-      write_potree(dir, points, 500, 2, true, brotli_nodes ? brotli : nullptr);
+      write_potree(dir, points, 500, 2, true, brotli_nodes ? potree_brotli : nullptr);
   ASSERT_GE(w.depth, 3);
   ASSERT_GT(w.chunks, 2u);
   if (!brotli_nodes) seed(dir);
@@ -176,7 +164,7 @@ TEST(Potree2, BrokenFilesAreClearErrors) {
   bytes.pop_back();
   EXPECT_THROW(io::decode_potree_node(*ts.potree, bytes, uri), Error);
   // A BROTLI node cut short, and one that decompresses to more than its count makes.
-  write_potree(dir, potree_points(3000), 200, 1, true, brotli);
+  write_potree(dir, potree_points(3000), 200, 1, true, potree_brotli);
   ts = io::load_tileset(meta, files());
   const std::string node = ts.tiles[0].contents.at(0);
   bytes = io::fetch(node);

@@ -2,24 +2,12 @@
 // potree-core test that proves that writer against Potree's own reader, and for the web viewer's
 // BROTLI nodes (web/compressed.test.mjs):
 //   stipple_write_potree DIR POINTS [NODE_CAP STEP [no-int64|int64 [brotli]]]
-#include <brotli/encode.h>
-
 #include <cstdio>
 #include <stdexcept>
 #include <string>
 
+#include "potree_brotli.hpp"
 #include "potree_writer.hpp"
-
-// Brotli at PotreeConverter's quality (6), as tests/tiles3d/potree_test.cpp.
-static std::vector<uint8_t> brotli(const std::vector<uint8_t>& in) {
-  std::vector<uint8_t> out(BrotliEncoderMaxCompressedSize(in.size()));
-  size_t size = out.size();
-  if (!BrotliEncoderCompress(6, BROTLI_DEFAULT_WINDOW, BROTLI_DEFAULT_MODE, in.size(), in.data(),
-                             &size, out.data()))
-    throw std::runtime_error("brotli failed");
-  out.resize(size);
-  return out;
-}
 
 int main(int argc, char** argv) {
   if (argc < 3) {
@@ -32,7 +20,7 @@ int main(int argc, char** argv) {
   const bool compress = argc > 6 && std::string(argv[6]) == "brotli";
   auto r = stipple::test::write_potree(argv[1], stipple::test::potree_points(std::stoul(argv[2])),
                                        cap, step, !(argc > 5 && std::string(argv[5]) == "no-int64"),
-                                       compress ? brotli : nullptr);
+                                       compress ? stipple::test::potree_brotli : nullptr);
   std::printf("{\"nodes\": %zu, \"chunks\": %zu, \"depth\": %d}\n", r.nodes, r.chunks, r.depth);
   return 0;
 }
