@@ -8,25 +8,20 @@
 // and its canvas matches the native render (lavapipe) within the tolerance of tileset.test.mjs.
 // The autzen tilesets are skipped where ../shared is absent, EPT and Potree where the writers
 // are not built.
-import { test, before, after } from 'node:test';
+import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
 import { spawnSync } from 'node:child_process';
 import * as h from './harness.mjs';
+import * as c from './common.mjs';
 
-const webDir = process.env.STIPPLE_WEB_DIR || path.join(h.sourceDir, 'build-web');
-const autzen = path.join(h.sourceDir, '../shared/data/las/autzen_trim.las');
-const skip =
-  h.skipReason({ modules: ['puppeteer-core'], browser: true, server: true }) ||
-  (fs.existsSync(path.join(webDir, 'stipple.wasm')) ? null : `${webDir} not built (scripts/build-web.sh)`);
+const { skip, autzen } = c;
 const noAutzen = fs.existsSync(autzen) ? null : `${autzen} not found (../shared absent)`;
 const writers = {
   ept: process.env.STIPPLE_WRITE_EPT || path.join(h.sourceDir, 'build/tests/stipple_write_ept'),
   potree: process.env.STIPPLE_WRITE_POTREE || path.join(h.sourceDir, 'build/tests/stipple_write_potree'),
 };
-const work = skip ? null : h.tempDir('compressed');
-let server, browser;
 
 function write(writer, args) {
   const r = spawnSync(writer, args, { encoding: 'utf8' });
@@ -65,26 +60,12 @@ const inputs = {
   },
 };
 
-const isolation = {
-  'Cross-Origin-Opener-Policy': 'same-origin',
-  'Cross-Origin-Embedder-Policy': 'require-corp',
-};
-
-before(async () => {
-  if (skip) return;
-  const root = path.join(work, 'www');
-  fs.mkdirSync(root);
-  fs.symlinkSync(webDir, path.join(root, 'viewer'));
+const suite = c.viewerSuite('compressed', (work) => {
+  const root = c.viewerRoot(work);
   for (const [name, t] of Object.entries(inputs)) if (!t.skip) t.make(path.join(root, name));
-  server = await h.startNginx(root, { headers: isolation });
-  browser = await h.launchBrowser({ webgpu: true });
+  return root;
 });
-
-after(async () => {
-  if (browser) await browser.close();
-  if (server) await server.stop();
-  if (work) fs.rmSync(work, { recursive: true, force: true });
-});
+const { work } = suite;
 
 for (const [name, t] of Object.entries(inputs)) {
   test(`${name}: the page matches the native render`, { skip: skip || t.skip || false }, async () => {
@@ -102,38 +83,19 @@ for (const [name, t] of Object.entries(inputs)) {
     const ref = path.join(work, `native-${name}.png`);
     const native = h.stipple(['render', path.join(dir, t.open), '-o', ref, '--width', '320',
                               '--height', '240', '--max-sse', '1']);
-    const page = await browser.newPage();
-    const log = [];
-    page.on('pageerror', (e) => log.push(`page error: ${e}`));
-    page.on('console', (m) => log.push(`page ${m.type()}: ${m.text()}`));
-    await page.goto(server.url(`viewer/stipple.html?url=/${name}/${t.open}&width=320&height=240&max-sse=1`));
-    await page
-      .waitForFunction(() => window.stipple && (window.stipple.done || window.stipple.error), {
-        timeout: 240000,
-      })
-      .catch((e) => log.push(String(e)));
-    const state = await page.evaluate(() => ({
-      ...window.stipple,
-      problems: document.getElementById('problems').textContent,
-    }));
-    assert.equal(state.error, undefined, `the page failed: ${state.error}\n${log.join('\n')}`);
-    assert.equal(state.done, '1', log.join('\n'));
+    const { page, state, log } = await c.openPage(
+      suite.browser, suite.server.url(`viewer/stipple.html?url=/${name}/${t.open}&width=320&height=240&max-sse=1`));
+    c.assertDone(state, log);
     // Content the build cannot decode would be a listed problem, the rest drawn.
     assert.equal(state.errors, '0', state.problems);
     assert.ok(Number(state.tiles) > 1, `only ${state.tiles} tiles (nodes) drawn: the root did not refine`);
     assert.ok(Number(state.points) > 1000, `only ${state.points} points drawn`);
-    assert.match(native, new RegExp(`renderer: ${state.renderer}`));
-    assert.match(native, new RegExp(`rendered ${state.points} points`));
-    const d = await h.compareCanvas(page, fs.readFileSync(ref));
-    console.log(`${name}: web vs native: ${JSON.stringify(d)}; ${state.tiles} tiles, ` +
-                `${state.points} points, ${state.renderer}, ${state.ms} ms`);
-    assert.equal(d.size, undefined, `canvas size differs: ${d.size}`);
-    assert.ok(d.litFraction > 0.05, `only ${d.litFraction} of the canvas is drawn`);
-    // As tileset.test.mjs: SwiftShader and lavapipe need not rasterize bit for bit alike; the
-    // mean per-pixel difference (largest channel, of 255) stays under 3 and under 2% of the
-    // pixels differ by more than 48.
-    assert.ok(d.meanDiff < 3, `mean difference ${d.meanDiff} (of 255)`);
-    assert.ok(d.offFraction < 0.02, `${d.offFraction} of the pixels differ by more than 48`);
+    c.assertNativeAgrees(native, state, { points: true });
+    // As tileset.test.mjs: the tolerance of common.mjs.
+    await c.assertCanvasMatches(page, ref, {
+      describe: (d) => `${name}: web vs native: ${JSON.stringify(d)}; ${state.tiles} tiles, ` +
+                       `${state.points} points, ${state.renderer}, ${state.ms} ms`,
+    });
     await page.close();
   });
 }

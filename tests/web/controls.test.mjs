@@ -5,68 +5,27 @@
 // `stipple render` of the same file and options does (lavapipe), within the tolerance of
 // tileset.test.mjs; a control's change changes the pixels. The stats panel shows the points
 // drawn (as `stipple render` counts them) and, for a tileset, its tiles and memory.
-import { test, before, after } from 'node:test';
+import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
 import * as h from './harness.mjs';
+import * as c from './common.mjs';
 
-const webDir = process.env.STIPPLE_WEB_DIR || path.join(h.sourceDir, 'build-web');
-const skip =
-  h.skipReason({ modules: ['puppeteer-core'], browser: true, server: true }) ||
-  (fs.existsSync(path.join(webDir, 'stipple.wasm')) ? null : `${webDir} not built (scripts/build-web.sh)`);
-const work = skip ? null : h.tempDir('controls');
-const autzen = path.join(h.sourceDir, '../shared/data/las/autzen_trim.las');
-let server, browser, input;
-
-// Threads need SharedArrayBuffer: cross-origin isolation.
-const isolation = {
-  'Cross-Origin-Opener-Policy': 'same-origin',
-  'Cross-Origin-Embedder-Policy': 'require-corp',
-};
-
-before(async () => {
-  if (skip) return;
-  if (fs.existsSync(autzen)) {
-    input = autzen;
-  } else {
-    console.log(`${autzen} not found (../shared absent): a generated cloud is drawn instead`);
-    input = h.generatedLas(work, 200000);
-  }
-  const root = path.join(work, 'www');
-  fs.mkdirSync(root);
-  fs.symlinkSync(webDir, path.join(root, 'viewer'));
-  fs.symlinkSync(input, path.join(root, 'cloud.las'));
-  h.tile(input, path.join(root, 'tiles'));
-  server = await h.startNginx(root, { headers: isolation });
-  browser = await h.launchBrowser({ webgpu: true });
-});
-
-after(async () => {
-  if (browser) await browser.close();
-  if (server) await server.stop();
-  if (work) fs.rmSync(work, { recursive: true, force: true });
+const skip = c.skip;
+let input;
+const suite = c.viewerSuite('controls', (work) => {
+  // The served root: the viewer, the file and its tileset side by side.
+  let root;
+  ({ root, input } = c.cloudRoot(work));
+  return root;
 });
 
 // Opens the viewer with `query` and waits until it reports done or an error.
 async function open(query) {
-  const page = await browser.newPage();
-  const log = [];
-  page.on('pageerror', (e) => log.push(`page error: ${e}`));
-  page.on('console', (m) => log.push(`page ${m.type()}: ${m.text()}`));
-  await page.goto(server.url(`viewer/stipple.html?${query}`));
-  await page
-    .waitForFunction(() => window.stipple && (window.stipple.done || window.stipple.error), {
-      timeout: 240000,
-    })
-    .catch((e) => log.push(String(e)));
-  const state = await page.evaluate(() => ({
-    ...window.stipple,
-    statsText: document.getElementById('stats').textContent,
-  }));
-  assert.equal(state.error, undefined, `the page failed: ${state.error}\n${log.join('\n')}`);
-  assert.equal(state.done, '1', log.join('\n'));
-  return { page, state, log };
+  const r = await c.openPage(suite.browser, suite.server.url(`viewer/stipple.html?${query}`));
+  c.assertDone(r.state, r.log);
+  return r;
 }
 
 // The native render of the LAS file at 320x240 with `args`: the PNG's path and what it printed.
@@ -74,25 +33,21 @@ const natives = new Map();
 function nativeRender(args) {
   const key = args.join(' ');
   if (!natives.has(key)) {
-    const png = path.join(work, `native${natives.size}.png`);
+    const png = path.join(suite.work, `native${natives.size}.png`);
     const printed = h.stipple(['render', input, '-o', png, '--width', '320', '--height', '240', ...args]);
     natives.set(key, { png, printed });
   }
   return natives.get(key);
 }
 
-// The page's canvas against a native render: the same renderer, within tileset.test.mjs's
-// tolerance (SwiftShader and lavapipe need not rasterize bit for bit alike: the mean per-pixel
-// difference, largest channel of 255, under 3 and under 2% of the pixels off by more than 48).
+// The page's canvas against a native render: the same renderer, within the tolerance of
+// common.mjs (tileset.test.mjs's).
 async function assertMatches(page, state, native, what) {
-  const d = await h.compareCanvas(page, fs.readFileSync(native.png));
-  console.log(`${what}: web vs native ${JSON.stringify(d)}; ${state.renderer}`);
-  assert.match(native.printed, new RegExp(`renderer: ${state.renderer}`), what);
-  assert.equal(d.size, undefined, `${what}: canvas size differs: ${d.size}`);
-  assert.ok(d.litFraction > 0.05, `${what}: only ${d.litFraction} of the canvas is drawn`);
-  assert.ok(d.meanDiff < 3, `${what}: mean difference ${d.meanDiff} (of 255)`);
-  assert.ok(d.offFraction < 0.02, `${what}: ${d.offFraction} of the pixels differ by more than 48`);
-  return d;
+  c.assertNativeAgrees(native.printed, state, { what });
+  return c.assertCanvasMatches(page, native.png, {
+    what,
+    describe: (d) => `${what}: web vs native ${JSON.stringify(d)}; ${state.renderer}`,
+  });
 }
 
 // Each query option and the native flags that ask for the same.
@@ -117,8 +72,8 @@ for (const [query, args] of cases) {
 }
 
 test('a bad colour mode is an error shown on the page', { skip: skip || false }, async () => {
-  const page = await browser.newPage();
-  await page.goto(server.url('viewer/stipple.html?width=64&height=64&color=purple'));
+  const page = await suite.browser.newPage();
+  await page.goto(suite.server.url('viewer/stipple.html?width=64&height=64&color=purple'));
   await page.waitForFunction(() => window.stipple && window.stipple.error, { timeout: 60000 });
   const shown = await page.evaluate(() => document.getElementById('error').textContent);
   assert.match(shown, /unknown colour mode 'purple'/);

@@ -6,97 +6,47 @@
 // protocol, which the page sees as pointer events) turns the view with one finger, zooms with a
 // pinch and pans with two fingers (the page's camera readout, window.stipple.camera, says so).
 // Autzen and lone-star from ../shared/data, or generated clouds where ../shared is absent.
-import { test, before, after } from 'node:test';
+import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
 import * as h from './harness.mjs';
+import * as c from './common.mjs';
 
-const webDir = process.env.STIPPLE_WEB_DIR || path.join(h.sourceDir, 'build-web');
-const skip =
-  h.skipReason({ modules: ['puppeteer-core'], browser: true, server: true }) ||
-  (fs.existsSync(path.join(webDir, 'stipple.wasm')) ? null : `${webDir} not built (scripts/build-web.sh)`);
-const work = skip ? null : h.tempDir('input');
-const data = path.join(h.sourceDir, '../shared/data');
-let server, browser;
+const skip = c.skip;
 const files = {};  // served name -> local path
-
-const isolation = {
-  'Cross-Origin-Opener-Policy': 'same-origin',
-  'Cross-Origin-Embedder-Policy': 'require-corp',
-};
-
-before(async () => {
-  if (skip) return;
+const suite = c.viewerSuite('input', (work) => {
   const real = {
-    'cloud.las': path.join(data, 'las/autzen_trim.las'),
-    'cloud.laz': path.join(data, 'laz/autzen_trim.laz'),
-    'cloud.copc.laz': path.join(data, 'laz/lone-star.copc.laz'),
+    'cloud.las': path.join(c.sharedData, 'las/autzen_trim.las'),
+    'cloud.laz': path.join(c.sharedData, 'laz/autzen_trim.laz'),
+    'cloud.copc.laz': path.join(c.sharedData, 'laz/lone-star.copc.laz'),
   };
-  const root = path.join(work, 'www');
-  fs.mkdirSync(root);
-  fs.symlinkSync(webDir, path.join(root, 'viewer'));
+  const root = c.viewerRoot(work);
   for (const [name, file] of Object.entries(real)) {
-    if (fs.existsSync(file)) {
-      files[name] = file;
-    } else {
-      console.log(`${file} not found (../shared absent): a generated cloud instead`);
-      files[name] = path.join(work, name);
-      h.stipple(['generate', '-n', '100000', '-o', files[name]]);
-    }
+    files[name] = c.sharedOrGenerated(file, path.join(work, name), 100000);
     fs.symlinkSync(files[name], path.join(root, name));
   }
-  server = await h.startNginx(root, { headers: isolation });
-  browser = await h.launchBrowser({ webgpu: true });
+  return root;
 });
-
-after(async () => {
-  if (browser) await browser.close();
-  if (server) await server.stop();
-  if (work) fs.rmSync(work, { recursive: true, force: true });
-});
+const { work } = suite;
 
 // What the page reports, once it reports done or an error for the view it opens next: `action`
 // opens it (window.stipple is reset when a file is opened).
-async function settle(page, log, action = null) {
-  if (action) {
-    await page.evaluate(() => { window.stipple.before = 1; });
-    await action();
-  }
-  await page
-    .waitForFunction(() => window.stipple && !window.stipple.before &&
-                           (window.stipple.done || window.stipple.error), { timeout: 240000 })
-    .catch((e) => log.push(String(e)));
-  return page.evaluate(() => ({ ...window.stipple, shown: document.getElementById('error').textContent }));
-}
+const settle = (page, log, action = null) => c.settle(page, log, { action });
 
-async function open(query) {
-  const page = await browser.newPage();
-  const log = [];
-  page.on('pageerror', (e) => log.push(`page error: ${e}`));
-  page.on('console', (m) => log.push(`page ${m.type()}: ${m.text()}`));
-  await page.goto(server.url(`viewer/stipple.html?${query}`));
-  return { page, log, state: await settle(page, log) };
-}
+const open = (query) => c.openPage(suite.browser, suite.server.url(`viewer/stipple.html?${query}`));
 
 // The canvas against `stipple render FILE` at 320x240: the same renderer, points and image
-// within the tolerance of the other web tests (SwiftShader and lavapipe need not rasterize bit
-// for bit alike).
+// within the tolerance of the other web tests (common.mjs).
 async function matchesNative(page, state, log, name) {
-  assert.equal(state.error, undefined, `the page failed: ${state.error}\n${log.join('\n')}`);
-  assert.equal(state.done, '1', log.join('\n'));
+  c.assertDone(state, log);
   const ref = path.join(work, `${name}.png`);
   const native = h.stipple(['render', files[name], '-o', ref, '--width', '320', '--height', '240']);
-  assert.match(native, new RegExp(`renderer: ${state.renderer}`));
-  assert.match(native, new RegExp(`rendered ${state.points} points`));
-  const d = await h.compareCanvas(page, fs.readFileSync(ref));
-  console.log(`${name} web vs native: ${JSON.stringify(d)}; ${state.points} points, ` +
-              `${state.renderer}, read in ${state.loadMs} ms, drawn in ${state.ms} ms`);
-  assert.equal(d.size, undefined, `canvas size differs: ${d.size}`);
-  assert.ok(d.litFraction > 0.05, `only ${d.litFraction} of the canvas is drawn`);
-  assert.ok(d.meanDiff < 3, `mean difference ${d.meanDiff} (of 255)`);
-  assert.ok(d.offFraction < 0.02, `${d.offFraction} of the pixels differ by more than 48`);
-  return d;
+  c.assertNativeAgrees(native, state, { points: true });
+  return c.assertCanvasMatches(page, ref, {
+    describe: (d) => `${name} web vs native: ${JSON.stringify(d)}; ${state.points} points, ` +
+                     `${state.renderer}, read in ${state.loadMs} ms, drawn in ${state.ms} ms`,
+  });
 }
 
 const camera = (page) => page.evaluate(() => JSON.parse(window.stipple.camera));

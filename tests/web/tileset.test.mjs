@@ -6,75 +6,30 @@
 // tolerance; a drag, a key and the wheel move its camera. A 404 tile is an error on the page
 // while the other tiles are drawn; a missing tileset is an error on the page. `stipple tile
 // --page` writes a folder that opens by link. A LAS file by URL matches `stipple render` of it.
-import { test, before, after } from 'node:test';
+import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
 import { spawnSync } from 'node:child_process';
 import * as h from './harness.mjs';
+import * as c from './common.mjs';
 
-const webDir = process.env.STIPPLE_WEB_DIR || path.join(h.sourceDir, 'build-web');
-const skip =
-  h.skipReason({ modules: ['puppeteer-core'], browser: true, server: true }) ||
-  (fs.existsSync(path.join(webDir, 'stipple.wasm')) ? null : `${webDir} not built (scripts/build-web.sh)`);
-const work = skip ? null : h.tempDir('tileset');
-const autzen = path.join(h.sourceDir, '../shared/data/las/autzen_trim.las');
-let server, browser, input;
-
-// Threads (the engine's worker pool, the streamer's) need SharedArrayBuffer: cross-origin
-// isolation.
-const isolation = {
-  'Cross-Origin-Opener-Policy': 'same-origin',
-  'Cross-Origin-Embedder-Policy': 'require-corp',
-};
-
-before(async () => {
-  if (skip) return;
-  if (fs.existsSync(autzen)) {
-    input = autzen;
-  } else {
-    console.log(`${autzen} not found (../shared absent): a generated cloud is tiled instead`);
-    input = h.generatedLas(work, 200000);
-  }
-  // The served root: the viewer and the tilesets side by side.
-  const root = path.join(work, 'www');
-  fs.mkdirSync(root);
-  fs.symlinkSync(webDir, path.join(root, 'viewer'));
-  h.tile(input, path.join(root, 'tiles'));
-  fs.symlinkSync(input, path.join(root, 'cloud.las'));
+const skip = c.skip;
+let input;
+const suite = c.viewerSuite('tileset', (work) => {
+  // The served root: the viewer, the file and its tileset side by side.
+  let root;
+  ({ root, input } = c.cloudRoot(work));
   // The same tileset with one tile below the root missing (a 404).
   fs.cpSync(path.join(root, 'tiles'), path.join(root, 'broken'), { recursive: true });
-  server = await h.startNginx(root, { headers: isolation });
-  browser = await h.launchBrowser({ webgpu: true });
+  return root;
 });
-
-after(async () => {
-  if (browser) await browser.close();
-  if (server) await server.stop();
-  if (work) fs.rmSync(work, { recursive: true, force: true });
-});
+const { work } = suite;
 
 // Opens `page_path` of the server (or a full URL) and waits until the program reports done or an
 // error.
-async function open(page_path) {
-  const page = await browser.newPage();
-  const log = [];
-  page.on('pageerror', (e) => log.push(`page error: ${e}`));
-  page.on('console', (m) => log.push(`page ${m.type()}: ${m.text()}`));
-  await page.goto(page_path.startsWith('http') ? page_path : server.url(page_path));
-  await page
-    .waitForFunction(() => window.stipple && (window.stipple.done || window.stipple.error), {
-      timeout: 240000,
-    })
-    .catch((e) => log.push(String(e)));
-  const state = await page.evaluate(() => ({
-    ...window.stipple,
-    isolated: self.crossOriginIsolated,
-    shown: document.getElementById('error').textContent,
-    problems: document.getElementById('problems').textContent,
-    problemsShown: getComputedStyle(document.getElementById('problems')).display !== 'none',
-  }));
-  return { page, state, log };
+function open(page_path) {
+  return c.openPage(suite.browser, page_path.startsWith('http') ? page_path : suite.server.url(page_path));
 }
 
 // The background's colour is dark: a pixel brighter than this is a drawn point.
@@ -95,24 +50,18 @@ test('a tileset by URL matches the native render of the same camera', { skip: sk
   const native = h.stipple(['render', tileset, '-o', ref, '--width', '320', '--height', '240',
                             '--max-sse', '1']);
   const { page, state, log } = await open('viewer/stipple.html?url=/tiles/tileset.json&width=320&height=240&max-sse=1');
-  assert.equal(state.error, undefined, `the page failed: ${state.error}\n${log.join('\n')}`);
-  assert.equal(state.done, '1', log.join('\n'));
+  c.assertDone(state, log);
   assert.equal(state.errors, '0', state.problems);
   assert.ok(Number(state.points) > 1000, `only ${state.points} points drawn`);
   assert.ok(Number(state.tiles) > 1, `only ${state.tiles} tiles drawn: the root did not refine`);
   // The same renderer as `stipple render --renderer auto` chose.
-  assert.match(native, new RegExp(`renderer: ${state.renderer}`));
-  const d = await h.compareCanvas(page, fs.readFileSync(ref));
-  console.log(`web vs native: ${JSON.stringify(d)}; ${state.tiles} tiles, ${state.points} points, ` +
-              `${state.renderer}, point size ${state.pointSize}, ${state.ms} ms, ` +
-              `${state.frameMs} ms a frame once streamed, ${state.adapter}`);
-  assert.equal(d.size, undefined, `canvas size differs: ${d.size}`);
-  assert.ok(d.litFraction > 0.05, `only ${d.litFraction} of the canvas is drawn`);
-  // SwiftShader and lavapipe need not rasterize bit for bit alike: the mean per-pixel difference
-  // (largest channel, of 255) stays under 3 and under 2% of the pixels differ by more than 48.
+  c.assertNativeAgrees(native, state);
   // Measured on autzen (9 tiles, 110,000 points, the compute rasterizer): 0.0002 and 0.
-  assert.ok(d.meanDiff < 3, `mean difference ${d.meanDiff} (of 255)`);
-  assert.ok(d.offFraction < 0.02, `${d.offFraction} of the pixels differ by more than 48`);
+  const d = await c.assertCanvasMatches(page, ref, {
+    describe: (d) => `web vs native: ${JSON.stringify(d)}; ${state.tiles} tiles, ${state.points} points, ` +
+                     `${state.renderer}, point size ${state.pointSize}, ${state.ms} ms, ` +
+                     `${state.frameMs} ms a frame once streamed, ${state.adapter}`,
+  });
   // Camera controls: a drag across the canvas turns the view (the image changes, still drawn).
   await page.mouse.move(160, 120);
   await page.mouse.down();
@@ -147,8 +96,7 @@ test('a tile that is not found (404) is an error on the page; the other tiles ar
   assert.ok(child, 'the tileset has a child tile with content');
   fs.rmSync(path.join(dir, child.content.uri));
   const { page, state, log } = await open('viewer/stipple.html?url=/broken/tileset.json&width=320&height=240&max-sse=1');
-  assert.equal(state.error, undefined, `the page failed: ${state.error}\n${log.join('\n')}`);
-  assert.equal(state.done, '1', log.join('\n'));
+  c.assertDone(state, log);
   assert.ok(Number(state.errors) >= 1, `errors: ${state.errors}`);
   const name = path.basename(child.content.uri);
   assert.match(state.problems, new RegExp(`${name.replace('.', '\\.')}: HTTP 404 \\(not found\\)`));
@@ -163,16 +111,11 @@ test('a LAS file by URL matches the native render of the file', { skip: skip || 
   const ref = path.join(work, 'native-las.png');
   const native = h.stipple(['render', input, '-o', ref, '--width', '320', '--height', '240']);
   const { page, state, log } = await open('viewer/stipple.html?url=/cloud.las&width=320&height=240');
-  assert.equal(state.error, undefined, `the page failed: ${state.error}\n${log.join('\n')}`);
-  assert.equal(state.done, '1', log.join('\n'));
-  assert.match(native, new RegExp(`renderer: ${state.renderer}`));
-  assert.match(native, new RegExp(`rendered ${state.points} points`));
-  const d = await h.compareCanvas(page, fs.readFileSync(ref));
-  console.log(`LAS web vs native: ${JSON.stringify(d)}; ${state.points} points, ${state.renderer}`);
-  assert.equal(d.size, undefined, `canvas size differs: ${d.size}`);
-  assert.ok(d.litFraction > 0.05, `only ${d.litFraction} of the canvas is drawn`);
-  assert.ok(d.meanDiff < 3, `mean difference ${d.meanDiff} (of 255)`);
-  assert.ok(d.offFraction < 0.02, `${d.offFraction} of the pixels differ by more than 48`);
+  c.assertDone(state, log);
+  c.assertNativeAgrees(native, state, { points: true });
+  await c.assertCanvasMatches(page, ref, {
+    describe: (d) => `LAS web vs native: ${JSON.stringify(d)}; ${state.points} points, ${state.renderer}`,
+  });
   await page.close();
 });
 
@@ -195,8 +138,7 @@ test('stipple tile --page writes a folder that opens by link', { skip: skip || f
   const plain = await h.startNginx(out);
   try {
     const { page, state, log } = await open(plain.url('index.html'));
-    assert.equal(state.error, undefined, `the page failed: ${state.error}\n${log.join('\n')}`);
-    assert.equal(state.done, '1', log.join('\n'));
+    c.assertDone(state, log);
     assert.ok(state.isolated, 'the page is not cross-origin isolated');
     assert.ok(Number(state.points) > 1000, `only ${state.points} points drawn`);
     await page.close();
