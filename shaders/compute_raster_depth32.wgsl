@@ -1,7 +1,8 @@
 // Compute rasterizer fallback without 64-bit atomics (seed 003, section 4.2): the depth pass
 // keeps the nearest depth per pixel with a 32-bit atomicMin; colours follow in the
 // accumulation pass. Same batch culling, precision choice and variants as
-// compute_raster64.wgsl but PLAIN_EARLY.
+// compute_raster64_pass.wgsl but PLAIN_EARLY and SUBGROUP_REDUCE.
+#include "compute_raster_reduce_none.wgsl"
 #include "compute_raster_batch.wgsl"
 #include "compute_raster_counted.wgsl"
 #include "compute_raster_tile.wgsl"

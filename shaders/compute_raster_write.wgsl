@@ -13,6 +13,11 @@
 
 override PLAIN_EARLY: bool = true;
 override MERGE: bool = true;
+// SUBGROUP_REDUCE (without MERGE): the points of a subgroup that share a pixel write once, their
+// nearest key found by subgroup operations (subgroup_write(): compute_raster_reduce_*.wgsl).
+override SUBGROUP_REDUCE: bool = false;
+// A measurement of where the time goes, never a default (write_key of the 64-bit pass).
+override ABLATE: u32 = 0u;
 
 const NO_PIXEL: u32 = 0xffffffffu;
 var<private> run_pixel: u32 = NO_PIXEL;
@@ -27,6 +32,11 @@ fn end_run() {
 
 fn draw_point(cells: vec3<f32>, index: u32) {
   let pr = project_point(cells);
+  if (SUBGROUP_REDUCE && !MERGE) {
+    let shown = pr.valid && raster_filter(index, point_position(cells)) != 0u;
+    subgroup_write(shown, pr.pixel, point_key(bitcast<u32>(pr.depth), index));
+    return;
+  }
   if (!pr.valid || raster_filter(index, point_position(cells)) == 0u) {
     return;
   }

@@ -468,6 +468,35 @@ TEST_P(ComputeRaster, KernelVariantsDrawTheSameImage) {
   }
 }
 
+// Subgroup reduction (RasterKernel::subgroup_reduce): where a subgroup's points share a pixel
+// one invocation writes their nearest key, found by subgroup minimums in the visibility
+// buffer's key order (depth, then index), so the image is the one the per-point atomics give.
+// An overview of a dense scene (hundreds of points a pixel, the case it is for) and a close view
+// (points on different pixels: the per-point path inside the same shader). Tolerance 0.
+TEST_P(ComputeRaster, SubgroupReduceDrawsTheSameImage) {
+  auto ctx = context();
+  if (!pc::has_visibility64(*ctx)) GTEST_SKIP() << "no 64-bit atomics: no 64-bit depth pass";
+  if (!pc::has_subgroups(*ctx)) GTEST_SKIP() << "the device has no subgroups";
+  io::SceneParams scene;
+  scene.point_count = 400'000;
+  const auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Morton);
+  const uint32_t w = 320, h = 180;
+  pc::RasterKernel reduce;
+  reduce.subgroup_reduce = true;
+  for (const double distance : {1.0, 0.15}) {
+    SCOPED_TRACE(distance == 1.0 ? "overview" : "close");
+    Camera camera = frame_box(batched.world_bounds, double(w) / h, 10.0, 25.0);
+    const glm::dvec3 centre = batched.world_bounds.center();
+    camera.position = centre + (camera.position - centre) * distance;
+    const auto reference = render_compute(*ctx, batched, camera, {}, w, h);
+    ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.05);
+    const auto r =
+        render_compute(*ctx, batched, camera, {}, w, h, false, 0, pc::DisplayPass::Auto, reduce);
+    EXPECT_EQ(test::differing_fraction(reference.image, r.image, 0), 0.0);
+    EXPECT_EQ(r.counters.points_rendered, reference.counters.points_rendered);
+  }
+}
+
 // The workgroup tile (RasterKernel::tile, hqs_tile) takes batches that cover at most 512 pixels:
 // small batches of a dense scene at overview distance do, and their tiles must give the same image
 // as the screen-wide atomics, with the 64-bit visibility buffer (depth, then index) and the 32-bit

@@ -196,6 +196,12 @@ void run_raster_bench(const RasterArgs& args) {
     add("atomic-early", [](Variant& v) { v.kernel.plain_early = false; });
     add("wg256", [](Variant& v) { v.kernel.workgroup = 256; });
     add("tile", [](Variant& v) { v.kernel.tile = true; });
+    // Subgroup reduction of the points on one pixel (devices with subgroups, else the default).
+    add("subgroup", [](Variant& v) { v.kernel.subgroup_reduce = true; });
+    // Measurements of where the depth pass's time goes (wrong images): without its atomics,
+    // and without its early depth tests too (projection and loads only).
+    add("no-atomic", [](Variant& v) { v.kernel.ablate = 1; });
+    add("no-write", [](Variant& v) { v.kernel.ablate = 2; });
     add("compute-hqs", [](Variant& v) { v.options.hqs = true; });
     add("hqs-no-tile", [](Variant& v) {
       v.options.hqs = true;
@@ -375,14 +381,13 @@ void add_bench_raster_command(CLI::App& bench) {
   cmd->add_option("--copy-mb", args->copy_mb,
                   "Size of the bandwidth measurements (read kernel, copy) in MiB")
       ->capture_default_str();
-  cmd->add_option(
-         "--variants", args->variants,
-         "Only these variants (compute-basic, compute-precision, merge, contiguous, "
-         "prefetch, atomic-early, wg256, tile, compute-hqs, hqs-no-tile, hqs-geometry-tile, "
-         "hqs-contiguous, hqs-strided, hqs-packed, "
-         "hqs-no-merge, compute-fallback32, fallback32-contiguous, fallback32-tile, "
-         "fallback32-merge, "
-         "dilate-3px, billboard-1px)")
+  cmd->add_option("--variants", args->variants,
+                  "Only these variants (compute-basic, compute-precision, merge, contiguous, "
+                  "prefetch, atomic-early, wg256, tile, subgroup, compute-hqs, hqs-no-tile, "
+                  "hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
+                  "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, "
+                  "dilate-3px, billboard-1px; measurements with wrong images: no-atomic, "
+                  "no-write)")
       ->delimiter(',');
   cmd->add_flag("!--no-billboard", args->billboard, "Skip the billboard variant (saves 16 B/pt)");
   cmd->add_option("--seed", args->seed, "Scene seed")->capture_default_str();

@@ -103,9 +103,11 @@ std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, 
       {"CONTIGUOUS", (geometry ? kernel.contiguous : kernel.hqs_contiguous) ? 1.0 : 0.0},
       {"MERGE", (geometry ? kernel.merge : kernel.hqs_merge) ? 1.0 : 0.0}};
   c.push_back({"TILE", (geometry ? kernel.tile : kernel.hqs_tile) ? 1.0 : 0.0});
-  if (geometry)
+  if (geometry) {
     c.push_back({"PLAIN_EARLY", kernel.plain_early ? 1.0 : 0.0});
-  else
+    c.push_back({"SUBGROUP_REDUCE", kernel.subgroup_reduce ? 1.0 : 0.0});
+    c.push_back({"ABLATE", double(kernel.ablate)});
+  } else
     c.push_back({"PACKED", kernel.packed_hqs ? 1.0 : 0.0});
   return c;
 }
@@ -174,7 +176,14 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
 
 std::vector<WGPUFeatureName> compute_raster_features() {
   return {WGPUFeatureName(WGPUNativeFeature_ShaderInt64),
-          WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax)};
+          WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax), WGPUFeatureName_Subgroups,
+          WGPUFeatureName(WGPUNativeFeature_Subgroup)};
+}
+
+// Dawn reports the standard feature, wgpu-native (27) its own.
+bool has_subgroups(const gpu::Context& ctx) {
+  return ctx.has_feature(WGPUFeatureName_Subgroups) ||
+         ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_Subgroup));
 }
 
 GpuBatchedCloud create_batched_storage(gpu::Context& ctx, uint64_t points, uint64_t batches,
@@ -222,9 +231,16 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   p.color_format = color_format;
   p.kernel = kernel;
   p.clear = make_compute(ctx, "compute_raster_clear.wgsl");
-  const auto geometry = kernel_constants(kernel, true);
+  RasterKernel geometry_kernel = kernel;
+  geometry_kernel.subgroup_reduce =
+      kernel.subgroup_reduce && p.visibility64 && !kernel.merge && has_subgroups(ctx);
+  p.kernel.subgroup_reduce = geometry_kernel.subgroup_reduce;
+  const auto geometry = kernel_constants(geometry_kernel, true);
   if (p.visibility64) {
-    p.raster64 = make_compute(ctx, "compute_raster64.wgsl", geometry);
+    p.raster64 = make_compute(ctx,
+                              geometry_kernel.subgroup_reduce ? "compute_raster64_subgroups.wgsl"
+                                                              : "compute_raster64.wgsl",
+                              geometry);
     p.resolve = make_compute(ctx, "compute_raster_resolve.wgsl");
   } else {
     p.depth32 = make_compute(ctx, "compute_raster_depth32.wgsl", geometry);

@@ -98,10 +98,19 @@ struct RasterKernel {
   // HQS at overview distances on the H200, 4 % slower close up. The geometry tile above was
   // slower there (2x: its second phase doubles the per-point work, which bounds the pass).
   bool hqs_tile = true;
+  // The 64-bit depth pass's points of a subgroup on one pixel write once, their nearest key
+  // found with subgroup operations (compute_raster_reduce_subgroups.wgsl). Needs the device's
+  // subgroups feature (has_subgroups); without it, or with merge, the pass writes per point.
+  bool subgroup_reduce = false;
+  // A measurement only (wrong images): 1 leaves the 64-bit depth pass's atomics out, 2 also its
+  // early depth tests (bench raster's no-atomic and no-write variants).
+  uint32_t ablate = 0;
 };
 
 // Whether this context can run the 64-bit visibility buffer (STIPPLE_RASTER_FALLBACK=1 says no).
 bool has_visibility64(const gpu::Context& ctx);
+// Whether the device has subgroup operations (RasterKernel::subgroup_reduce).
+bool has_subgroups(const gpu::Context& ctx);
 // Features to request for it (pass to gpu::ContextOptions::optional_features).
 std::vector<WGPUFeatureName> compute_raster_features();
 
