@@ -133,13 +133,6 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   }
 }
 
-fn draw_four(cells: array<vec3<f32>, 4>, first: u32, mask: u32) {
-  for (var k = 0u; k < 4u; k++) {
-    if ((mask & (1u << k)) != 0u) {
-      draw_point(cells[k], first + k);
-    }
-  }
-}
 
 @compute @workgroup_size(WORKGROUP)
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,

@@ -2,8 +2,7 @@
 // the split positions (bindings 0-4), the batch's precision for the workgroup, and the loop over
 // a batch's points at that precision (seed 001, section 3.3: only the needed words are read).
 // The including shader defines draw_point(cells, index) (the point in cells of its batch box,
-// which project_point() takes to its pixel), draw_four(cells, first index, mask) (four
-// consecutive points, those of `mask`), end_run() (called after a thread's last point: see
+// which project_point() takes to its pixel), end_run() (called after a thread's last point: see
 // compute_raster_write.wgsl) and count_batch(...).
 #include "compute_raster_common.wgsl"
 
@@ -130,16 +129,21 @@ fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
     if (bits >= 30u) {
       f = fine[v];
     }
-    var cells: array<vec3<f32>, 4>;
-    var mask = 0u;
-    for (var k = 0u; k < 4u; k++) {
-      let index = v * 4u + k;
-      cells[k] = cell_position(bits, c[k], m[k], f[k]);
-      if (index >= b.first && index < end) {
-        mask |= 1u << k;
-      }
+    // Written out, not a loop over an array of the four positions: an array indexed in a loop
+    // may be kept in local memory, the suspect of the 2-3.6x slower prefetch runs on the H200.
+    let first = v * 4u;
+    if (first >= b.first && first < end) {
+      draw_point(cell_position(bits, c.x, m.x, f.x), first);
     }
-    draw_four(cells, v * 4u, mask);
+    if (first + 1u >= b.first && first + 1u < end) {
+      draw_point(cell_position(bits, c.y, m.y, f.y), first + 1u);
+    }
+    if (first + 2u >= b.first && first + 2u < end) {
+      draw_point(cell_position(bits, c.z, m.z, f.z), first + 2u);
+    }
+    if (first + 3u < end) {
+      draw_point(cell_position(bits, c.w, m.w, f.w), first + 3u);
+    }
   }
   end_run();
 }

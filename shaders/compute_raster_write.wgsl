@@ -56,10 +56,3 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   run_key = key;
 }
 
-fn draw_four(cells: array<vec3<f32>, 4>, first: u32, mask: u32) {
-  for (var k = 0u; k < 4u; k++) {
-    if ((mask & (1u << k)) != 0u) {
-      draw_point(cells[k], first + k);
-    }
-  }
-}
