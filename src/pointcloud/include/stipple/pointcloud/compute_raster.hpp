@@ -101,6 +101,7 @@ struct RasterKernel {
   // The 64-bit depth pass's points of a subgroup on one pixel write once, their nearest key
   // found with subgroup operations (compute_raster_reduce_subgroups.wgsl). Needs the device's
   // subgroups feature (has_subgroups); without it, or with merge, the pass writes per point.
+  // Off: 37 % slower on the H200, where the atomics it saves cost 1 % (bench/RESULTS.md, run J).
   bool subgroup_reduce = false;
   // A measurement only (wrong images): 1 leaves the 64-bit depth pass's atomics out, 2 also its
   // early depth tests (bench raster's no-atomic and no-write variants).
