@@ -52,7 +52,7 @@ fn write_key(pixel: u32, key: u64) {
   if (TILE && tile_phase != 0u) {
     let i = tile_entry(pixel);
     if (i < TILE_PIXELS) {
-      let depth = u32(key >> 32u);
+      let depth = key_depth(key);
       if (tile_phase == 1u) {
         if (depth < atomicLoad(&tile_depth[i])) {
           atomicMin(&tile_depth[i], depth);
@@ -75,7 +75,7 @@ fn write_key(pixel: u32, key: u64) {
     return;
   }
   // Early depth test: most occluded points never reach the atomic.
-  if (u32(key >> 32u) > depth_word(pixel)) {
+  if (key_depth(key) > depth_word(pixel)) {
     return;
   }
   if (ABLATE == 1u && key != u64(0u)) {

@@ -133,7 +133,6 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   }
 }
 
-
 @compute @workgroup_size(WORKGROUP)
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
         @builtin(local_invocation_index) lid: u32) {

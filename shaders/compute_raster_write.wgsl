@@ -32,15 +32,15 @@ fn end_run() {
 
 fn draw_point(cells: vec3<f32>, index: u32) {
   let pr = project_point(cells);
-  if (SUBGROUP_REDUCE && !MERGE) {
-    let shown = pr.valid && raster_filter(index, point_position(cells)) != 0u;
-    subgroup_write(shown, pr.pixel, point_key(bitcast<u32>(pr.depth), index));
-    return;
-  }
-  if (!pr.valid || raster_filter(index, point_position(cells)) == 0u) {
-    return;
-  }
+  let shown = pr.valid && raster_filter(index, point_position(cells)) != 0u;
   let key = point_key(bitcast<u32>(pr.depth), index);  // positive floats order as their bits
+  if (SUBGROUP_REDUCE && !MERGE) {
+    subgroup_write(shown, pr.pixel, key);
+    return;
+  }
+  if (!shown) {
+    return;
+  }
   if (!MERGE) {
     write_key(pr.pixel, key);
     return;
