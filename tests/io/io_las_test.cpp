@@ -422,9 +422,49 @@ TEST(LasWrite, RoundTripLegacyFormats) {
 }
 
 TEST(LasWrite, RoundTripLaz) {
-  for (uint8_t f : {0, 1, 2, 3, 6, 7, 8}) {
+  for (uint8_t f : {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10}) {
     round_trip(f >= 6 ? 4 : 2, f, true, false);
     round_trip(4, f, true, true);
+  }
+}
+
+// LASzip reads an offset step after a wave packet of 2 GiB or more 4 GiB off (its encoder
+// compares the step with the size as a signed 32-bit value), so LAZ refuses such a packet with
+// an error naming the file and the point, and leaves no file; LAS stores it exactly.
+TEST(LasWrite, LazRefusesWavePacketsItCannotStore) {
+  for (uint8_t format : {4, 9}) {
+    LasWriteOptions o;
+    o.version_minor = 4;
+    o.point_format = format;
+    PointBatch b = random_points(format, 10, 0, o.scale, o.offset, 5);
+    b.wave_packets[6].data_size = 0xfffffff0u;
+    b.wave_packets[7].data_offset = b.wave_packets[6].data_offset - 16;
+    const fs::path las = temp_dir() / "big_wave.las";
+    {
+      LasWriter w(las, o);
+      w.write(b);
+      w.close();
+    }
+    LasReader r(las);
+    const PointBatch back = read_all(r, 100);
+    ASSERT_EQ(back.wave_packets.size(), 10u);
+    EXPECT_EQ(back.wave_packets[6].data_size, 0xfffffff0u);
+    EXPECT_EQ(back.wave_packets[7].data_offset, b.wave_packets[7].data_offset);
+
+    o.compress = true;
+    const fs::path laz = temp_dir() / "big_wave.laz";
+    fs::remove(laz);
+    try {
+      LasWriter w(laz, o);
+      w.write(b);
+      w.close();
+      ADD_FAILURE() << "format " << int(format) << ": no error";
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("big_wave.laz"), std::string::npos) << what;
+      EXPECT_NE(what.find("point 6"), std::string::npos) << what;
+    }
+    EXPECT_FALSE(fs::exists(laz));
   }
 }
 

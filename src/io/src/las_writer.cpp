@@ -229,7 +229,23 @@ struct LasWriter::Impl {
         }
         const int rn = layout.extended() ? (r[14] & 15) : (r[14] & 7);
         if (rn >= 1 && rn <= 15) ++h.points_by_return[rn - 1];
-        if (laz) laz->write(r);
+        if (laz) {
+          // LASzip's wave packet encoders (v1 and v3) test whether the offset step equals the
+          // previous packet's size after casting that size to a signed 32-bit integer, while the
+          // decoders add it unsigned: after a packet of 2 GiB or more, an offset step of
+          // size - 4 GiB is stored as "step = size" and read back 4 GiB off. Refused, not
+          // written wrong; such sizes only ever come from damaged input.
+          if (layout.wave >= 0) {
+            const uint32_t wave_size = detail::load<uint32_t>(r + layout.wave + 9);
+            if (wave_size >= 0x80000000u) {
+              fail(
+                  "{}: point {} has a wave packet of {} bytes, which LAZ (LASzip) cannot store "
+                  "exactly; write LAS instead",
+                  name, h.point_count + i, wave_size);
+            }
+          }
+          laz->write(r);
+        }
       }
       if (!laz) {
         out.write(reinterpret_cast<const char*>(buffer.data()), buffer.size());
