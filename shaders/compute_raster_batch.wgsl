@@ -21,6 +21,19 @@
 // touching memory.
 override PREFETCH: bool = true;
 override CONTIGUOUS: bool = false;
+// With PREFETCH: 16-byte words a thread loads per iteration (1 or 2).
+override PREFETCH_WORDS: u32 = 1u;
+// A measurement only (wrong images): the coarse words are made from their index, not loaded,
+// which tells the loads' share of the loop from the projection's.
+override ABLATE_LOAD: bool = false;
+
+fn coarse_word(v: u32) -> vec4<u32> {
+  if (ABLATE_LOAD) {
+    let h = v * 2654435761u;
+    return vec4<u32>(h, h ^ 0x5bd1e995u, h * 3u, h * 5u) & vec4<u32>(0x3fffffffu);
+  }
+  return coarse[v];
+}
 
 
 var<workgroup> batch_bits: u32;
@@ -64,7 +77,7 @@ fn batch_prologue(group: u32, lid: u32) -> u32 {
 fn load_cells(bits: u32, index: u32) -> vec3<f32> {
   let v = index >> 2u;
   let k = index & 3u;
-  let c = coarse[v][k];
+  let c = coarse_word(v)[k];
   var m = 0u;
   var f = 0u;
   if (bits >= 20u) {
@@ -86,6 +99,24 @@ fn project_point(q: vec3<f32>) -> Projected {
 // `q` (cells of the workgroup's batch) relative to the camera, for shading by elevation.
 fn point_position(q: vec3<f32>) -> vec3<f32> {
   return cells_origin + q * cell_size;
+}
+
+// The four points of one 16-byte word (points first..first+3) that lie in [lo, end): written
+// out, not a loop over an array of the four positions: an array indexed in a loop may be kept
+// in local memory, the suspect of the 2-3.6x slower prefetch runs on the H200.
+fn draw_word(bits: u32, c: vec4<u32>, m: vec4<u32>, f: vec4<u32>, first: u32, lo: u32, end: u32) {
+  if (first >= lo && first < end) {
+    draw_point(cell_position(bits, c.x, m.x, f.x), first);
+  }
+  if (first + 1u >= lo && first + 1u < end) {
+    draw_point(cell_position(bits, c.y, m.y, f.y), first + 1u);
+  }
+  if (first + 2u >= lo && first + 2u < end) {
+    draw_point(cell_position(bits, c.z, m.z, f.z), first + 2u);
+  }
+  if (first + 3u < end) {
+    draw_point(cell_position(bits, c.w, m.w, f.w), first + 3u);
+  }
 }
 
 // Calls draw_point for every point of batch `b` this thread handles.
@@ -119,8 +150,10 @@ fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
     stop = first_word + min((lid + 1u) * share, words);
     step = 1u;
   }
-  for (; v < stop; v += step) {
-    let c = coarse[v];
+  // PREFETCH_WORDS 2: the next word's loads are issued before the first word's points are
+  // drawn, two 128-bit loads in flight a thread.
+  for (; v < stop; v += step * PREFETCH_WORDS) {
+    let c = coarse_word(v);
     var m = vec4<u32>(0u);
     var f = vec4<u32>(0u);
     if (bits >= 20u) {
@@ -129,20 +162,23 @@ fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
     if (bits >= 30u) {
       f = fine[v];
     }
-    // Written out, not a loop over an array of the four positions: an array indexed in a loop
-    // may be kept in local memory, the suspect of the 2-3.6x slower prefetch runs on the H200.
-    let first = v * 4u;
-    if (first >= b.first && first < end) {
-      draw_point(cell_position(bits, c.x, m.x, f.x), first);
+    let v2 = v + step;
+    let second = PREFETCH_WORDS > 1u && v2 < stop;
+    var c2 = vec4<u32>(0u);
+    var m2 = vec4<u32>(0u);
+    var f2 = vec4<u32>(0u);
+    if (second) {
+      c2 = coarse_word(v2);
+      if (bits >= 20u) {
+        m2 = medium[v2];
+      }
+      if (bits >= 30u) {
+        f2 = fine[v2];
+      }
     }
-    if (first + 1u >= b.first && first + 1u < end) {
-      draw_point(cell_position(bits, c.y, m.y, f.y), first + 1u);
-    }
-    if (first + 2u >= b.first && first + 2u < end) {
-      draw_point(cell_position(bits, c.z, m.z, f.z), first + 2u);
-    }
-    if (first + 3u < end) {
-      draw_point(cell_position(bits, c.w, m.w, f.w), first + 3u);
+    draw_word(bits, c, m, f, v * 4u, b.first, end);
+    if (second) {
+      draw_word(bits, c2, m2, f2, v2 * 4u, b.first, end);
     }
   }
   end_run();

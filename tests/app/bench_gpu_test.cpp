@@ -74,6 +74,35 @@ TEST(BenchArgs, BadArgumentsFail) {
   EXPECT_NE(r.output.find("--min-kb"), std::string::npos) << r.output;
 }
 
+// `bench raster --variants` takes names joined by '+' (each changes one choice of the default
+// kernel): a combined variant draws the same points as the default (counters from the GPU), and
+// an unknown name fails naming it, before anything is generated.
+TEST(BenchRaster, CombinedVariantsRunAndUnknownOnesFail) {
+  const fs::path json_path =
+      fs::temp_directory_path() / ("stipple_bench_raster_" + std::to_string(::getpid()) + ".json");
+  auto r = test::run_stipple(
+      "bench raster --points 200000 --width 160 --height 90 --frames 1 --warmup 0 --no-billboard "
+      "--backend wgpu --variants compute-precision,prefetch2+wg64 --json " +
+      json_path.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(json_path);
+  const auto j = nlohmann::json::parse(in);
+  ASSERT_EQ(j["runs"].size(), 4u) << j.dump();  // two variants, two views
+  for (size_t i = 0; i < 4; i += 2) {
+    const auto& plain = j["runs"][i];
+    const auto& combined = j["runs"][i + 1];
+    EXPECT_EQ(plain["variant"], "compute-precision");
+    EXPECT_EQ(combined["variant"], "prefetch2+wg64");
+    EXPECT_EQ(plain["view"], combined["view"]);
+    EXPECT_GT(plain["points_rendered"].get<uint64_t>(), 0u);
+    EXPECT_EQ(combined["points_rendered"], plain["points_rendered"]);
+  }
+  fs::remove(json_path);
+  r = test::run_stipple("bench raster --points 1000 --no-billboard --variants prefetch+wg65");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("unknown variant 'wg65'"), std::string::npos) << r.output;
+}
+
 INSTANTIATE_TEST_SUITE_P(Backends, Bench, ::testing::Values("dawn", "wgpu"),
                          [](const auto& info) { return info.param; });
 

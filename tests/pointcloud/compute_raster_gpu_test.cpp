@@ -116,6 +116,11 @@ std::vector<std::pair<std::string, pc::RasterKernel>> kernel_variants() {
   k = {};
   k.prefetch = true;
   kernels.push_back({"prefetch", k});
+  k.prefetch_words = 2;
+  kernels.push_back({"prefetch, two words", k});
+  k.contiguous = true;
+  k.hqs_prefetch = true;
+  kernels.push_back({"prefetch, two words, contiguous", k});
   k = {};
   k.prefetch = k.contiguous = true;
   k.hqs_contiguous = false;

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -176,24 +177,22 @@ void run_raster_bench(const RasterArgs& args) {
       pc::ComputeRasterOptions options;
       bool billboard = false;
     };
-    std::vector<Variant> variants;
-    auto add = [&](std::string name, auto&& change) {
-      Variant v;
-      v.name = std::move(name);
-      v.options.storage_target = true;  // compute display
-      change(v);
-      if (!args.variants.empty() &&
-          std::find(args.variants.begin(), args.variants.end(), v.name) == args.variants.end())
-        return;
-      if (v.fallback && !has64) return;  // the plain pipeline is the fallback already
-      variants.push_back(std::move(v));
+    // Each name changes one choice of the default; "a+b" applies both (e.g. prefetch+wg256).
+    std::vector<std::pair<std::string, std::function<void(Variant&)>>> changes;
+    auto add = [&](std::string name, std::function<void(Variant&)> change) {
+      changes.emplace_back(std::move(name), std::move(change));
     };
     add("compute-basic", [](Variant& v) { v.options.force_bits = 30; });
     add("compute-precision", [](Variant&) {});
     add("merge", [](Variant& v) { v.kernel.merge = true; });
     add("contiguous", [](Variant& v) { v.kernel.prefetch = v.kernel.contiguous = true; });
     add("prefetch", [](Variant& v) { v.kernel.prefetch = true; });
+    add("prefetch2", [](Variant& v) {
+      v.kernel.prefetch = true;
+      v.kernel.prefetch_words = 2;
+    });
     add("atomic-early", [](Variant& v) { v.kernel.plain_early = false; });
+    add("wg64", [](Variant& v) { v.kernel.workgroup = 64; });
     add("wg256", [](Variant& v) { v.kernel.workgroup = 256; });
     add("tile", [](Variant& v) { v.kernel.tile = true; });
     // Subgroup reduction of the points on one pixel (devices with subgroups, else the default).
@@ -202,6 +201,7 @@ void run_raster_bench(const RasterArgs& args) {
     // and without its early depth tests too (projection and loads only).
     add("no-atomic", [](Variant& v) { v.kernel.ablate = 1; });
     add("no-write", [](Variant& v) { v.kernel.ablate = 2; });
+    add("no-load", [](Variant& v) { v.kernel.ablate_load = true; });
     add("compute-hqs", [](Variant& v) { v.options.hqs = true; });
     add("hqs-no-tile", [](Variant& v) {
       v.options.hqs = true;
@@ -243,6 +243,28 @@ void run_raster_bench(const RasterArgs& args) {
     });
     add("dilate-3px", [](Variant& v) { v.options.point_size = 3.0f; });
     if (args.billboard) add("billboard-1px", [](Variant& v) { v.billboard = true; });
+    std::vector<std::string> specs = args.variants;
+    if (specs.empty())
+      for (const auto& [name, change] : changes) specs.push_back(name);
+    std::vector<Variant> variants;
+    for (const std::string& spec : specs) {
+      Variant v;
+      v.name = spec;
+      v.options.storage_target = true;  // compute display
+      size_t from = 0;
+      while (from <= spec.size()) {
+        const size_t plus = std::min(spec.find('+', from), spec.size());
+        const std::string part = spec.substr(from, plus - from);
+        auto it = std::find_if(changes.begin(), changes.end(),
+                               [&](const auto& c) { return c.first == part; });
+        if (it == changes.end())
+          fail("bench raster: unknown variant '{}' in '{}' (see --help)", part, spec);
+        it->second(v);
+        from = plus + 1;
+      }
+      if (v.fallback && !has64) continue;  // the plain pipeline is the fallback already
+      variants.push_back(std::move(v));
+    }
     std::vector<std::unique_ptr<pc::ComputeRasterPipeline>> pipelines;
     for (const Variant& v : variants)
       pipelines.push_back(
@@ -383,11 +405,12 @@ void add_bench_raster_command(CLI::App& bench) {
       ->capture_default_str();
   cmd->add_option("--variants", args->variants,
                   "Only these variants (compute-basic, compute-precision, merge, contiguous, "
-                  "prefetch, atomic-early, wg256, tile, subgroup, compute-hqs, hqs-no-tile, "
+                  "prefetch, prefetch2, atomic-early, wg64, wg256, tile, subgroup, compute-hqs, "
+                  "hqs-no-tile, "
                   "hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
                   "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, "
                   "dilate-3px, billboard-1px; measurements with wrong images: no-atomic, "
-                  "no-write)")
+                  "no-write, no-load); a+b combines them, e.g. prefetch2+wg256")
       ->delimiter(',');
   cmd->add_flag("!--no-billboard", args->billboard, "Skip the billboard variant (saves 16 B/pt)");
   cmd->add_option("--seed", args->seed, "Scene seed")->capture_default_str();

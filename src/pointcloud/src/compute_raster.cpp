@@ -97,9 +97,13 @@ gpu::ComputePipeline make_compute(gpu::Context& ctx, const char* file,
 // The pipeline constants of the batch passes for `kernel` (the geometry passes also take the
 // early test's load; the accumulation pass the packing).
 std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, bool geometry) {
+  if (kernel.prefetch_words != 1 && kernel.prefetch_words != 2)
+    fail("compute rasterizer: prefetch_words is 1 or 2, not {}", kernel.prefetch_words);
   std::vector<gpu::PipelineConstant> c = {
       {"WORKGROUP", double(kernel.workgroup)},
       {"PREFETCH", (geometry ? kernel.prefetch : kernel.hqs_prefetch) ? 1.0 : 0.0},
+      {"PREFETCH_WORDS", double(kernel.prefetch_words)},
+      {"ABLATE_LOAD", kernel.ablate_load ? 1.0 : 0.0},
       {"CONTIGUOUS", (geometry ? kernel.contiguous : kernel.hqs_contiguous) ? 1.0 : 0.0},
       {"MERGE", (geometry ? kernel.merge : kernel.hqs_merge) ? 1.0 : 0.0}};
   c.push_back({"TILE", (geometry ? kernel.tile : kernel.hqs_tile) ? 1.0 : 0.0});

@@ -78,6 +78,9 @@ struct RasterKernel {
   // Four points per thread and iteration from 128-bit loads (3.4): off, since one point a
   // thread was as fast or faster on every H200 instance measured (bench/RESULTS.md).
   bool prefetch = false;
+  // With prefetch (either pass): 16-byte words a thread loads before drawing them, 1 or 2 (two
+  // 128-bit loads in flight, for a loop bound by load latency).
+  uint32_t prefetch_words = 1;
   bool contiguous = false;  // with prefetch: each thread one range of its batch, not a stride
   bool merge = false;       // a thread's points in a row on one pixel: one write for them
   bool plain_early = true;  // the early depth test as a plain load, as in Listing 1
@@ -106,6 +109,9 @@ struct RasterKernel {
   // A measurement only (wrong images): 1 leaves the 64-bit depth pass's atomics out, 2 also its
   // early depth tests (bench raster's no-atomic and no-write variants).
   uint32_t ablate = 0;
+  // A measurement only (wrong images): positions made from the point's index instead of loaded
+  // (bench raster's no-load variant).
+  bool ablate_load = false;
 };
 
 // Whether this context can run the 64-bit visibility buffer (STIPPLE_RASTER_FALLBACK=1 says no).
