@@ -96,6 +96,9 @@ TEST(BenchRaster, CombinedVariantsRunAndUnknownOnesFail) {
     EXPECT_EQ(plain["view"], combined["view"]);
     EXPECT_GT(plain["points_rendered"].get<uint64_t>(), 0u);
     EXPECT_EQ(combined["points_rendered"], plain["points_rendered"]);
+    // Each pass's median time, the geometry pass's among them.
+    ASSERT_TRUE(plain["pass_gpu_ms"].contains("raster-depth")) << plain.dump();
+    EXPECT_EQ(plain["pass_gpu_ms"]["raster-depth"], plain["geometry_gpu_ms"]);
   }
   fs::remove(json_path);
   r = test::run_stipple("bench raster --points 1000 --no-billboard --variants prefetch+wg65");

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -285,6 +286,7 @@ void run_raster_bench(const RasterArgs& args) {
         gpu::TransientPool transients;
         gpu::PassTimer timer;
         std::vector<double> frame_ms, geom_ms;
+        std::map<std::string, std::vector<double>> pass_ms;  // each pass's time, per frame
         // 1-pixel depth-tested points, the billboard path's cheapest configuration.
         pc::PointRenderSettings style;
         style.point_size = 1.0f;
@@ -308,7 +310,10 @@ void run_raster_bench(const RasterArgs& args) {
           auto times = graph.read_pass_times(*ctx, timer);
           if (f < warmup) continue;
           double total = 0;
-          for (const auto& [name, ms] : times) total += ms;
+          for (const auto& [name, ms] : times) {
+            total += ms;
+            pass_ms[name].push_back(ms);
+          }
           frame_ms.push_back(total);
           geom_ms.push_back(times.count("raster-depth") ? times["raster-depth"] : times["points"]);
         }
@@ -321,6 +326,8 @@ void run_raster_bench(const RasterArgs& args) {
         run["frame_gpu_ms"] = ms;
         run["geometry_gpu_ms"] = geom;
         run["frame_gpu_ms_all"] = frame_ms;
+        run["pass_gpu_ms"] = nlohmann::json::object();  // medians: where a variant's time goes
+        for (auto& [name, ms] : pass_ms) run["pass_gpu_ms"][name] = median(ms);
         run["points_per_second"] = ms > 0 ? double(n) / (ms * 1e-3) : 0.0;
         run["generate_s"] = gen_s;
         char batches[32] = "-", rendered[32] = "-", bits[40] = "-", bpp[16] = "-", gbs[16] = "-",
