@@ -185,6 +185,14 @@ void run_raster_bench(const RasterArgs& args) {
     };
     add("compute-basic", [](Variant& v) { v.options.force_bits = 30; });
     add("compute-precision", [](Variant&) {});
+    add("scalar", [](Variant& v) { v.kernel.prefetch = false; });  // one point a thread
+    // The accumulation pass's (HQS, fallback32) choices, without turning HQS on.
+    add("sums-scalar", [](Variant& v) { v.kernel.hqs_prefetch = false; });
+    add("sums-strided", [](Variant& v) { v.kernel.hqs_contiguous = false; });
+    add("sums-contiguous", [](Variant& v) { v.kernel.hqs_contiguous = true; });
+    add("sums-wg128", [](Variant& v) { v.kernel.hqs_workgroup = 128; });
+    add("sums-wg256", [](Variant& v) { v.kernel.hqs_workgroup = 256; });
+    add("sums-wg64", [](Variant& v) { v.kernel.hqs_workgroup = 64; });
     add("merge", [](Variant& v) { v.kernel.merge = true; });
     add("contiguous", [](Variant& v) { v.kernel.prefetch = v.kernel.contiguous = true; });
     add("prefetch", [](Variant& v) { v.kernel.prefetch = true; });
@@ -410,14 +418,17 @@ void add_bench_raster_command(CLI::App& bench) {
   cmd->add_option("--copy-mb", args->copy_mb,
                   "Size of the bandwidth measurements (read kernel, copy) in MiB")
       ->capture_default_str();
-  cmd->add_option("--variants", args->variants,
-                  "Only these variants (compute-basic, compute-precision, merge, contiguous, "
-                  "prefetch, prefetch2, atomic-early, wg64, wg256, tile, subgroup, compute-hqs, "
-                  "hqs-no-tile, "
-                  "hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
-                  "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, "
-                  "dilate-3px, billboard-1px; measurements with wrong images: no-atomic, "
-                  "no-write, no-load); a+b combines them, e.g. prefetch2+wg256")
+  cmd->add_option(
+         "--variants", args->variants,
+         "Only these variants (compute-basic, compute-precision, merge, contiguous, "
+         "prefetch, prefetch2, scalar, sums-scalar, sums-strided, sums-contiguous, sums-wg64, "
+         "sums-wg128, sums-wg256, "
+         "atomic-early, wg64, wg256, tile, subgroup, compute-hqs, "
+         "hqs-no-tile, "
+         "hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
+         "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, "
+         "dilate-3px, billboard-1px; measurements with wrong images: no-atomic, "
+         "no-write, no-load); a+b combines them, e.g. prefetch2+wg256")
       ->delimiter(',');
   cmd->add_flag("!--no-billboard", args->billboard, "Skip the billboard variant (saves 16 B/pt)");
   cmd->add_option("--seed", args->seed, "Scene seed")->capture_default_str();

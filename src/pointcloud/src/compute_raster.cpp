@@ -100,7 +100,8 @@ std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, 
   if (kernel.prefetch_words != 1 && kernel.prefetch_words != 2)
     fail("compute rasterizer: prefetch_words is 1 or 2, not {}", kernel.prefetch_words);
   std::vector<gpu::PipelineConstant> c = {
-      {"WORKGROUP", double(kernel.workgroup)},
+      {"WORKGROUP",
+       double(!geometry && kernel.hqs_workgroup ? kernel.hqs_workgroup : kernel.workgroup)},
       {"PREFETCH", (geometry ? kernel.prefetch : kernel.hqs_prefetch) ? 1.0 : 0.0},
       {"PREFETCH_WORDS", double(kernel.prefetch_words)},
       {"ABLATE_LOAD", kernel.ablate_load ? 1.0 : 0.0},

@@ -75,9 +75,13 @@ inline uint64_t raster_array_bytes(uint64_t points) {
 // How the batch passes run (seed 001, sections 3.2-3.6); `bench raster` measures each choice.
 struct RasterKernel {
   uint32_t workgroup = 128;  // threads per batch workgroup (the seed's 128)
-  // Four points per thread and iteration from 128-bit loads (3.4): off, since one point a
-  // thread was as fast or faster on every H200 instance measured (bench/RESULTS.md).
-  bool prefetch = false;
+  // The accumulation pass's (HQS, the 32-bit fallback's second pass); 0: `workgroup`. 256:
+  // HQS 1.35x and the fallback 1.23x faster than 128 on the H200, 64 2x slower (runs L-N).
+  uint32_t hqs_workgroup = 256;
+  // Four points per thread and iteration from one 128-bit load (3.4), drawn written out: 1.45x
+  // faster than one point a thread on the H200 (bench/RESULTS.md, run K). The earlier form, its
+  // four positions in a loop-indexed array, was 2-3.6x slower there.
+  bool prefetch = true;
   // With prefetch (either pass): 16-byte words a thread loads before drawing them, 1 or 2 (two
   // 128-bit loads in flight, for a loop bound by load latency).
   uint32_t prefetch_words = 1;
@@ -92,10 +96,10 @@ struct RasterKernel {
   bool packed_hqs = false;
   // The HQS accumulation's (and the 32-bit fallback's second pass's) own choices: merging pays
   // there (the sums of a run go out in one atomic each), while in the depth passes it costs more
-  // than it saves; contiguous ranges need prefetch, which some H200 instances ran 2-3.6x slower
-  // (H200, 1G points: bench/RESULTS.md).
-  bool hqs_prefetch = false;
-  bool hqs_contiguous = true;
+  // than it saves. Prefetched sums: HQS 1.6x faster than one point a thread on the H200 (run
+  // K); in workgroups of 256, strided words beat contiguous ranges by 1-7 % (run N).
+  bool hqs_prefetch = true;
+  bool hqs_contiguous = false;
   bool hqs_merge = true;
   // The HQS sums in workgroup memory first (as `tile`, without the second phase): 1.8x faster
   // HQS at overview distances on the H200, 4 % slower close up. The geometry tile above was
