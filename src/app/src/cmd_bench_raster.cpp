@@ -211,6 +211,7 @@ void run_raster_bench(const RasterArgs& args) {
     add("no-atomic", [](Variant& v) { v.kernel.ablate = 1; });
     add("no-write", [](Variant& v) { v.kernel.ablate = 2; });
     add("no-load", [](Variant& v) { v.kernel.ablate_load = true; });
+    add("no-sums", [](Variant& v) { v.kernel.ablate_sums = true; });
     add("compute-hqs", [](Variant& v) { v.options.hqs = true; });
     add("hqs-no-tile", [](Variant& v) {
       v.options.hqs = true;
@@ -428,7 +429,7 @@ void add_bench_raster_command(CLI::App& bench) {
          "hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
          "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, "
          "dilate-3px, billboard-1px; measurements with wrong images: no-atomic, "
-         "no-write, no-load); a+b combines them, e.g. prefetch2+wg256")
+         "no-write, no-load, no-sums); a+b combines them, e.g. prefetch2+wg256")
       ->delimiter(',');
   cmd->add_flag("!--no-billboard", args->billboard, "Skip the billboard variant (saves 16 B/pt)");
   cmd->add_option("--seed", args->seed, "Scene seed")->capture_default_str();

@@ -112,8 +112,10 @@ std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, 
     c.push_back({"PLAIN_EARLY", kernel.plain_early ? 1.0 : 0.0});
     c.push_back({"SUBGROUP_REDUCE", kernel.subgroup_reduce ? 1.0 : 0.0});
     c.push_back({"ABLATE", double(kernel.ablate)});
-  } else
+  } else {
     c.push_back({"PACKED", kernel.packed_hqs ? 1.0 : 0.0});
+    c.push_back({"ABLATE_SUMS", kernel.ablate_sums ? 1.0 : 0.0});
+  }
   return c;
 }
 

@@ -116,6 +116,8 @@ struct RasterKernel {
   // A measurement only (wrong images): positions made from the point's index instead of loaded
   // (bench raster's no-load variant).
   bool ablate_load = false;
+  // A measurement only (wrong images): the accumulation pass's sums are not added (no-sums).
+  bool ablate_sums = false;
 };
 
 // Whether this context can run the 64-bit visibility buffer (STIPPLE_RASTER_FALLBACK=1 says no).
