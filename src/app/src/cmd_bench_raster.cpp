@@ -119,6 +119,113 @@ void run_raster_bench(const RasterArgs& args) {
   std::printf("%s on %s (%s): %s\n", ctx->description.backend.c_str(),
               ctx->description.device.c_str(), ctx->description.graphics_api.c_str(),
               has64 ? "64-bit visibility buffer" : "no 64-bit atomics: 32-bit two-pass fallback");
+  // Kernel variants (issue: the rasterizer at the bandwidth bound), each its own pipeline;
+  // "compute-precision" is the default kernel, the others change one choice of it. Parsed
+  // before any scene is generated, so that a wrong name fails at once.
+  struct Variant {
+    std::string name;
+    pc::RasterKernel kernel;
+    bool fallback = false;
+    pc::ComputeRasterOptions options;
+    bool billboard = false;
+  };
+  // Each name changes one choice of the default; "a+b" applies both (e.g. prefetch+wg256).
+  std::vector<std::pair<std::string, std::function<void(Variant&)>>> changes;
+  auto add = [&](std::string name, std::function<void(Variant&)> change) {
+    changes.emplace_back(std::move(name), std::move(change));
+  };
+  add("compute-basic", [](Variant& v) { v.options.force_bits = 30; });
+  add("compute-precision", [](Variant&) {});
+  add("scalar", [](Variant& v) { v.kernel.prefetch = false; });  // one point a thread
+  // The accumulation pass's (HQS, fallback32) choices, without turning HQS on.
+  add("sums-scalar", [](Variant& v) { v.kernel.hqs_prefetch = false; });
+  add("sums-strided", [](Variant& v) { v.kernel.hqs_contiguous = false; });
+  add("sums-contiguous", [](Variant& v) { v.kernel.hqs_contiguous = true; });
+  add("sums-wg128", [](Variant& v) { v.kernel.hqs_workgroup = 128; });
+  add("sums-wg256", [](Variant& v) { v.kernel.hqs_workgroup = 256; });
+  add("sums-wg64", [](Variant& v) { v.kernel.hqs_workgroup = 64; });
+  add("merge", [](Variant& v) { v.kernel.merge = true; });
+  add("contiguous", [](Variant& v) { v.kernel.prefetch = v.kernel.contiguous = true; });
+  add("prefetch", [](Variant& v) { v.kernel.prefetch = true; });
+  add("prefetch2", [](Variant& v) {
+    v.kernel.prefetch = true;
+    v.kernel.prefetch_words = 2;
+  });
+  add("atomic-early", [](Variant& v) { v.kernel.plain_early = false; });
+  add("wg64", [](Variant& v) { v.kernel.workgroup = 64; });
+  add("wg256", [](Variant& v) { v.kernel.workgroup = 256; });
+  add("tile", [](Variant& v) { v.kernel.tile = true; });
+  // Subgroup reduction of the points on one pixel (devices with subgroups, else the default).
+  add("subgroup", [](Variant& v) { v.kernel.subgroup_reduce = true; });
+  // Measurements of where the depth pass's time goes (wrong images): without its atomics,
+  // and without its early depth tests too (projection and loads only).
+  add("no-atomic", [](Variant& v) { v.kernel.ablate = 1; });
+  add("no-write", [](Variant& v) { v.kernel.ablate = 2; });
+  add("no-load", [](Variant& v) { v.kernel.ablate_load = true; });
+  add("no-sums", [](Variant& v) { v.kernel.ablate_sums = true; });
+  add("compute-hqs", [](Variant& v) { v.options.hqs = true; });
+  add("hqs-no-tile", [](Variant& v) {
+    v.options.hqs = true;
+    v.kernel.hqs_tile = false;
+  });
+  add("hqs-geometry-tile", [](Variant& v) {
+    v.options.hqs = true;
+    v.kernel.tile = true;
+  });
+  add("hqs-strided", [](Variant& v) {
+    v.options.hqs = true;
+    v.kernel.hqs_prefetch = true;
+    v.kernel.hqs_contiguous = false;
+  });
+  add("hqs-contiguous", [](Variant& v) {
+    v.options.hqs = true;
+    v.kernel.hqs_prefetch = true;
+  });
+  add("hqs-packed", [](Variant& v) {
+    v.options.hqs = true;
+    v.kernel.packed_hqs = true;
+  });
+  add("hqs-no-merge", [](Variant& v) {
+    v.options.hqs = true;
+    v.kernel.hqs_merge = false;
+  });
+  add("compute-fallback32", [](Variant& v) { v.fallback = true; });
+  add("fallback32-contiguous", [](Variant& v) {
+    v.fallback = true;
+    v.kernel.hqs_prefetch = true;
+  });
+  add("fallback32-tile", [](Variant& v) {
+    v.fallback = true;
+    v.kernel.tile = true;
+  });
+  add("fallback32-merge", [](Variant& v) {
+    v.fallback = true;
+    v.kernel.merge = true;
+  });
+  add("dilate-3px", [](Variant& v) { v.options.point_size = 3.0f; });
+  if (args.billboard) add("billboard-1px", [](Variant& v) { v.billboard = true; });
+  std::vector<std::string> specs = args.variants;
+  if (specs.empty())
+    for (const auto& [name, change] : changes) specs.push_back(name);
+  std::vector<Variant> variants;
+  for (const std::string& spec : specs) {
+    Variant v;
+    v.name = spec;
+    v.options.storage_target = true;  // compute display
+    size_t from = 0;
+    while (from <= spec.size()) {
+      const size_t plus = std::min(spec.find('+', from), spec.size());
+      const std::string part = spec.substr(from, plus - from);
+      auto it = std::find_if(changes.begin(), changes.end(),
+                             [&](const auto& c) { return c.first == part; });
+      if (it == changes.end())
+        fail("bench raster: unknown variant '{}' in '{}' (see --help)", part, spec);
+      it->second(v);
+      from = plus + 1;
+    }
+    if (v.fallback && !has64) continue;  // the plain pipeline is the fallback already
+    variants.push_back(std::move(v));
+  }
   // The bound: what a shader reaches reading memory (bench bandwidth); the copy for reference.
   const ReadBandwidth read = read_bandwidth(*ctx, uint64_t(args.copy_mb) << 20);
   const double read_gbs = read.gb_per_s;
@@ -169,112 +276,6 @@ void run_raster_bench(const RasterArgs& args) {
 
     auto point_pipelines = pc::create_point_pipelines(*ctx, format);
 
-    // Kernel variants (issue: the rasterizer at the bandwidth bound), each its own pipeline;
-    // "compute-precision" is the default kernel, the others change one choice of it.
-    struct Variant {
-      std::string name;
-      pc::RasterKernel kernel;
-      bool fallback = false;
-      pc::ComputeRasterOptions options;
-      bool billboard = false;
-    };
-    // Each name changes one choice of the default; "a+b" applies both (e.g. prefetch+wg256).
-    std::vector<std::pair<std::string, std::function<void(Variant&)>>> changes;
-    auto add = [&](std::string name, std::function<void(Variant&)> change) {
-      changes.emplace_back(std::move(name), std::move(change));
-    };
-    add("compute-basic", [](Variant& v) { v.options.force_bits = 30; });
-    add("compute-precision", [](Variant&) {});
-    add("scalar", [](Variant& v) { v.kernel.prefetch = false; });  // one point a thread
-    // The accumulation pass's (HQS, fallback32) choices, without turning HQS on.
-    add("sums-scalar", [](Variant& v) { v.kernel.hqs_prefetch = false; });
-    add("sums-strided", [](Variant& v) { v.kernel.hqs_contiguous = false; });
-    add("sums-contiguous", [](Variant& v) { v.kernel.hqs_contiguous = true; });
-    add("sums-wg128", [](Variant& v) { v.kernel.hqs_workgroup = 128; });
-    add("sums-wg256", [](Variant& v) { v.kernel.hqs_workgroup = 256; });
-    add("sums-wg64", [](Variant& v) { v.kernel.hqs_workgroup = 64; });
-    add("merge", [](Variant& v) { v.kernel.merge = true; });
-    add("contiguous", [](Variant& v) { v.kernel.prefetch = v.kernel.contiguous = true; });
-    add("prefetch", [](Variant& v) { v.kernel.prefetch = true; });
-    add("prefetch2", [](Variant& v) {
-      v.kernel.prefetch = true;
-      v.kernel.prefetch_words = 2;
-    });
-    add("atomic-early", [](Variant& v) { v.kernel.plain_early = false; });
-    add("wg64", [](Variant& v) { v.kernel.workgroup = 64; });
-    add("wg256", [](Variant& v) { v.kernel.workgroup = 256; });
-    add("tile", [](Variant& v) { v.kernel.tile = true; });
-    // Subgroup reduction of the points on one pixel (devices with subgroups, else the default).
-    add("subgroup", [](Variant& v) { v.kernel.subgroup_reduce = true; });
-    // Measurements of where the depth pass's time goes (wrong images): without its atomics,
-    // and without its early depth tests too (projection and loads only).
-    add("no-atomic", [](Variant& v) { v.kernel.ablate = 1; });
-    add("no-write", [](Variant& v) { v.kernel.ablate = 2; });
-    add("no-load", [](Variant& v) { v.kernel.ablate_load = true; });
-    add("no-sums", [](Variant& v) { v.kernel.ablate_sums = true; });
-    add("compute-hqs", [](Variant& v) { v.options.hqs = true; });
-    add("hqs-no-tile", [](Variant& v) {
-      v.options.hqs = true;
-      v.kernel.hqs_tile = false;
-    });
-    add("hqs-geometry-tile", [](Variant& v) {
-      v.options.hqs = true;
-      v.kernel.tile = true;
-    });
-    add("hqs-strided", [](Variant& v) {
-      v.options.hqs = true;
-      v.kernel.hqs_prefetch = true;
-      v.kernel.hqs_contiguous = false;
-    });
-    add("hqs-contiguous", [](Variant& v) {
-      v.options.hqs = true;
-      v.kernel.hqs_prefetch = true;
-    });
-    add("hqs-packed", [](Variant& v) {
-      v.options.hqs = true;
-      v.kernel.packed_hqs = true;
-    });
-    add("hqs-no-merge", [](Variant& v) {
-      v.options.hqs = true;
-      v.kernel.hqs_merge = false;
-    });
-    add("compute-fallback32", [](Variant& v) { v.fallback = true; });
-    add("fallback32-contiguous", [](Variant& v) {
-      v.fallback = true;
-      v.kernel.hqs_prefetch = true;
-    });
-    add("fallback32-tile", [](Variant& v) {
-      v.fallback = true;
-      v.kernel.tile = true;
-    });
-    add("fallback32-merge", [](Variant& v) {
-      v.fallback = true;
-      v.kernel.merge = true;
-    });
-    add("dilate-3px", [](Variant& v) { v.options.point_size = 3.0f; });
-    if (args.billboard) add("billboard-1px", [](Variant& v) { v.billboard = true; });
-    std::vector<std::string> specs = args.variants;
-    if (specs.empty())
-      for (const auto& [name, change] : changes) specs.push_back(name);
-    std::vector<Variant> variants;
-    for (const std::string& spec : specs) {
-      Variant v;
-      v.name = spec;
-      v.options.storage_target = true;  // compute display
-      size_t from = 0;
-      while (from <= spec.size()) {
-        const size_t plus = std::min(spec.find('+', from), spec.size());
-        const std::string part = spec.substr(from, plus - from);
-        auto it = std::find_if(changes.begin(), changes.end(),
-                               [&](const auto& c) { return c.first == part; });
-        if (it == changes.end())
-          fail("bench raster: unknown variant '{}' in '{}' (see --help)", part, spec);
-        it->second(v);
-        from = plus + 1;
-      }
-      if (v.fallback && !has64) continue;  // the plain pipeline is the fallback already
-      variants.push_back(std::move(v));
-    }
     std::vector<std::unique_ptr<pc::ComputeRasterPipeline>> pipelines;
     for (const Variant& v : variants)
       pipelines.push_back(
@@ -423,10 +424,8 @@ void add_bench_raster_command(CLI::App& bench) {
          "--variants", args->variants,
          "Only these variants (compute-basic, compute-precision, merge, contiguous, "
          "prefetch, prefetch2, scalar, sums-scalar, sums-strided, sums-contiguous, sums-wg64, "
-         "sums-wg128, sums-wg256, "
-         "atomic-early, wg64, wg256, tile, subgroup, compute-hqs, "
-         "hqs-no-tile, "
-         "hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
+         "sums-wg128, sums-wg256, atomic-early, wg64, wg256, tile, subgroup, compute-hqs, "
+         "hqs-no-tile, hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
          "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, "
          "dilate-3px, billboard-1px; measurements with wrong images: no-atomic, "
          "no-write, no-load, no-sums); a+b combines them, e.g. prefetch2+wg256")
