@@ -3,7 +3,7 @@
 // a batch's points at that precision (seed 001, section 3.3: only the needed words are read).
 // The including shader defines draw_point(cells, index) (the point in cells of its batch box,
 // which project_point() takes to its pixel), end_run() (called after a thread's last point: see
-// compute_raster_write.wgsl) and count_batch(...).
+// compute_raster_write.wgsl), end_word() (after each iteration's points) and count_batch(...).
 #include "compute_raster_common.wgsl"
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -27,6 +27,14 @@ override PREFETCH_WORDS: u32 = 1u;
 // which tells the loads' share of the loop from the projection's.
 override ABLATE_LOAD: bool = false;
 
+// FAST_CONVERT: no conversion instructions per point (they issue at a fraction of the float
+// rate): a position's 10-bit fields become floats through the mantissa (unpack10_fast) and the
+// pixel comes out of the float's bits (project_point); the image is the same but for points
+// within rounding of a pixel edge. UNCLIPPED: a batch whose box lies inside the viewport and in
+// front of the near plane, with a pixel to spare, skips the per-point clipping tests.
+override FAST_CONVERT: bool = false;
+override UNCLIPPED: bool = false;
+
 fn coarse_word(v: u32) -> vec4<u32> {
   if (ABLATE_LOAD) {
     let h = v * 2654435761u;
@@ -36,8 +44,10 @@ fn coarse_word(v: u32) -> vec4<u32> {
 }
 
 
-var<workgroup> batch_bits: u32;
+var<workgroup> batch_bits: u32;  // precision; BATCH_INSIDE added where UNCLIPPED holds
 var<workgroup> batch_matrix: mat4x4<f32>;
+const BATCH_INSIDE: u32 = 256u;
+var<private> batch_inside: bool = false;
 // The workgroup's batch_screen_matrix(), each thread's copy (set by batch_prologue), and the
 // batch's box in cells (set by draw_batch_points) for point_position().
 var<private> to_screen: mat4x4<f32>;
@@ -63,14 +73,45 @@ fn batch_prologue(group: u32, lid: u32) -> u32 {
     let b = batches[group];
     var skipped = false;
     let bits = classify(params, b, &skipped);
+    var m = batch_screen_matrix(params, b, bits);
+    if (FAST_CONVERT) {
+      // Half a pixel less in x and y: rounding to the nearest then gives the floor.
+      for (var j = 0u; j < 4u; j++) {
+        m[j].x -= 0.5 * m[j].w;
+        m[j].y -= 0.5 * m[j].w;
+      }
+    }
+    batch_matrix = m;
     batch_bits = bits;
-    batch_matrix = batch_screen_matrix(params, b, bits);
+    if (UNCLIPPED && bits != 0u && box_inside(m)) {
+      batch_bits = bits | BATCH_INSIDE;
+    }
     count_batch(b, bits, skipped);
   }
   // The uniform load is also the barrier after which the matrix is visible.
-  let bits = workgroupUniformLoad(&batch_bits);
+  let word = workgroupUniformLoad(&batch_bits);
   to_screen = batch_matrix;
-  return bits;
+  batch_inside = (word & BATCH_INSIDE) != 0u;
+  return word & (BATCH_INSIDE - 1u);
+}
+
+// Whether every point of the batch (cells -1..1025 of its screen matrix `m`: the box with a
+// cell to spare) projects in front of the near plane and at least a pixel inside the viewport.
+// A projective map keeps the points between its corners when all lie in front of the eye.
+fn box_inside(m: mat4x4<f32>) -> bool {
+  for (var i = 0u; i < 8u; i++) {
+    let q = vec3<f32>(f32(i & 1u), f32((i >> 1u) & 1u), f32((i >> 2u) & 1u)) * 1026.0 - 1.0;
+    let c = m[3] + m[0] * q.x + m[1] * q.y + m[2] * q.z;
+    if (c.w <= 0.0 || c.z > c.w * 0.999) {
+      return false;
+    }
+    let s = c.xy / c.w;
+    if (s.x < 1.0 || s.y < 1.0 || s.x > f32(params.width) - 2.0 ||
+        s.y > f32(params.height) - 2.0) {
+      return false;
+    }
+  }
+  return true;
 }
 
 // Point `index` of a batch in cells of its box (cell_position), from 10, 20 or 30 bits per axis.
@@ -86,14 +127,69 @@ fn load_cells(bits: u32, index: u32) -> vec3<f32> {
   if (bits >= 30u) {
     f = fine[v][k];
   }
-  return cell_position(bits, c, m, f);
+  return cells_of(bits, c, m, f);
 }
 
 // draw_point's projection: `q` (cells of the workgroup's batch) to its pixel and depth.
 fn project_point(q: vec3<f32>) -> Projected {
-  let r = project_cell(params, to_screen, q);
+  if (!FAST_CONVERT && !UNCLIPPED) {
+    let r = project_cell(params, to_screen, q);
+    point_xy = r.xy;
+    return r;
+  }
+  var r: Projected;
+  r.valid = false;
+  let m = to_screen;
+  let c = m[3] + m[0] * q.x + m[1] * q.y + m[2] * q.z;
+  let clip = !(UNCLIPPED && batch_inside);
+  if (clip && (c.w <= 0.0 || c.z > c.w)) {
+    return r;
+  }
+  let s = c.xy * (1.0 / c.w);
+  if (FAST_CONVERT) {
+    // s is half a pixel less than the pixel position (batch_prologue). Added to 1.5 * 2^23 it
+    // lies in [2^23, 2^24) where floats are the integers: the sum is rounded to the nearest,
+    // which is in its low bits. Left of or above the screen it comes out negative, so huge.
+    r.xy = bitcast<vec2<u32>>(s + 12582912.0) - vec2<u32>(0x4b400000u);
+    if (clip && (r.xy.x >= params.width || r.xy.y >= params.height)) {
+      return r;
+    }
+  } else {
+    if (clip && (s.x < 0.0 || s.y < 0.0 || s.x >= f32(params.width) ||
+                 s.y >= f32(params.height))) {
+      return r;
+    }
+    r.xy = vec2<u32>(s);
+  }
+  r.pixel = r.xy.y * params.width + r.xy.x;
+  r.depth = c.w;
+  r.valid = true;
   point_xy = r.xy;
   return r;
+}
+
+// unpack10 without conversions: a 10-bit field n in the top mantissa bits of 1.0 is 1 + n/1024,
+// exactly; one multiply-add makes it n. The same values as unpack10.
+fn unpack10_fast(v: u32) -> vec3<f32> {
+  let one = vec3<u32>(0x3f800000u);
+  let top = vec3<u32>(0x7fe000u);  // mantissa bits 13-22
+  let f = bitcast<vec3<f32>>((vec3<u32>(v << 13u, v << 3u, v >> 7u) & top) | one);
+  return f * 1024.0 - 1024.0;
+}
+
+// cell_position (compute_raster_common.wgsl) with unpack10_fast where FAST_CONVERT is on.
+fn cells_of(bits: u32, c: u32, m: u32, f: u32) -> vec3<f32> {
+  if (!FAST_CONVERT) {
+    return cell_position(bits, c, m, f);
+  }
+  var q = unpack10_fast(c);
+  if (bits >= 20u) {
+    q += unpack10_fast(m) * (1.0 / 1024.0);
+  }
+  if (bits >= 30u) {
+    q += unpack10_fast(f) * (1.0 / 1048576.0);
+  }
+  return q;
 }
 
 // `q` (cells of the workgroup's batch) relative to the camera, for shading by elevation.
@@ -106,16 +202,16 @@ fn point_position(q: vec3<f32>) -> vec3<f32> {
 // in local memory, the suspect of the 2-3.6x slower prefetch runs on the H200.
 fn draw_word(bits: u32, c: vec4<u32>, m: vec4<u32>, f: vec4<u32>, first: u32, lo: u32, end: u32) {
   if (first >= lo && first < end) {
-    draw_point(cell_position(bits, c.x, m.x, f.x), first);
+    draw_point(cells_of(bits, c.x, m.x, f.x), first);
   }
   if (first + 1u >= lo && first + 1u < end) {
-    draw_point(cell_position(bits, c.y, m.y, f.y), first + 1u);
+    draw_point(cells_of(bits, c.y, m.y, f.y), first + 1u);
   }
   if (first + 2u >= lo && first + 2u < end) {
-    draw_point(cell_position(bits, c.z, m.z, f.z), first + 2u);
+    draw_point(cells_of(bits, c.z, m.z, f.z), first + 2u);
   }
   if (first + 3u < end) {
-    draw_point(cell_position(bits, c.w, m.w, f.w), first + 3u);
+    draw_point(cells_of(bits, c.w, m.w, f.w), first + 3u);
   }
 }
 
@@ -132,6 +228,7 @@ fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
     for (var i = lid; i < b.count; i += WORKGROUP) {
       let index = b.first + i;
       draw_point(load_cells(bits, index), index);
+      end_word();
     }
     end_run();
     return;
@@ -180,6 +277,7 @@ fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
     if (second) {
       draw_word(bits, c2, m2, f2, v2 * 4u, b.first, end);
     }
+    end_word();
   }
   end_run();
 }

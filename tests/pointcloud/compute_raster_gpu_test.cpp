@@ -144,6 +144,17 @@ std::vector<std::pair<std::string, pc::RasterKernel>> kernel_variants() {
   kernels.push_back({"workgroup tile", k});
   k.merge = true;
   kernels.push_back({"workgroup tile, merging", k});
+  k = {};
+  k.fast_convert = k.unclipped = true;
+  kernels.push_back({"no conversions, unclipped batches", k});
+  k.tile = true;
+  kernels.push_back({"no conversions, unclipped batches, workgroup tile", k});
+  k = {};
+  k.hqs_raw_rgb = false;
+  kernels.push_back({"HQS sums shaded through floats", k});
+  k = {};
+  k.subgroup_sums = true;  // the per-thread sums where the device has no subgroups
+  kernels.push_back({"subgroup sums", k});
   for (uint32_t size : {64u, 256u}) {
     k = {};
     k.workgroup = size;
@@ -507,6 +518,41 @@ TEST_P(ComputeRaster, SubgroupReduceDrawsTheSameImage) {
   }
 }
 
+// Subgroup sums (RasterKernel::subgroup_sums): the HQS runs of a subgroup on one pixel added in
+// the subgroup and written once. Integer sums in another order: the same image (tolerance 0),
+// HQS and the 32-bit fallback's colour pass, overview (hundreds of points a pixel) and close.
+TEST_P(ComputeRaster, SubgroupSumsDrawTheSameImage) {
+  auto ctx = context();
+  if (std::string(GetParam()) != "wgpu" || !pc::has_subgroups(*ctx))
+    GTEST_SKIP() << "subgroup sums are wgpu-native's (with subgroups)";
+  io::SceneParams scene;
+  scene.point_count = 400'000;
+  const auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Morton);
+  const uint32_t w = 320, h = 180;
+  pc::RasterKernel sums;
+  sums.subgroup_sums = true;
+  for (const double distance : {1.0, 0.15}) {
+    Camera camera = frame_box(batched.world_bounds, double(w) / h, 10.0, 25.0);
+    const glm::dvec3 centre = batched.world_bounds.center();
+    camera.position = centre + (camera.position - centre) * distance;
+    for (bool fallback : {false, true}) {
+      if (!fallback && !pc::has_visibility64(*ctx)) continue;
+      for (bool hqs : {true, false}) {
+        if (!hqs && !fallback) continue;  // the 64-bit plain frame has no accumulation
+        SCOPED_TRACE(std::string(distance == 1.0 ? "overview" : "close") +
+                     (fallback ? ", 32-bit fallback" : ", 64-bit") + (hqs ? ", HQS" : ""));
+        pc::ComputeRasterOptions options;
+        options.hqs = hqs;
+        const auto reference = render_compute(*ctx, batched, camera, options, w, h, fallback);
+        ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.05);
+        const auto r = render_compute(*ctx, batched, camera, options, w, h, fallback, 0,
+                                      pc::DisplayPass::Auto, sums);
+        EXPECT_EQ(test::differing_fraction(reference.image, r.image, 0), 0.0);
+      }
+    }
+  }
+}
+
 // The workgroup tile (RasterKernel::tile, hqs_tile) takes batches that cover at most 512 pixels:
 // small batches of a dense scene at overview distance do, and their tiles must give the same image
 // as the screen-wide atomics, with the 64-bit visibility buffer (depth, then index) and the 32-bit
@@ -536,6 +582,45 @@ TEST_P(ComputeRaster, WorkgroupTileDrawsTheSameImage) {
                                     pc::DisplayPass::Auto, tile);
       EXPECT_EQ(test::differing_fraction(reference.image, r.image, 0), 0.0);
       EXPECT_EQ(r.counters.points_rendered, reference.counters.points_rendered);
+    }
+  }
+}
+
+// Projection without conversion instructions (RasterKernel::fast_convert) and without clipping
+// tests in batches inside the viewport (unclipped), from the overview (every batch inside) to
+// a camera within the scene (batches cut by the screen's edges and the near plane, so the
+// clipping tests that stay must hold). The pixel of a point within rounding of a pixel edge may
+// differ: tolerance 0.1 % of the pixels; the batches drawn are the same.
+TEST_P(ComputeRaster, FastConvertAndUnclippedDrawTheSameImageNearAndFar) {
+  auto ctx = context();
+  io::SceneParams scene;
+  scene.point_count = 300'000;
+  const auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Morton);
+  const uint32_t w = 320, h = 180;
+  pc::RasterKernel fast;
+  fast.fast_convert = fast.unclipped = true;
+  const bool has64 = pc::has_visibility64(*ctx);
+  for (const double distance : {1.0, 0.3, 0.02}) {
+    Camera camera = frame_box(batched.world_bounds, double(w) / h, 10.0, 25.0);
+    const glm::dvec3 centre = batched.world_bounds.center();
+    camera.position = centre + (camera.position - centre) * distance;
+    for (bool fallback : {false, true}) {
+      if (!fallback && !has64) continue;
+      for (bool hqs : {false, true}) {
+        SCOPED_TRACE(std::to_string(distance) + (fallback ? ", 32-bit fallback" : ", 64-bit") +
+                     (hqs ? ", HQS" : ""));
+        pc::ComputeRasterOptions options;
+        options.hqs = hqs;
+        const auto reference = render_compute(*ctx, batched, camera, options, w, h, fallback);
+        ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.05);
+        const auto r = render_compute(*ctx, batched, camera, options, w, h, fallback, 0,
+                                      pc::DisplayPass::Auto, fast);
+        const double differ = test::differing_fraction(reference.image, r.image, 0);
+        std::printf("distance %.2f%s%s: %.4f%% of the pixels differ\n", distance,
+                    fallback ? " fallback" : "", hqs ? " HQS" : "", 100 * differ);
+        EXPECT_LE(differ, 0.001);
+        EXPECT_EQ(r.counters.points_rendered, reference.counters.points_rendered);
+      }
     }
   }
 }

@@ -110,6 +110,20 @@ struct RasterKernel {
   // subgroups feature (has_subgroups); without it, or with merge, the pass writes per point.
   // Off: 37 % slower on the H200, where the atomics it saves cost 1 % (bench/RESULTS.md, run J).
   bool subgroup_reduce = false;
+  // Positions and pixels without int/float conversion instructions (compute_raster_batch.wgsl;
+  // the image differs only at pixel edges), and batches inside the viewport without the
+  // per-point clipping tests. Measured, not defaults: on the H200 0.8 % faster and 1.1 % slower
+  // (run Q), so neither conversions nor clipping bound the depth pass.
+  bool fast_convert = false;
+  bool unclipped = false;
+  // HQS sums (and the fallback's colours) in the RGB mode from the colour's bytes, not shaded
+  // through floats: the same sums, HQS 1.13x faster on the H200 (bench/RESULTS.md, run Q).
+  bool hqs_raw_rgb = true;
+  // The accumulation's open runs of a subgroup on one pixel added in the subgroup and written
+  // by one thread, after each word of points (compute_raster_sums_subgroups.wgsl). wgpu-native
+  // with subgroups only (the shader leaves out `enable subgroups;`, which Dawn needs); elsewhere
+  // the per-thread sums.
+  bool subgroup_sums = false;
   // A measurement only (wrong images): 1 leaves the 64-bit depth pass's atomics out, 2 also its
   // early depth tests (bench raster's no-atomic and no-write variants).
   uint32_t ablate = 0;
