@@ -1,3 +1,175 @@
-// The accumulation pass (compute_raster_accumulate_pass.wgsl) without subgroup operations.
-#include "compute_raster_sums_none.wgsl"
-#include "compute_raster_accumulate_pass.wgsl"
+// Colour accumulation (seed 003 section 4.3; high-quality shading, seed 001 section 3.6): every
+// point within a relative depth tolerance of the pixel's nearest depth adds its colour (shaded
+// in the frame's mode) and a count; the display pass divides. The depth comes from the 32-bit
+// depth buffer or from the high word of the 64-bit visibility buffer (depth_stride /
+// depth_word).
+//
+// PACKED (seed 001, 3.6: one 64-bit add for up to 255 points, with overflow protection; here in
+// two 32-bit words): a pixel's first 255 points add red | green << 16 to one word and
+// blue | count << 16 to the other, two atomics instead of four. Sums that would take the count
+// past 255 are taken back and added to the pixel's overflow words instead (add and subtract
+// commute, so the packed sums end exact). raster-hqs-finish then writes the plain layout (sums,
+// count) that the later passes read.
+#include "compute_raster_batch.wgsl"
+#include "compute_raster_shading.wgsl"
+#include "compute_raster_filter.wgsl"
+#include "compute_raster_tile.wgsl"
+
+override PACKED: bool = false;
+// A measurement only (wrong images): the sums are computed but not added (kept alive behind a
+// condition that never holds), which tells the atomics' share of the pass.
+override ABLATE_SUMS: bool = false;
+
+@group(0) @binding(5) var<storage, read> colors: array<u32>;
+@group(0) @binding(6) var<storage, read> depth_buffer: array<u32>;
+// Plain: four words a pixel (r, g, b, count); packed: eight (rg, b|count, then r, g, b, count
+// of the overflow).
+@group(0) @binding(7) var<storage, read_write> accum: array<atomic<u32>>;
+
+// The geometry passes count batches; accumulation does not.
+fn count_batch(b: GpuBatch, bits: u32, skipped: bool) {}
+
+// MERGE: a thread sums the points it finds in a row on one pixel (the pixel's nearest depth is
+// read once for them) and adds the sums with one set of atomics.
+override MERGE: bool = true;
+// RAW_RGB: in the RGB mode a point's sums are its colour's bytes, which is what shading it and
+// taking its 8-bit channels gives (round(x / 255 * 255) = x), without the float round trip.
+override RAW_RGB: bool = true;
+
+const NO_PIXEL: u32 = 0xffffffffu;
+var<private> run_pixel: u32 = NO_PIXEL;
+var<private> run_limit: f32;        // the pixel's nearest depth, widened by the tolerance
+var<private> run_sum: vec4<u32>;    // r, g, b, count
+var<private> run_entry: u32;        // its tile entry (TILE_PIXELS: none)
+
+// TILE: the tile's depth limits (tile_depth, as bits) and sums, added to the screen once per
+// pixel when the batch is done.
+var<workgroup> tile_sums: array<array<atomic<u32>, 4>, TILE_PIXELS>;
+
+fn tile_clear_extra(i: u32) {
+  atomicStore(&tile_depth[i], bitcast<u32>(limit_of(tile_pixel(i))));
+  for (var c = 0u; c < 4u; c++) {
+    atomicStore(&tile_sums[i][c], 0u);
+  }
+}
+
+fn add_sums(pixel: u32, sum: vec4<u32>) {
+  if (!PACKED) {
+    let o = pixel * 4u;
+    atomicAdd(&accum[o], sum.x);
+    atomicAdd(&accum[o + 1u], sum.y);
+    atomicAdd(&accum[o + 2u], sum.z);
+    atomicAdd(&accum[o + 3u], sum.w);
+    return;
+  }
+  // At most 255 points in the packed words: then every 16-bit sum holds.
+  let o = pixel * 8u;
+  if (sum.w > 255u) {
+    atomicAdd(&accum[o + 2u], sum.x);
+    atomicAdd(&accum[o + 3u], sum.y);
+    atomicAdd(&accum[o + 4u], sum.z);
+    atomicAdd(&accum[o + 5u], sum.w);
+    return;
+  }
+  let blue_count = sum.z | (sum.w << 16u);
+  let before = atomicAdd(&accum[o + 1u], blue_count);
+  if ((before >> 16u) + sum.w <= 255u) {
+    atomicAdd(&accum[o], sum.x | (sum.y << 16u));
+    return;
+  }
+  atomicSub(&accum[o + 1u], blue_count);
+  atomicAdd(&accum[o + 2u], sum.x);
+  atomicAdd(&accum[o + 3u], sum.y);
+  atomicAdd(&accum[o + 4u], sum.z);
+  atomicAdd(&accum[o + 5u], sum.w);
+}
+
+fn end_run() {
+  if (ABLATE_SUMS && run_sum.x != 0xfffffff0u) {
+    run_pixel = NO_PIXEL;
+    return;
+  }
+  if (run_pixel != NO_PIXEL && run_sum.w > 0u) {
+    if (run_entry < TILE_PIXELS) {
+      for (var c = 0u; c < 4u; c++) {
+        atomicAdd(&tile_sums[run_entry][c], run_sum[c]);
+      }
+    } else {
+      add_sums(run_pixel, run_sum);
+    }
+  }
+  run_pixel = NO_PIXEL;
+}
+
+fn limit_of(pixel: u32) -> f32 {
+  let nearest = bitcast<f32>(depth_buffer[pixel * params.depth_stride + params.depth_word]);
+  return nearest * (1.0 + params.depth_tolerance);
+}
+
+fn draw_point(cells: vec3<f32>, index: u32) {
+  let pr = project_point(cells);
+  if (!pr.valid) {
+    return;
+  }
+  let position = point_position(cells);
+  let state = raster_filter(index, position);
+  if (state == 0u) {
+    return;
+  }
+  if (!MERGE || pr.pixel != run_pixel) {
+    end_run();
+    run_pixel = pr.pixel;
+    run_entry = TILE_PIXELS;
+    if (TILE && tile_phase != 0u) {
+      run_entry = tile_entry_xy(pr.xy);
+    }
+    if (run_entry < TILE_PIXELS) {
+      run_limit = bitcast<f32>(atomicLoad(&tile_depth[run_entry]));
+    } else {
+      run_limit = limit_of(pr.pixel);
+    }
+    run_sum = vec4<u32>(0u);
+  }
+  if (pr.depth > run_limit) {
+    return;
+  }
+  if (RAW_RGB && shading.mode == 1u && state == 1u) {
+    // The source colour's bytes are its channels: no conversion to and from floats.
+    let c = colors[index];
+    run_sum += vec4<u32>(c & 0xffu, (c >> 8u) & 0xffu, (c >> 16u) & 0xffu, 1u);
+  } else {
+    var color = shade(colors[index], attributes_of(index), position.y);
+    if (state == 2u) {
+      color = highlighted(color);
+    }
+    run_sum += vec4<u32>(channels(color), 1u);
+  }
+  if (!MERGE) {
+    end_run();
+  }
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
+        @builtin(local_invocation_index) lid: u32) {
+  let batch = batch_index(group, groups);
+  let bits = batch_prologue(batch, lid);
+  if (bits == 0u) {
+    return;
+  }
+  let b = batches[batch];
+  if (TILE && tile_begin(b, lid)) {
+    tile_phase = 1u;
+    draw_batch_points(b, bits, lid);
+    workgroupBarrier();
+    for (var i = lid; i < tile_size.x * tile_size.y; i += WORKGROUP) {
+      let sum = vec4<u32>(atomicLoad(&tile_sums[i][0]), atomicLoad(&tile_sums[i][1]),
+                          atomicLoad(&tile_sums[i][2]), atomicLoad(&tile_sums[i][3]));
+      if (sum.w > 0u) {
+        add_sums(tile_pixel(i), sum);
+      }
+    }
+    return;
+  }
+  draw_batch_points(b, bits, lid);
+}

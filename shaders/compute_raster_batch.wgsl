@@ -3,7 +3,7 @@
 // a batch's points at that precision (seed 001, section 3.3: only the needed words are read).
 // The including shader defines draw_point(cells, index) (the point in cells of its batch box,
 // which project_point() takes to its pixel), end_run() (called after a thread's last point: see
-// compute_raster_write.wgsl), end_word() (after each iteration's points) and count_batch(...).
+// compute_raster_write.wgsl) and count_batch(...).
 #include "compute_raster_common.wgsl"
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -228,7 +228,6 @@ fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
     for (var i = lid; i < b.count; i += WORKGROUP) {
       let index = b.first + i;
       draw_point(load_cells(bits, index), index);
-      end_word();
     }
     end_run();
     return;
@@ -277,7 +276,6 @@ fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
     if (second) {
       draw_word(bits, c2, m2, f2, v2 * 4u, b.first, end);
     }
-    end_word();
   }
   end_run();
 }

@@ -23,9 +23,6 @@ const NO_PIXEL: u32 = 0xffffffffu;
 var<private> run_pixel: u32 = NO_PIXEL;
 var<private> run_key: Key;
 
-// After each word of points: nothing to do here (the accumulation pass's subgroup sums).
-fn end_word() {}
-
 fn end_run() {
   if (run_pixel != NO_PIXEL) {
     write_key(run_pixel, run_key);

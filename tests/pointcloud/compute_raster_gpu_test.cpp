@@ -152,9 +152,6 @@ std::vector<std::pair<std::string, pc::RasterKernel>> kernel_variants() {
   k = {};
   k.hqs_raw_rgb = false;
   kernels.push_back({"HQS sums shaded through floats", k});
-  k = {};
-  k.subgroup_sums = true;  // the per-thread sums where the device has no subgroups
-  kernels.push_back({"subgroup sums", k});
   for (uint32_t size : {64u, 256u}) {
     k = {};
     k.workgroup = size;
@@ -515,41 +512,6 @@ TEST_P(ComputeRaster, SubgroupReduceDrawsTheSameImage) {
         render_compute(*ctx, batched, camera, {}, w, h, false, 0, pc::DisplayPass::Auto, reduce);
     EXPECT_EQ(test::differing_fraction(reference.image, r.image, 0), 0.0);
     EXPECT_EQ(r.counters.points_rendered, reference.counters.points_rendered);
-  }
-}
-
-// Subgroup sums (RasterKernel::subgroup_sums): the HQS runs of a subgroup on one pixel added in
-// the subgroup and written once. Integer sums in another order: the same image (tolerance 0),
-// HQS and the 32-bit fallback's colour pass, overview (hundreds of points a pixel) and close.
-TEST_P(ComputeRaster, SubgroupSumsDrawTheSameImage) {
-  auto ctx = context();
-  if (std::string(GetParam()) != "wgpu" || !pc::has_subgroups(*ctx))
-    GTEST_SKIP() << "subgroup sums are wgpu-native's (with subgroups)";
-  io::SceneParams scene;
-  scene.point_count = 400'000;
-  const auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Morton);
-  const uint32_t w = 320, h = 180;
-  pc::RasterKernel sums;
-  sums.subgroup_sums = true;
-  for (const double distance : {1.0, 0.15}) {
-    Camera camera = frame_box(batched.world_bounds, double(w) / h, 10.0, 25.0);
-    const glm::dvec3 centre = batched.world_bounds.center();
-    camera.position = centre + (camera.position - centre) * distance;
-    for (bool fallback : {false, true}) {
-      if (!fallback && !pc::has_visibility64(*ctx)) continue;
-      for (bool hqs : {true, false}) {
-        if (!hqs && !fallback) continue;  // the 64-bit plain frame has no accumulation
-        SCOPED_TRACE(std::string(distance == 1.0 ? "overview" : "close") +
-                     (fallback ? ", 32-bit fallback" : ", 64-bit") + (hqs ? ", HQS" : ""));
-        pc::ComputeRasterOptions options;
-        options.hqs = hqs;
-        const auto reference = render_compute(*ctx, batched, camera, options, w, h, fallback);
-        ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.05);
-        const auto r = render_compute(*ctx, batched, camera, options, w, h, fallback, 0,
-                                      pc::DisplayPass::Auto, sums);
-        EXPECT_EQ(test::differing_fraction(reference.image, r.image, 0), 0.0);
-      }
-    }
   }
 }
 

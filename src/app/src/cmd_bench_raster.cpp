@@ -157,8 +157,7 @@ void run_raster_bench(const RasterArgs& args) {
   add("tile", [](Variant& v) { v.kernel.tile = true; });
   add("fast", [](Variant& v) { v.kernel.fast_convert = true; });  // no conversion instructions
   add("unclipped", [](Variant& v) { v.kernel.unclipped = true; });
-  add("subgroup-sums", [](Variant& v) { v.kernel.subgroup_sums = true; });  // HQS, fallback32
-  add("shaded-sums", [](Variant& v) { v.kernel.hqs_raw_rgb = false; });     // RGB sums via floats
+  add("shaded-sums", [](Variant& v) { v.kernel.hqs_raw_rgb = false; });  // RGB sums via floats
   // Subgroup reduction of the points on one pixel (devices with subgroups, else the default).
   add("subgroup", [](Variant& v) { v.kernel.subgroup_reduce = true; });
   // Measurements of where the depth pass's time goes (wrong images): without its atomics,
@@ -429,7 +428,7 @@ void add_bench_raster_command(CLI::App& bench) {
          "Only these variants (compute-basic, compute-precision, merge, contiguous, "
          "prefetch, prefetch2, scalar, sums-scalar, sums-strided, sums-contiguous, sums-wg64, "
          "sums-wg128, sums-wg256, atomic-early, wg64, wg256, tile, subgroup, fast, unclipped, "
-         "shaded-sums, subgroup-sums, compute-hqs, "
+         "shaded-sums, compute-hqs, "
          "hqs-no-tile, hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
          "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, "
          "dilate-3px, billboard-1px; measurements with wrong images: no-atomic, "

@@ -119,7 +119,6 @@ std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, 
     c.push_back({"PACKED", kernel.packed_hqs ? 1.0 : 0.0});
     c.push_back({"ABLATE_SUMS", kernel.ablate_sums ? 1.0 : 0.0});
     c.push_back({"RAW_RGB", kernel.hqs_raw_rgb ? 1.0 : 0.0});
-    c.push_back({"SUBGROUP_SUMS", kernel.subgroup_sums ? 1.0 : 0.0});
   }
   return c;
 }
@@ -257,20 +256,15 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   } else {
     p.depth32 = make_compute(ctx, "compute_raster_depth32.wgsl", geometry);
   }
-  // Subgroup sums: wgpu-native only (its own subgroup feature), whose naga takes the subgroup
-  // functions without the `enable` that Dawn requires.
-  p.kernel.subgroup_sums = kernel.subgroup_sums && kernel.hqs_merge &&
-                           ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_Subgroup));
-  const char* accumulate_shader = p.kernel.subgroup_sums
-                                      ? "compute_raster_accumulate_subgroups.wgsl"
-                                      : "compute_raster_accumulate.wgsl";
-  p.accumulate = make_compute(ctx, accumulate_shader, kernel_constants(p.kernel, false));
+  p.accumulate =
+      make_compute(ctx, "compute_raster_accumulate.wgsl", kernel_constants(kernel, false));
   // The fallback's plain colour pass (the nearest points only) without the tile, which made it
   // 7 % slower on the H200 while it made HQS 1.8x faster (bench/RESULTS.md).
   if (!p.visibility64 && kernel.hqs_tile) {
-    RasterKernel plain = p.kernel;
+    RasterKernel plain = kernel;
     plain.hqs_tile = false;
-    p.accumulate_plain = make_compute(ctx, accumulate_shader, kernel_constants(plain, false));
+    p.accumulate_plain =
+        make_compute(ctx, "compute_raster_accumulate.wgsl", kernel_constants(plain, false));
   }
   p.hqs_finish = make_compute(ctx, "compute_raster_hqs_finish.wgsl");
 

@@ -119,11 +119,6 @@ struct RasterKernel {
   // HQS sums (and the fallback's colours) in the RGB mode from the colour's bytes, not shaded
   // through floats: the same sums, HQS 1.13x faster on the H200 (bench/RESULTS.md, run Q).
   bool hqs_raw_rgb = true;
-  // The accumulation's open runs of a subgroup on one pixel added in the subgroup and written
-  // by one thread, after each word of points (compute_raster_sums_subgroups.wgsl). wgpu-native
-  // with subgroups only (the shader leaves out `enable subgroups;`, which Dawn needs); elsewhere
-  // the per-thread sums.
-  bool subgroup_sums = false;
   // A measurement only (wrong images): 1 leaves the 64-bit depth pass's atomics out, 2 also its
   // early depth tests (bench raster's no-atomic and no-write variants).
   uint32_t ablate = 0;
