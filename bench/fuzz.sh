@@ -39,7 +39,7 @@ cmake --build "$build" --target "${targets[@]}" -- -j"$jobs" |
 
 out="$root/bench/fuzz-out"
 mkdir -p "$out"
-export ASAN_OPTIONS="detect_leaks=1:malloc_context_size=4:${ASAN_OPTIONS:-}"  # as fuzz-run.sh, which says why
+export ASAN_OPTIONS="detect_leaks=1:malloc_context_size=0:${ASAN_OPTIONS:-}"  # as fuzz-run.sh, which says why
 export LSAN_OPTIONS="suppressions=$root/tests/lsan.supp:print_suppressions=0"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 

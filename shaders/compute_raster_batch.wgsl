@@ -27,12 +27,9 @@ override PREFETCH_WORDS: u32 = 1u;
 // which tells the loads' share of the loop from the projection's.
 override ABLATE_LOAD: bool = false;
 
-// FAST_CONVERT: no conversion instructions per point (they issue at a fraction of the float
-// rate): a position's 10-bit fields become floats through the mantissa (unpack10_fast) and the
-// pixel comes out of the float's bits (project_point); the image is the same but for points
-// within rounding of a pixel edge. UNCLIPPED: a batch whose box lies inside the viewport and in
-// front of the near plane, with a pixel to spare, skips the per-point clipping tests.
-override FAST_CONVERT: bool = false;
+// FAST_CONVERT (compute_raster_common.wgsl) also takes the pixel out of the float's bits
+// (project_point). UNCLIPPED: a batch whose box lies inside the viewport and in front of the
+// near plane, with a pixel to spare, skips the per-point clipping tests.
 override UNCLIPPED: bool = false;
 
 fn coarse_word(v: u32) -> vec4<u32> {
@@ -127,7 +124,7 @@ fn load_cells(bits: u32, index: u32) -> vec3<f32> {
   if (bits >= 30u) {
     f = fine[v][k];
   }
-  return cells_of(bits, c, m, f);
+  return cell_position(bits, c, m, f);
 }
 
 // draw_point's projection: `q` (cells of the workgroup's batch) to its pixel and depth.
@@ -168,29 +165,7 @@ fn project_point(q: vec3<f32>) -> Projected {
   return r;
 }
 
-// unpack10 without conversions: a 10-bit field n in the top mantissa bits of 1.0 is 1 + n/1024,
-// exactly; one multiply-add makes it n. The same values as unpack10.
-fn unpack10_fast(v: u32) -> vec3<f32> {
-  let one = vec3<u32>(0x3f800000u);
-  let top = vec3<u32>(0x7fe000u);  // mantissa bits 13-22
-  let f = bitcast<vec3<f32>>((vec3<u32>(v << 13u, v << 3u, v >> 7u) & top) | one);
-  return f * 1024.0 - 1024.0;
-}
 
-// cell_position (compute_raster_common.wgsl) with unpack10_fast where FAST_CONVERT is on.
-fn cells_of(bits: u32, c: u32, m: u32, f: u32) -> vec3<f32> {
-  if (!FAST_CONVERT) {
-    return cell_position(bits, c, m, f);
-  }
-  var q = unpack10_fast(c);
-  if (bits >= 20u) {
-    q += unpack10_fast(m) * (1.0 / 1024.0);
-  }
-  if (bits >= 30u) {
-    q += unpack10_fast(f) * (1.0 / 1048576.0);
-  }
-  return q;
-}
 
 // `q` (cells of the workgroup's batch) relative to the camera, for shading by elevation.
 fn point_position(q: vec3<f32>) -> vec3<f32> {
@@ -202,16 +177,16 @@ fn point_position(q: vec3<f32>) -> vec3<f32> {
 // in local memory, the suspect of the 2-3.6x slower prefetch runs on the H200.
 fn draw_word(bits: u32, c: vec4<u32>, m: vec4<u32>, f: vec4<u32>, first: u32, lo: u32, end: u32) {
   if (first >= lo && first < end) {
-    draw_point(cells_of(bits, c.x, m.x, f.x), first);
+    draw_point(cell_position(bits, c.x, m.x, f.x), first);
   }
   if (first + 1u >= lo && first + 1u < end) {
-    draw_point(cells_of(bits, c.y, m.y, f.y), first + 1u);
+    draw_point(cell_position(bits, c.y, m.y, f.y), first + 1u);
   }
   if (first + 2u >= lo && first + 2u < end) {
-    draw_point(cells_of(bits, c.z, m.z, f.z), first + 2u);
+    draw_point(cell_position(bits, c.z, m.z, f.z), first + 2u);
   }
   if (first + 3u < end) {
-    draw_point(cells_of(bits, c.w, m.w, f.w), first + 3u);
+    draw_point(cell_position(bits, c.w, m.w, f.w), first + 3u);
   }
 }
 
