@@ -144,6 +144,8 @@ void run_raster_bench(const RasterArgs& args) {
   add("sums-wg128", [](Variant& v) { v.kernel.hqs_workgroup = 128; });
   add("sums-wg256", [](Variant& v) { v.kernel.hqs_workgroup = 256; });
   add("sums-wg64", [](Variant& v) { v.kernel.hqs_workgroup = 64; });
+  add("sums-wg512", [](Variant& v) { v.kernel.hqs_workgroup = 512; });
+  add("sums-wg1024", [](Variant& v) { v.kernel.hqs_workgroup = 1024; });
   add("merge", [](Variant& v) { v.kernel.merge = true; });
   add("contiguous", [](Variant& v) { v.kernel.prefetch = v.kernel.contiguous = true; });
   add("prefetch", [](Variant& v) { v.kernel.prefetch = true; });
@@ -427,7 +429,8 @@ void add_bench_raster_command(CLI::App& bench) {
          "--variants", args->variants,
          "Only these variants (compute-basic, compute-precision, merge, contiguous, "
          "prefetch, prefetch2, scalar, sums-scalar, sums-strided, sums-contiguous, sums-wg64, "
-         "sums-wg128, sums-wg256, atomic-early, wg64, wg256, tile, subgroup, fast, unclipped, "
+         "sums-wg128, sums-wg256, sums-wg512, sums-wg1024, atomic-early, wg64, wg256, tile, "
+         "subgroup, fast, unclipped, "
          "shaded-sums, compute-hqs, "
          "hqs-no-tile, hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
          "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, "
