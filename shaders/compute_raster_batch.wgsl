@@ -165,8 +165,6 @@ fn project_point(q: vec3<f32>) -> Projected {
   return r;
 }
 
-
-
 // `q` (cells of the workgroup's batch) relative to the camera, for shading by elevation.
 fn point_position(q: vec3<f32>) -> vec3<f32> {
   return cells_origin + q * cell_size;
