@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include <spdlog/spdlog.h>
 
@@ -36,6 +37,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (h.point_count > 2 * 97) reader.seek(h.point_count - 97);
     while (reader.read(batch, 97) > 0) {
     }
+    // The positions-only path (the tiler's counting pass) over the same first records: the
+    // same count and the same positions as the full decode.
+    reader.seek(0);
+    std::vector<glm::dvec3> positions;
+    const size_t got = reader.read_positions(positions, 97);
+    if (got > batch.size() || positions.size() != got) __builtin_trap();
+    for (size_t i = 0; i < got; ++i)
+      if (!(positions[i] == batch.positions[i]) && positions[i] == positions[i]) __builtin_trap();
   } catch (const stipple::Error&) {
   }
   return 0;

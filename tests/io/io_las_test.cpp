@@ -745,6 +745,33 @@ TEST(LasRead, SeekThenReadMatchesSequentialReading) {
   }
 }
 
+// read_positions (the tiler's counting pass) gives the positions read() gives, after seeks, for
+// LAS and LAZ, and reads as many points; past the end it reads none.
+TEST(LasRead, PositionsOnlyMatchFullReads) {
+  REQUIRE_DATA("las/autzen_trim.las");
+  std::vector<fs::path> files = {file};
+  if (fs::exists(data_dir() / "laz/autzen_trim.laz"))
+    files.push_back(data_dir() / "laz/autzen_trim.laz");
+  for (const fs::path& f : files) {
+    SCOPED_TRACE(f.string());
+    LasReader all(f);
+    const PointBatch whole = read_all(all, 1 << 16);
+    ASSERT_EQ(whole.size(), 110000u);
+    LasReader r(f);
+    for (uint64_t first : {uint64_t(0), uint64_t(70001), uint64_t(109999), uint64_t(110000)}) {
+      r.seek(first);
+      std::vector<glm::dvec3> positions = {glm::dvec3(-1)};  // appended after what is there
+      const size_t got = r.read_positions(positions, 50000);
+      ASSERT_EQ(got, std::min<uint64_t>(50000, 110000 - first));
+      ASSERT_EQ(positions.size(), got + 1);
+      EXPECT_EQ(positions[0], glm::dvec3(-1));
+      for (size_t i = 0; i < got; ++i)
+        ASSERT_EQ(positions[i + 1], whole.positions[first + i]) << "point " << first + i;
+      EXPECT_EQ(r.points_read(), first + got);
+    }
+  }
+}
+
 // Writers that add attributes one at a time write one Extra Bytes VLR per attribute: all of
 // them together describe the record (a uint16, then a uint8: 3 bytes).
 TEST(LasRead, SeveralExtraBytesVlrsDescribeTheRecordTogether) {

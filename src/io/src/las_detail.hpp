@@ -29,6 +29,10 @@ RecordLayout record_layout(uint8_t format, uint16_t record_length);
 // Appends n raw records to batch.
 void decode_records(const uint8_t* records, size_t n, const RecordLayout& layout,
                     const glm::dvec3& scale, const glm::dvec3& offset, PointBatch& batch);
+// Appends the positions of n raw records (scale and offset applied) to `positions`.
+void decode_positions(const uint8_t* records, size_t n, const RecordLayout& layout,
+                      const glm::dvec3& scale, const glm::dvec3& offset,
+                      std::vector<glm::dvec3>& positions);
 // Encodes batch point i into one raw record (record_length bytes). Integer coordinates are
 // returned so the writer can track bounds of what is actually stored.
 void encode_record(const PointBatch& batch, size_t i, const RecordLayout& layout,

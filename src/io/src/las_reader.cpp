@@ -446,20 +446,28 @@ struct LasReader::Impl {
   }
 
   size_t read(PointBatch& batch, size_t max_points) {
-    const uint64_t left = header.point_count - next;
-    size_t want = static_cast<size_t>(std::min<uint64_t>(max_points, left));
-    if (want == 0) return 0;
+    if (max_points == 0 || next >= header.point_count) return 0;
     const size_t eb = header.extra_bytes_per_point;
     if (batch.size() > 0 && batch.extra_bytes_per_point != eb) {
       fail("{}: batch holds {} extra bytes per point, file has {}", header.path,
            batch.extra_bytes_per_point, eb);
     }
     batch.extra_bytes_per_point = eb;
+    return read_records(max_points, [&](const uint8_t* records, size_t k) {
+      detail::decode_records(records, k, layout, header.scale, header.offset, batch);
+    });
+  }
+
+  // Hands the next records (at most max_points) to decode(records, count) in pieces.
+  template <typename Decode>
+  size_t read_records(size_t max_points, Decode decode) {
+    const uint64_t left = header.point_count - next;
+    size_t want = static_cast<size_t>(std::min<uint64_t>(max_points, left));
+    if (want == 0) return 0;
     size_t done = 0;
     if (prefix_used < prefix_points) {
       const size_t k = std::min(want, prefix_points - prefix_used);
-      detail::decode_records(prefix.data() + prefix_used * layout.record_length, k, layout,
-                             header.scale, header.offset, batch);
+      decode(prefix.data() + prefix_used * layout.record_length, k);
       prefix_used += k;
       done += k;
       if (prefix_used == prefix_points) std::vector<uint8_t>().swap(prefix);
@@ -469,7 +477,7 @@ struct LasReader::Impl {
       const size_t k = std::min(want - done, per_chunk);
       buffer.resize(k * layout.record_length);
       fetch(buffer.data(), k);
-      detail::decode_records(buffer.data(), k, layout, header.scale, header.offset, batch);
+      decode(buffer.data(), k);
       done += k;
     }
     next += done;
@@ -499,6 +507,12 @@ const LasHeader& LasReader::header() const {
 }
 size_t LasReader::read(PointBatch& batch, size_t max_points) {
   return impl_->read(batch, max_points);
+}
+size_t LasReader::read_positions(std::vector<glm::dvec3>& positions, size_t max_points) {
+  Impl& r = *impl_;
+  return r.read_records(max_points, [&](const uint8_t* records, size_t k) {
+    detail::decode_positions(records, k, r.layout, r.header.scale, r.header.offset, positions);
+  });
 }
 void LasReader::seek(uint64_t index) {
   impl_->seek(index);

@@ -2,6 +2,7 @@
 // LAZ reading and by the writer.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "las_detail.hpp"
@@ -71,52 +72,73 @@ RecordLayout record_layout(uint8_t format, uint16_t record_length) {
 void decode_records(const uint8_t* records, size_t n, const RecordLayout& l,
                     const glm::dvec3& scale, const glm::dvec3& offset, PointBatch& b) {
   const size_t eb = l.extra_bytes();
-  const size_t old = b.size();
-  b.reserve(old + n);
-  if (l.gps >= 0) b.gps_time.reserve(old + n);
-  if (l.rgb >= 0) b.rgb.reserve(old + n);
-  if (l.nir >= 0) b.nir.reserve(old + n);
-  if (l.wave >= 0) b.wave_packets.reserve(old + n);
-  if (eb) b.extra_bytes.reserve((old + n) * eb);
+  // Every array is sized once and filled by index: a push_back per field and point (a capacity
+  // check and a size update each, a dozen a point) cost more than the decoding itself. Each
+  // array grows from its own size, as appending did.
+  auto grow = [n](auto& v) {
+    const size_t at = v.size();
+    v.resize(at + n);
+    return v.data() + at;
+  };
+  glm::dvec3* pos = grow(b.positions);
+  uint16_t* intensity = grow(b.intensity);
+  uint8_t* ret = grow(b.return_number);
+  uint8_t* nret = grow(b.number_of_returns);
+  uint8_t* cls_out = grow(b.classification);
+  uint8_t* flags_out = grow(b.flags);
+  float* angle = grow(b.scan_angle);
+  uint8_t* user = grow(b.user_data);
+  uint16_t* source = grow(b.point_source_id);
+  double* gps = l.gps >= 0 ? grow(b.gps_time) : nullptr;
+  glm::u16vec3* rgb = l.rgb >= 0 ? grow(b.rgb) : nullptr;
+  uint16_t* nir = l.nir >= 0 ? grow(b.nir) : nullptr;
+  PointBatch::WavePacket* wave = l.wave >= 0 ? grow(b.wave_packets) : nullptr;
+  uint8_t* extra = nullptr;
+  if (eb) {
+    const size_t at = b.extra_bytes.size();
+    b.extra_bytes.resize(at + n * eb);
+    extra = b.extra_bytes.data() + at;
+  }
+  const bool extended = l.extended();
   for (size_t i = 0; i < n; ++i) {
     const uint8_t* r = records + i * l.record_length;
     // Scale and offset in double: coordinates of e.g. UTM at mm precision need it.
-    b.positions.emplace_back(load<int32_t>(r) * scale.x + offset.x,
-                             load<int32_t>(r + 4) * scale.y + offset.y,
-                             load<int32_t>(r + 8) * scale.z + offset.z);
-    b.intensity.push_back(load<uint16_t>(r + 12));
+    pos[i] =
+        glm::dvec3(load<int32_t>(r) * scale.x + offset.x, load<int32_t>(r + 4) * scale.y + offset.y,
+                   load<int32_t>(r + 8) * scale.z + offset.z);
+    intensity[i] = load<uint16_t>(r + 12);
     const uint8_t b14 = r[14], b15 = r[15];
-    if (!l.extended()) {
+    if (!extended) {
       const uint8_t cls = b15 & 0x1f;
-      b.return_number.push_back(b14 & 7);
-      b.number_of_returns.push_back((b14 >> 3) & 7);
-      b.classification.push_back(cls);
+      ret[i] = b14 & 7;
+      nret[i] = (b14 >> 3) & 7;
+      cls_out[i] = cls;
       // Legacy formats have no overlap flag; class 12 ("overlap") is its stand-in.
       uint8_t flags = (b15 >> 5) & 7;
       if (cls == 12) flags |= 8;
       flags |= (b14 & 0xc0);  // scan direction, edge of flight line
-      b.flags.push_back(flags);
-      b.scan_angle.push_back(static_cast<float>(static_cast<int8_t>(r[16])));
-      b.user_data.push_back(r[17]);
-      b.point_source_id.push_back(load<uint16_t>(r + 18));
+      flags_out[i] = flags;
+      angle[i] = static_cast<float>(static_cast<int8_t>(r[16]));
+      user[i] = r[17];
+      source[i] = load<uint16_t>(r + 18);
     } else {
-      b.return_number.push_back(b14 & 15);
-      b.number_of_returns.push_back(b14 >> 4);
-      b.flags.push_back(b15);  // same bit layout as PointBatch::flags
-      b.classification.push_back(r[16]);
-      b.user_data.push_back(r[17]);
-      b.scan_angle.push_back(static_cast<float>(load<int16_t>(r + 18) * 0.006));
-      b.point_source_id.push_back(load<uint16_t>(r + 20));
+      ret[i] = b14 & 15;
+      nret[i] = b14 >> 4;
+      flags_out[i] = b15;  // same bit layout as PointBatch::flags
+      cls_out[i] = r[16];
+      user[i] = r[17];
+      angle[i] = static_cast<float>(load<int16_t>(r + 18) * 0.006);
+      source[i] = load<uint16_t>(r + 20);
     }
-    if (l.gps >= 0) b.gps_time.push_back(load<double>(r + l.gps));
-    if (l.rgb >= 0) {
-      b.rgb.emplace_back(load<uint16_t>(r + l.rgb), load<uint16_t>(r + l.rgb + 2),
-                         load<uint16_t>(r + l.rgb + 4));
+    if (gps) gps[i] = load<double>(r + l.gps);
+    if (rgb) {
+      rgb[i] = glm::u16vec3(load<uint16_t>(r + l.rgb), load<uint16_t>(r + l.rgb + 2),
+                            load<uint16_t>(r + l.rgb + 4));
     }
-    if (l.nir >= 0) b.nir.push_back(load<uint16_t>(r + l.nir));
-    if (l.wave >= 0) {
+    if (nir) nir[i] = load<uint16_t>(r + l.nir);
+    if (wave) {
       const uint8_t* w = r + l.wave;
-      PointBatch::WavePacket p;
+      PointBatch::WavePacket& p = wave[i];
       p.descriptor_index = w[0];
       p.data_offset = load<uint64_t>(w + 1);
       p.data_size = load<uint32_t>(w + 9);
@@ -124,9 +146,23 @@ void decode_records(const uint8_t* records, size_t n, const RecordLayout& l,
       p.dx = load<float>(w + 17);
       p.dy = load<float>(w + 21);
       p.dz = load<float>(w + 25);
-      b.wave_packets.push_back(p);
     }
-    if (eb) b.extra_bytes.insert(b.extra_bytes.end(), r + l.base_size, r + l.record_length);
+    if (eb) std::memcpy(extra + i * eb, r + l.base_size, eb);
+  }
+}
+
+void decode_positions(const uint8_t* records, size_t n, const RecordLayout& l,
+                      const glm::dvec3& scale, const glm::dvec3& offset,
+                      std::vector<glm::dvec3>& positions) {
+  const size_t at = positions.size();
+  positions.resize(at + n);
+  glm::dvec3* pos = positions.data() + at;
+  for (size_t i = 0; i < n; ++i) {
+    const uint8_t* r = records + i * l.record_length;
+    // The same arithmetic as decode_records: the same doubles.
+    pos[i] =
+        glm::dvec3(load<int32_t>(r) * scale.x + offset.x, load<int32_t>(r + 4) * scale.y + offset.y,
+                   load<int32_t>(r + 8) * scale.z + offset.z);
   }
 }
 

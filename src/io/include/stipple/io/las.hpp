@@ -146,6 +146,9 @@ class LasReader {
   const LasHeader& header() const;
   // Appends up to max_points points to batch; returns how many, 0 at the end.
   size_t read(PointBatch& batch, size_t max_points);
+  // As read(), but decodes the positions only (appended to `positions`, scale and offset
+  // applied): a pass that needs nothing else (the tiler's counting pass) skips the other fields.
+  size_t read_positions(std::vector<glm::dvec3>& positions, size_t max_points);
   // The next read() starts at point `index` (<= the point count). LAZ decoding restarts at the
   // chunk holding it, so readers seeking to chunk-aligned ranges can decode a file in parallel.
   void seek(uint64_t index);
