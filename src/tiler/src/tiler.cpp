@@ -286,6 +286,39 @@ class Tiler {
   std::unique_ptr<PartialDir> partial_;
 };
 
+// Adds one to counts[cell] for each point with few atomics: a thread's repeats of a cell (a
+// LiDAR file comes in scan order, so points near in the file share cells) are summed in a small
+// direct-mapped table and added once, when the slot is taken by another cell or at the end of
+// the batch. At 16 threads the shared counters' cache lines moving between cores made the count
+// step cost 2.6x the CPU of one thread (4.1 s against 1.55 s on 100M points, H200 host).
+class CellCounter {
+ public:
+  explicit CellCounter(std::vector<std::atomic<uint32_t>>& counts) : counts_(counts) {}
+  CellCounter(const CellCounter&) = delete;
+  CellCounter& operator=(const CellCounter&) = delete;
+  ~CellCounter() {
+    for (const Slot& s : slots_)
+      if (s.n) counts_[s.cell].fetch_add(s.n, std::memory_order_relaxed);
+  }
+  void add(uint32_t cell) {
+    Slot& s = slots_[(cell * 0x9E3779B1u) >> (32 - kSlotBits)];
+    if (s.cell == cell && s.n) {
+      ++s.n;
+      return;
+    }
+    if (s.n) counts_[s.cell].fetch_add(s.n, std::memory_order_relaxed);
+    s.cell = cell, s.n = 1;
+  }
+
+ private:
+  static constexpr int kSlotBits = 10;
+  struct Slot {
+    uint32_t cell = 0, n = 0;
+  };
+  std::array<Slot, size_t(1) << kSlotBits> slots_{};
+  std::vector<std::atomic<uint32_t>>& counts_;
+};
+
 bool Tiler::cell_in_part(uint32_t cell) const {
   if (part_level_ == 0) return true;
   const uint32_t mask = (1u << count_level_) - 1, shift = uint32_t(count_level_ - part_level_);
@@ -1147,9 +1180,9 @@ TileStats Tiler::run() {
             thread_local std::vector<glm::dvec3> local;
             to_local(in, batch, local);
             Profiler::Scope count(&prof_, Step::Count);
+            CellCounter counter(counts);
             for (const glm::dvec3& p : local)
-              if (const uint32_t cell = cell_of(p); cell_in_part(cell))
-                counts[cell].fetch_add(1, std::memory_order_relaxed);
+              if (const uint32_t cell = cell_of(p); cell_in_part(cell)) counter.add(cell);
           },
           true);
     } else {
@@ -1184,8 +1217,8 @@ TileStats Tiler::run() {
         }
         {
           Profiler::Scope count(&prof_, Step::Count);
-          for (size_t i = 0; i < n; ++i)
-            counts[cell_of(recs[i])].fetch_add(1, std::memory_order_relaxed);
+          CellCounter counter(counts);
+          for (size_t i = 0; i < n; ++i) counter.add(cell_of(recs[i]));
         }
         if (in_memory_) return;
         Profiler::Scope write(&prof_, Step::Write, n * sizeof(TilePoint));
