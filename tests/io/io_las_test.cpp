@@ -718,6 +718,8 @@ TEST(LasCorrupt, MissingFile) {
 
 // seek(i) then read gives exactly the points a sequential read gives from i on, for LAS and LAZ
 // (LASzip restarts at the chunk holding i), in any order of seeks; seeking past the end fails.
+// read_positions (the tiler's counting pass) gives the same positions, appended to what the
+// vector holds.
 TEST(LasRead, SeekThenReadMatchesSequentialReading) {
   REQUIRE_DATA("las/autzen_trim.las");
   std::vector<fs::path> files = {file};
@@ -727,48 +729,28 @@ TEST(LasRead, SeekThenReadMatchesSequentialReading) {
     SCOPED_TRACE(f.string());
     LasReader all(f);
     const PointBatch whole = read_all(all, 1 << 16);
-    LasReader r(f);
+    LasReader r(f), positions_reader(f);
     for (uint64_t first : {uint64_t(70001), uint64_t(0), uint64_t(50000), uint64_t(109999),
                            uint64_t(123), uint64_t(110000)}) {
       r.seek(first);
       PointBatch b;
       const size_t got = r.read(b, 3000);
       ASSERT_EQ(got, std::min<uint64_t>(3000, 110000 - first));
+      positions_reader.seek(first);
+      std::vector<glm::dvec3> positions = {glm::dvec3(-1)};
+      ASSERT_EQ(positions_reader.read_positions(positions, 3000), got);
+      ASSERT_EQ(positions.size(), got + 1);
+      EXPECT_EQ(positions[0], glm::dvec3(-1));
+      EXPECT_EQ(positions_reader.points_read(), first + got);
       for (size_t i = 0; i < got; ++i) {
         ASSERT_EQ(b.positions[i], whole.positions[first + i]) << "point " << first + i;
+        ASSERT_EQ(positions[i + 1], whole.positions[first + i]) << "point " << first + i;
         ASSERT_EQ(b.gps_time[i], whole.gps_time[first + i]);
         ASSERT_EQ(b.rgb[i], whole.rgb[first + i]);
         ASSERT_EQ(b.intensity[i], whole.intensity[first + i]);
       }
     }
     EXPECT_THROW(r.seek(110001), Error);
-  }
-}
-
-// read_positions (the tiler's counting pass) gives the positions read() gives, after seeks, for
-// LAS and LAZ, and reads as many points; past the end it reads none.
-TEST(LasRead, PositionsOnlyMatchFullReads) {
-  REQUIRE_DATA("las/autzen_trim.las");
-  std::vector<fs::path> files = {file};
-  if (fs::exists(data_dir() / "laz/autzen_trim.laz"))
-    files.push_back(data_dir() / "laz/autzen_trim.laz");
-  for (const fs::path& f : files) {
-    SCOPED_TRACE(f.string());
-    LasReader all(f);
-    const PointBatch whole = read_all(all, 1 << 16);
-    ASSERT_EQ(whole.size(), 110000u);
-    LasReader r(f);
-    for (uint64_t first : {uint64_t(0), uint64_t(70001), uint64_t(109999), uint64_t(110000)}) {
-      r.seek(first);
-      std::vector<glm::dvec3> positions = {glm::dvec3(-1)};  // appended after what is there
-      const size_t got = r.read_positions(positions, 50000);
-      ASSERT_EQ(got, std::min<uint64_t>(50000, 110000 - first));
-      ASSERT_EQ(positions.size(), got + 1);
-      EXPECT_EQ(positions[0], glm::dvec3(-1));
-      for (size_t i = 0; i < got; ++i)
-        ASSERT_EQ(positions[i + 1], whole.positions[first + i]) << "point " << first + i;
-      EXPECT_EQ(r.points_read(), first + got);
-    }
   }
 }
 
