@@ -69,6 +69,16 @@ RecordLayout record_layout(uint8_t format, uint16_t record_length) {
   return l;
 }
 
+// One record's position, shared by decode_records and decode_positions so that both give the
+// same doubles. Scale and offset in double: coordinates of e.g. UTM at mm precision need it.
+namespace {
+glm::dvec3 decode_position(const uint8_t* r, const glm::dvec3& scale, const glm::dvec3& offset) {
+  return glm::dvec3(load<int32_t>(r) * scale.x + offset.x,
+                    load<int32_t>(r + 4) * scale.y + offset.y,
+                    load<int32_t>(r + 8) * scale.z + offset.z);
+}
+}  // namespace
+
 void decode_records(const uint8_t* records, size_t n, const RecordLayout& l,
                     const glm::dvec3& scale, const glm::dvec3& offset, PointBatch& b) {
   const size_t eb = l.extra_bytes();
@@ -102,10 +112,7 @@ void decode_records(const uint8_t* records, size_t n, const RecordLayout& l,
   const bool extended = l.extended();
   for (size_t i = 0; i < n; ++i) {
     const uint8_t* r = records + i * l.record_length;
-    // Scale and offset in double: coordinates of e.g. UTM at mm precision need it.
-    pos[i] =
-        glm::dvec3(load<int32_t>(r) * scale.x + offset.x, load<int32_t>(r + 4) * scale.y + offset.y,
-                   load<int32_t>(r + 8) * scale.z + offset.z);
+    pos[i] = decode_position(r, scale, offset);
     intensity[i] = load<uint16_t>(r + 12);
     const uint8_t b14 = r[14], b15 = r[15];
     if (!extended) {
@@ -157,13 +164,8 @@ void decode_positions(const uint8_t* records, size_t n, const RecordLayout& l,
   const size_t at = positions.size();
   positions.resize(at + n);
   glm::dvec3* pos = positions.data() + at;
-  for (size_t i = 0; i < n; ++i) {
-    const uint8_t* r = records + i * l.record_length;
-    // The same arithmetic as decode_records: the same doubles.
-    pos[i] =
-        glm::dvec3(load<int32_t>(r) * scale.x + offset.x, load<int32_t>(r + 4) * scale.y + offset.y,
-                   load<int32_t>(r + 8) * scale.z + offset.z);
-  }
+  for (size_t i = 0; i < n; ++i)
+    pos[i] = decode_position(records + i * l.record_length, scale, offset);
 }
 
 namespace {

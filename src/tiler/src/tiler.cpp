@@ -1172,8 +1172,7 @@ TileStats Tiler::run() {
     std::mutex stage_mutex;
     uint64_t staged_points = 0;
     if (reread) {
-      // Positions only: counting needs nothing else, and decoding the other fields was a
-      // third of the pass's read time.
+      // Positions only: counting needs nothing else, so the other fields are not decoded.
       read_pass(
           "counting",
           [&](const Input& in, io::PointBatch& batch) {
