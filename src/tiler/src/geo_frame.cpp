@@ -148,9 +148,13 @@ void source_to_local(const EcefTransform& transform, const LocalFrame& frame,
   thread_local std::vector<glm::dvec3> nodes;
   node_of.assign(size_t(nx) * ny, UINT32_MAX);
   nodes.clear();
+  // Points come in scan order, so most fall in the previous point's cell: its nodes are known.
+  uint32_t previous = UINT32_MAX;
   for (size_t i = 0; i < n; ++i) {
     double fx, fy;
     uint32_t c = cell(source[i], fx, fy);
+    if (c == previous) continue;
+    previous = c;
     for (uint32_t k : {c, c + 1, c + nx, c + nx + 1}) {
       if (node_of[k] != UINT32_MAX) continue;
       node_of[k] = uint32_t(nodes.size() / 2);

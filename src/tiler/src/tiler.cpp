@@ -194,8 +194,23 @@ class Tiler {
   void choose_resident_chunks(const std::vector<uint32_t>& counts);
   void distribute(const fs::path& staged, uint64_t count);
   void distribute_in_memory(uint64_t count);
-  uint32_t cell_of(const glm::dvec3& p) const;
-  uint32_t cell_of(const TilePoint& p) const { return cell_of(glm::dvec3(p.x, p.y, p.z)); }
+  // The counting grid's cell of a point: floor((p - min) / size * 2^L) clamped to the grid, per
+  // axis. Inline and without floor's call: every point passes here twice or three times. The
+  // expression is evaluated as it always was (division, not a multiplication by the inverse), so
+  // points on a cell boundary stay in their cell; truncation equals floor once negative values
+  // are clamped to 0 (NaN goes to 0, as the conversion gave before).
+  uint32_t cell_axis(double v, int k) const {
+    double g = (v - cube_min_[k]) / cube_size_ * count_cells_;
+    g = g > 0.0 ? g : 0.0;
+    g = g < count_cells_ - 1 ? g : count_cells_ - 1;
+    return uint32_t(g);
+  }
+  uint32_t cell_of(double x, double y, double z) const {
+    return (cell_axis(z, 2) << (2 * count_level_)) | (cell_axis(y, 1) << count_level_) |
+           cell_axis(x, 0);
+  }
+  uint32_t cell_of(const glm::dvec3& p) const { return cell_of(p.x, p.y, p.z); }
+  uint32_t cell_of(const TilePoint& p) const { return cell_of(p.x, p.y, p.z); }
   // Ends the phase under way (logging its time) and starts `next` (none: the run is over).
   void phase(const char* next) {
     auto now = std::chrono::steady_clock::now();
@@ -242,6 +257,7 @@ class Tiler {
   glm::dvec3 cube_min_{0};
   double cube_size_ = 1, root_spacing_ = 1;
   int count_level_ = 7;
+  double count_cells_ = 128;  // 2^count_level_ cells an axis
   size_t batch_points_ = 1 << 20, chunk_points_ = 0;
   int max_level_ = 24;
   std::unique_ptr<ThreadPool> pool_;
@@ -642,14 +658,6 @@ void Tiler::make_frame_and_cube() {
   // Deep enough for any sane data; bounds recursion on duplicate points.
   max_level_ =
       std::clamp(int(std::ceil(std::log2(size / std::max(content_.precision, 1e-4)))) + 2, 4, 30);
-}
-
-uint32_t Tiler::cell_of(const glm::dvec3& p) const {
-  const double n = double(1u << count_level_);
-  uint32_t c[3];
-  for (int k = 0; k < 3; ++k)
-    c[k] = uint32_t(std::clamp(std::floor((p[k] - cube_min_[k]) / cube_size_ * n), 0.0, n - 1));
-  return (c[2] << (2 * count_level_)) | (c[1] << count_level_) | c[0];
 }
 
 // Every input is cut into ranges of about batch_points_ points (whole LAZ chunks for LAZ) and
@@ -1139,6 +1147,7 @@ TileStats Tiler::run() {
   batch_points_ = std::clamp<uint64_t>(budget / 8 / ((threads + 2) * 170), 4096, 1 << 20);
   count_level_ = 7;
   while (count_level_ > 3 && (uint64_t(1) << (3 * count_level_)) * 8 > budget / 8) --count_level_;
+  count_cells_ = double(1u << count_level_);
   chunk_points_ = std::max<uint64_t>(budget / 4 / (threads * 120), 20000);
   // Staged records and resident chunks (2 x 40 bytes a point) within half the budget.
   in_memory_ = total_points_ * 2 * sizeof(TilePoint) <= budget / 2;
