@@ -26,6 +26,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <cstring>
 #include <deque>
@@ -914,23 +915,45 @@ void Tiler::index_chunk(size_t i) {
 }
 
 void Tiler::build_upper_levels() {
-  while (true) {
-    int deepest = 0;
-    for (auto& [k, f] : pending_roots_) deepest = std::max(deepest, k.level);
-    if (deepest <= part_level_) break;
-    std::map<NodeKey, std::vector<NodeKey>> parents;
-    for (auto& [k, f] : pending_roots_)
-      if (k.level == deepest) parents[k.parent()].push_back(k);
-    std::vector<std::pair<NodeKey, std::vector<NodeKey>>> work(parents.begin(), parents.end());
-    std::map<NodeKey, fs::path> made;
-    std::mutex made_mutex;
-    auto build = [&](size_t w) {
-      const auto& [parent, kids] = work[w];
+  // The nodes above the chunk roots, down to the part level: every root deeper than that is
+  // merged into its parent, and so is every parent made. Kids in key order, as ever.
+  std::map<NodeKey, fs::path> file;  // of every root and every parent to make
+  std::map<NodeKey, std::vector<NodeKey>> kids_of;
+  for (auto& [k, f] : pending_roots_) file[k] = f;
+  for (auto& [k, f] : pending_roots_) {
+    for (NodeKey n = k; n.level > part_level_; n = n.parent()) {
+      const NodeKey p = n.parent();
+      const bool made_before = kids_of.count(p) > 0;
+      kids_of[p].push_back(n);
+      if (made_before) break;  // its ancestors are listed already
+      if (file.count(p)) fail("internal error: chunk root {} lies above another", p.name());
+      file[p] = tmp_ / ("root-" + p.name() + ".bin");
+    }
+  }
+  if (!kids_of.empty()) {
+    // A task graph, not a level at a time: a parent is built as soon as the last of its kids
+    // is, so that no thread waits for a level's slowest parent (at 16 threads and 1,040 chunks,
+    // levels with barriers kept the threads busy 64 % of this phase).
+    std::map<NodeKey, int> waiting;  // kids not made yet
+    std::vector<NodeKey> ready;
+    for (auto& [p, kids] : kids_of) {
+      std::sort(kids.begin(), kids.end());
+      int w = 0;
+      for (const NodeKey& k : kids) w += kids_of.count(k) ? 1 : 0;
+      waiting[p] = w;
+      if (w == 0) ready.push_back(p);
+    }
+    std::mutex mutex;
+    std::condition_variable wake;
+    size_t left = kids_of.size();
+    bool failed = false;
+    auto build = [&](const NodeKey& parent) {
+      const std::vector<NodeKey>& kids = kids_of.at(parent);
       std::vector<size_t> ends;
       std::vector<TilePoint> all;
       for (const NodeKey& k : kids) {
         Profiler::Scope read(&prof_, Step::ReadDecode);
-        std::vector<TilePoint> p = read_points(pending_roots_.at(k));
+        std::vector<TilePoint> p = read_points(file.at(k));
         read.add_bytes(p.size() * sizeof(TilePoint));
         all.insert(all.end(), p.begin(), p.end());
         ends.push_back(all.size());
@@ -946,25 +969,60 @@ void Tiler::build_upper_levels() {
         std::vector<TilePoint> stay;
         for (; at < ends[c]; ++at) (selected[at] ? up : stay).push_back(all[at]);
         write_content(kids[c], stay);
-        fs::remove(pending_roots_.at(kids[c]));
+        fs::remove(file.at(kids[c]));
       }
-      fs::path file = tmp_ / ("root-" + parent.name() + ".bin");
-      {
-        Profiler::Scope write(&prof_, Step::Write, up.size() * sizeof(TilePoint));
-        write_file(file, up.data(), up.size() * sizeof(TilePoint));
-      }
-      std::lock_guard lock(made_mutex);
-      made[parent] = file;
+      Profiler::Scope write(&prof_, Step::Write, up.size() * sizeof(TilePoint));
+      write_file(file.at(parent), up.data(), up.size() * sizeof(TilePoint));
     };
-    // As many parents at once as their nine nodes fit a quarter of the budget: with many
-    // threads and a small budget that is fewer than the pool, never one alone (that made this
-    // the longest serial phase: 5-6 s of 8.5 on 16 threads, 100M points, 1,040 chunks).
-    const uint64_t per_task = 9 * opt_.max_node_points * sizeof(TilePoint) * 2;
-    const size_t lanes = std::clamp<uint64_t>(opt_.max_memory / 4 / per_task, 1,
-                                              std::min<uint64_t>(pool_->size(), work.size()));
-    std::atomic<size_t> next{0};
+    // As many parents at once as their nodes fit a quarter of the budget (that is, with many
+    // threads and a small budget, fewer than the pool; never none, which made this the longest
+    // serial phase: 5-6 s of 8.5 on 16 threads, 100M points, 1,040 chunks). What a parent needs
+    // is known when it is ready: its kids' files, copied twice, and up to the cap it passes up.
+    const uint64_t quarter = opt_.max_memory / 4;
+    auto bytes_for = [&](const NodeKey& parent) {
+      uint64_t b = opt_.max_node_points * sizeof(TilePoint);
+      for (const NodeKey& k : kids_of.at(parent)) {
+        std::error_code ec;
+        const uint64_t size = fs::file_size(file.at(k), ec);
+        b += ec ? opt_.max_node_points * sizeof(TilePoint) : size;
+      }
+      return 2 * b;
+    };
+    uint64_t reserved = 0;
+    size_t running = 0;
+    // A budget that fits one parent of full kids at most runs them here, one at a time.
+    const uint64_t full = 9 * opt_.max_node_points * sizeof(TilePoint) * 2;
+    const size_t lanes =
+        quarter / full <= 1 ? 1 : std::clamp<size_t>(pool_->size(), 1, kids_of.size());
     auto lane = [&](size_t, size_t) {
-      for (size_t w; (w = next.fetch_add(1)) < work.size();) build(w);
+      std::unique_lock lock(mutex);
+      while (true) {
+        uint64_t need = 0;
+        wake.wait(lock, [&] {
+          if (failed || left == 0) return true;
+          if (ready.empty()) return false;
+          need = bytes_for(ready.back());
+          return running == 0 || reserved + need <= quarter;
+        });
+        if (failed || left == 0) return;
+        const NodeKey parent = ready.back();
+        ready.pop_back();
+        reserved += need, ++running;
+        lock.unlock();
+        try {
+          build(parent);
+        } catch (...) {
+          lock.lock();
+          failed = true;
+          wake.notify_all();
+          throw;
+        }
+        lock.lock();
+        reserved -= need, --running, --left;
+        if (parent.level > part_level_ && --waiting.at(parent.parent()) == 0)
+          ready.push_back(parent.parent());
+        wake.notify_all();
+      }
     };
     // One lane runs here: the memory freed by this thread is what it reuses (a worker's malloc
     // arena would keep its own, and a tight budget counts both).
@@ -972,9 +1030,9 @@ void Tiler::build_upper_levels() {
       lane(0, 1);
     else
       pool_->parallel_for(lanes, 1, lane);
-    for (auto& [parent, kids] : work)
-      for (const NodeKey& k : kids) pending_roots_.erase(k);
-    for (auto& [k, f] : made) pending_roots_[k] = f;
+    pending_roots_.clear();
+    for (auto& [k, f] : file)
+      if (k.level <= part_level_) pending_roots_[k] = f;
   }
   if (part_level_ > 0) return;  // the part roots stay raw: write_part keeps them for the merge
   for (auto& [k, f] : pending_roots_) {
