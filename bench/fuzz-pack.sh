@@ -11,6 +11,9 @@
 # build is left out with a warning (FUZZ_PACK_STRICT=1: the script fails instead).
 #   bench/fuzz-pack.sh                                 -> .devpkg/fuzz.tar.xz
 #   FUZZ_PACK_OUT=/tmp/f.tar.xz bench/fuzz-pack.sh fuzz_las fuzz_tiles
+#   STIPPLE_FUZZ_BUILD=build-fuzz-ub STIPPLE_FUZZ_SANITIZERS=undefined bench/fuzz-pack.sh fuzz_tileset
+#     (UBSan and the standard library's bounds checks without ASan: several times the executions
+#     for allocation-heavy parsers; replay its corpus under ASan after, bench/fuzz-replay.sh)
 # On the other machine:
 #   tar xJf fuzz.tar.xz && fuzz/run.sh -j 16 -t 3600
 set -euo pipefail
@@ -31,7 +34,8 @@ if [[ ! -f "$build/build.ninja" ]]; then
   cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
     -DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
-    -DSTIPPLE_SANITIZE=ON -DSTIPPLE_FUZZ=ON >/dev/null
+    -DSTIPPLE_SANITIZE=ON -DSTIPPLE_SANITIZERS="${STIPPLE_FUZZ_SANITIZERS:-address,undefined}" \
+    -DSTIPPLE_FUZZ=ON >/dev/null
 fi
 start=$(date +%s)
 built=()

@@ -13,6 +13,9 @@
 # loaded machine produces too) are left there as well but not counted.
 #   JOBS=2 bench/fuzz.sh 600                 every target, 10 minutes each, two at a time
 #   STIPPLE_FUZZ_BUILD=build-fuzz bench/fuzz.sh 60 fuzz_las   another build directory
+#   STIPPLE_FUZZ_BUILD=build-fuzz-ub STIPPLE_FUZZ_SANITIZERS=undefined bench/fuzz.sh 600 fuzz_tileset
+#                                            without ASan (a new build directory), then replay the
+#                                            corpus under ASan: bench/fuzz-replay.sh
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
@@ -32,7 +35,8 @@ if [[ ! -f "$build/build.ninja" ]]; then
   cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
     -DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
-    -DSTIPPLE_SANITIZE=ON -DSTIPPLE_FUZZ=ON >/dev/null
+    -DSTIPPLE_SANITIZE=ON -DSTIPPLE_SANITIZERS="${STIPPLE_FUZZ_SANITIZERS:-address,undefined}" \
+    -DSTIPPLE_FUZZ=ON >/dev/null
 fi
 cmake --build "$build" --target "${targets[@]}" -- -j"$jobs" |
   { grep -vE "^\[[0-9]+/[0-9]+\] |^ninja: no work|^-- " || true; }
