@@ -51,10 +51,14 @@ class FileSource : public ByteSource {
     fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd_ < 0) fail("{}: cannot open: {}", name, std::strerror(errno));
     struct stat st {};
-    if (::fstat(fd_, &st) != 0 || st.st_size < 0) {
+    if (::fstat(fd_, &st) != 0) {
       const int e = errno;
       ::close(fd_);
       fail("{}: cannot determine the file size: {}", name, std::strerror(e));
+    }
+    if (st.st_size < 0) {
+      ::close(fd_);
+      fail("{}: cannot determine the file size", name);
     }
     size_ = static_cast<uint64_t>(st.st_size);
   }

@@ -935,13 +935,27 @@ void Tiler::build_upper_levels() {
     // is, so that no thread waits for a level's slowest parent (at 16 threads and 1,040 chunks,
     // levels with barriers kept the threads busy 64 % of this phase).
     std::map<NodeKey, int> waiting;  // kids not made yet
-    std::vector<NodeKey> ready;
+    // As many parents at once as their nodes fit a quarter of the budget (that is, with many
+    // threads and a small budget, fewer than the pool; never none, which made this the longest
+    // serial phase: 5-6 s of 8.5 on 16 threads, 100M points, 1,040 chunks). What a parent needs
+    // is known when it is ready: its kids' files, copied twice, and up to the cap it passes up.
+    const uint64_t quarter = opt_.max_memory / 4;
+    auto bytes_for = [&](const NodeKey& parent) {
+      uint64_t b = opt_.max_node_points * sizeof(TilePoint);
+      for (const NodeKey& k : kids_of.at(parent)) {
+        std::error_code ec;
+        const uint64_t size = fs::file_size(file.at(k), ec);
+        b += ec ? opt_.max_node_points * sizeof(TilePoint) : size;
+      }
+      return 2 * b;
+    };
+    std::vector<std::pair<NodeKey, uint64_t>> ready;  // and the bytes each needs
     for (auto& [p, kids] : kids_of) {
       std::sort(kids.begin(), kids.end());
       int w = 0;
       for (const NodeKey& k : kids) w += kids_of.count(k) ? 1 : 0;
       waiting[p] = w;
-      if (w == 0) ready.push_back(p);
+      if (w == 0) ready.emplace_back(p, bytes_for(p));
     }
     std::mutex mutex;
     std::condition_variable wake;
@@ -974,20 +988,6 @@ void Tiler::build_upper_levels() {
       Profiler::Scope write(&prof_, Step::Write, up.size() * sizeof(TilePoint));
       write_file(file.at(parent), up.data(), up.size() * sizeof(TilePoint));
     };
-    // As many parents at once as their nodes fit a quarter of the budget (that is, with many
-    // threads and a small budget, fewer than the pool; never none, which made this the longest
-    // serial phase: 5-6 s of 8.5 on 16 threads, 100M points, 1,040 chunks). What a parent needs
-    // is known when it is ready: its kids' files, copied twice, and up to the cap it passes up.
-    const uint64_t quarter = opt_.max_memory / 4;
-    auto bytes_for = [&](const NodeKey& parent) {
-      uint64_t b = opt_.max_node_points * sizeof(TilePoint);
-      for (const NodeKey& k : kids_of.at(parent)) {
-        std::error_code ec;
-        const uint64_t size = fs::file_size(file.at(k), ec);
-        b += ec ? opt_.max_node_points * sizeof(TilePoint) : size;
-      }
-      return 2 * b;
-    };
     uint64_t reserved = 0;
     size_t running = 0;
     // A budget that fits one parent of full kids at most runs them here, one at a time.
@@ -997,15 +997,12 @@ void Tiler::build_upper_levels() {
     auto lane = [&](size_t, size_t) {
       std::unique_lock lock(mutex);
       while (true) {
-        uint64_t need = 0;
         wake.wait(lock, [&] {
-          if (failed || left == 0) return true;
-          if (ready.empty()) return false;
-          need = bytes_for(ready.back());
-          return running == 0 || reserved + need <= quarter;
+          return failed || left == 0 ||
+                 (!ready.empty() && (running == 0 || reserved + ready.back().second <= quarter));
         });
         if (failed || left == 0) return;
-        const NodeKey parent = ready.back();
+        const auto [parent, need] = ready.back();
         ready.pop_back();
         reserved += need, ++running;
         lock.unlock();
@@ -1020,7 +1017,7 @@ void Tiler::build_upper_levels() {
         lock.lock();
         reserved -= need, --running, --left;
         if (parent.level > part_level_ && --waiting.at(parent.parent()) == 0)
-          ready.push_back(parent.parent());
+          ready.emplace_back(parent.parent(), bytes_for(parent.parent()));
         wake.notify_all();
       }
     };
