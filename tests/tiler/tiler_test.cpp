@@ -196,12 +196,13 @@ Tileset read_tileset(const fs::path& dir, double tol) {
 }
 
 // Source points of a LAS file in ECEF (PROJ, as the tiler's own EcefTransform does).
-std::vector<Decoded> source_ecef(const fs::path& las) {
+// Every point of `las` in ECEF, through its CRS or `crs` (the tiler's --crs) when given.
+std::vector<Decoded> source_ecef(const fs::path& las, const std::string& crs = "") {
   io::LasReader reader(las);
   io::PointBatch batch;
   while (reader.read(batch, 1 << 16) > 0) {
   }
-  tiler::EcefTransform t(tiler::source_crs_definition(reader.header(), ""));
+  tiler::EcefTransform t(tiler::source_crs_definition(reader.header(), crs));
   std::vector<glm::dvec3> p = batch.positions;
   t.transform(p.data(), p.size());
   std::vector<Decoded> out(p.size());
@@ -377,19 +378,41 @@ TEST_P(TilerOutOfCore, ChunksLoseAndDuplicateNothing) {
   ASSERT_EQ(ts.points.size(), 400000u);
   EXPECT_EQ(ts.outside, 0u);
   expect_spacing_halves(ts);
-  tiler::EcefTransform t("EPSG:32633");
-  io::LasReader reader(las);
-  io::PointBatch b;
-  while (reader.read(b, 1 << 16) > 0) {
-  }
-  std::vector<glm::dvec3> p = b.positions;
-  t.transform(p.data(), p.size());
-  std::vector<Decoded> src(p.size());
-  for (size_t i = 0; i < p.size(); ++i) src[i] = {p[i], {}, b.intensity[i], b.classification[i]};
-  EXPECT_EQ(count_matched(src, ts.points, 0.001), 400000u);
+  EXPECT_EQ(count_matched(source_ecef(las, "EPSG:32633"), ts.points, 0.001), 400000u);
 }
 
 INSTANTIATE_TEST_SUITE_P(Tiler, TilerOutOfCore, testing::Values("las", "laz"));
+
+// The upper levels as a task graph (issue 22): with a cap small enough for several parents to
+// fit the budget at once, the parents above the chunk roots are built on the workers, and every
+// point ends in exactly one tile inside its box, with the spacing halving level by level. (Which
+// points a parent keeps is not compared with one thread's: with a cap this small most nodes
+// hold more cells than the cap, and the even subset then kept follows the order in which the
+// distribution appended the points, which the threads decide.)
+TEST(Tiler, UpperLevelsBuiltOnTheWorkersLoseNothing) {
+  fs::path las = generated_las(400000, "gen400k.las");
+  tiler::TileOptions o;
+  o.inputs = {las.string()};
+  o.output = (temp_dir() / "gen_upper_levels").string();
+  o.crs = "EPSG:32633";
+  o.max_memory = 4 << 20;
+  o.max_node_points = 500;  // a parent of full kids needs 360 kB: two fit the budget's quarter
+  o.threads = 4;
+  tiler::TileStats s = tiler::build_tileset(o);
+  EXPECT_GT(s.chunks, 8u);
+  const auto upper = std::find_if(s.phases.begin(), s.phases.end(),
+                                  [](const auto& p) { return p.name == "upper levels"; });
+  ASSERT_NE(upper, s.phases.end());
+  ASSERT_EQ(upper->thread_cpu.size(), 5u);
+  double workers = 0;
+  for (size_t t = 1; t < upper->thread_cpu.size(); ++t) workers += upper->thread_cpu[t];
+  EXPECT_GT(workers, 0.0) << "the upper levels ran on the calling thread only";
+  Tileset ts = read_tileset(o.output, 0.001);
+  ASSERT_EQ(ts.points.size(), 400000u);
+  EXPECT_EQ(ts.outside, 0u);
+  expect_spacing_halves(ts);
+  EXPECT_EQ(count_matched(source_ecef(las, "EPSG:32633"), ts.points, 0.001), 400000u);
+}
 
 // Split tiling: N parts (--subset I/N) merged hold every source point exactly once, with the
 // spacing rules of one run, on each reading path (in memory; out of core re-read LAS and staged
