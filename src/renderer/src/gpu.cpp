@@ -569,7 +569,8 @@ TextureView create_view(const Texture& texture) {
 }
 
 ShaderModule create_shader(Context& ctx, std::string_view wgsl, std::string_view label,
-                           const std::function<std::string(std::string_view)>& map_message) {
+                           const std::function<std::string(std::string_view)>& map_message,
+                           bool trusted) {
   WGPUShaderSourceWGSL source = WGPU_SHADER_SOURCE_WGSL_INIT;
   source.code = to_view(wgsl);
   WGPUShaderModuleDescriptor desc = WGPU_SHADER_MODULE_DESCRIPTOR_INIT;
@@ -581,12 +582,15 @@ ShaderModule create_shader(Context& ctx, std::string_view wgsl, std::string_view
     std::string message;
   } scope;
   wgpuDevicePushErrorScope(ctx.device.get(), WGPUErrorFilter_Validation);
-  // STIPPLE_SHADER_CHECKS=off (wgpu-native only): our shaders without naga's inserted bounds
-  // checks, to measure what they cost (bench raster); the driver's robust buffer access stays.
-  static const bool unchecked = [] {
+  // STIPPLE_SHADER_CHECKS=off / on (wgpu-native only): every shader without naga's inserted
+  // bounds checks, or every shader with them (trusted ones too); the driver's robust buffer
+  // access stays either way.
+  static const int checks = [] {
     const char* env = std::getenv("STIPPLE_SHADER_CHECKS");
-    return env && std::string_view(env) == "off";
+    if (!env) return 0;
+    return std::string_view(env) == "off" ? -1 : std::string_view(env) == "on" ? 1 : 0;
   }();
+  const bool unchecked = checks < 0 || (checks == 0 && trusted);
   ShaderModule module(unchecked && has_proc("wgpuDeviceCreateShaderModuleTrusted")
                           ? wgpuDeviceCreateShaderModuleTrusted(ctx.device.get(), &desc,
                                                                 WGPUShaderRuntimeChecks_None)

@@ -283,11 +283,11 @@ std::string map_shader_message(const PreprocessedShader& shader, std::string_vie
 }
 
 ShaderModule create_shader_from_file(Context& ctx, std::string_view path, const ShaderFiles& files,
-                                     const PreprocessOptions& options) {
+                                     const PreprocessOptions& options, bool trusted) {
   PreprocessedShader shader = preprocess_shader(path, files, options);
-  return create_shader(ctx, shader.code, path, [&](std::string_view message) {
-    return map_shader_message(shader, message);
-  });
+  return create_shader(
+      ctx, shader.code, path,
+      [&](std::string_view message) { return map_shader_message(shader, message); }, trusted);
 }
 
 }  // namespace stipple::gpu

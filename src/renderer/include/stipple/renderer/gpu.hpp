@@ -131,8 +131,15 @@ Texture create_texture_2d(Context& ctx, uint32_t width, uint32_t height, WGPUTex
 TextureView create_view(const Texture& texture);
 // Compiles WGSL; throws stipple::Error with the compiler's messages (file:line:column) on failure,
 // passed through map_message when given (preprocessed sources map lines back to their files).
+// `trusted`: a shader of ours whose indices are in range by construction, compiled without
+// naga's inserted bounds checks where the implementation allows it (wgpu-native's
+// wgpuDeviceCreateShaderModuleTrusted; the driver's robust buffer access stays). The compute
+// rasterizer's batch passes are bound by the instructions they issue a point, and the checks
+// are about a tenth of them. STIPPLE_SHADER_CHECKS=on keeps the checks everywhere, =off drops
+// them everywhere.
 ShaderModule create_shader(Context& ctx, std::string_view wgsl, std::string_view label,
-                           const std::function<std::string(std::string_view)>& map_message = {});
+                           const std::function<std::string(std::string_view)>& map_message = {},
+                           bool trusted = false);
 
 // Queues a write of `size` bytes at `offset` (a multiple of 4); `data` may be freed on return. A
 // size that is not a multiple of 4 is padded with zeros to the next one, which the buffer must

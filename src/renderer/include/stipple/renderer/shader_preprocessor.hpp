@@ -65,9 +65,10 @@ std::optional<SourceLocation> map_shader_line(const PreprocessedShader& shader, 
 // "┌─ wgsl:12:5") to "file:line:column" of the original sources.
 std::string map_shader_message(const PreprocessedShader& shader, std::string_view message);
 
-// Preprocesses and compiles `path`; compile errors name the original file and line.
+// Preprocesses and compiles `path`; compile errors name the original file and line. `trusted`:
+// as create_shader's.
 ShaderModule create_shader_from_file(Context& ctx, std::string_view path,
                                      const ShaderFiles& files = default_shader_files(),
-                                     const PreprocessOptions& options = {});
+                                     const PreprocessOptions& options = {}, bool trusted = false);
 
 }  // namespace stipple::gpu
