@@ -84,11 +84,29 @@ fn write_key(pixel: u32, key: u64) {
   atomicMin(&visibility[pixel], key);
 }
 
+// The atomic of write_key alone (the lean loop's cache has done the early test).
+fn write_key_atomic(pixel: u32, key: u64) {
+  atomicMin(&visibility[pixel], key);
+}
+
 #include "compute_raster_write.wgsl"
 
 @compute @workgroup_size(WORKGROUP)
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
         @builtin(local_invocation_index) lid: u32) {
+  if (BATCHES_PER_GROUP > 1u) {
+    let stride = groups.x * groups.y;
+    for (var j = 0u; j < BATCHES_PER_GROUP; j++) {
+      let batch = batch_index(group, groups) + j * stride;
+      let bits = batch_prologue(batch, lid);
+      if (lean_batch(bits)) {
+        draw_batch_lean(batches[batch], lid);
+      } else if (bits != 0u) {
+        draw_batch_points(batches[batch], bits, lid);
+      }
+    }
+    return;
+  }
   let batch = batch_index(group, groups);
   let bits = batch_prologue(batch, lid);
   if (bits == 0u) {
@@ -109,6 +127,10 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups
         write_key(tile_pixel(i), (u64(depth) << 32u) | u64(atomicLoad(&tile_index[i])));
       }
     }
+    return;
+  }
+  if (lean_batch(bits)) {
+    draw_batch_lean(b, lid);
     return;
   }
   draw_batch_points(b, bits, lid);

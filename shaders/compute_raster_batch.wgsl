@@ -58,6 +58,28 @@ fn batch_index(group: vec3<u32>, groups: vec3<u32>) -> u32 {
   return group.y * groups.x + group.x;
 }
 
+// The batch's screen matrix as the passes use it.
+fn prologue_matrix(b: GpuBatch, bits: u32) -> mat4x4<f32> {
+  var m = batch_screen_matrix(params, b, bits);
+  if (FAST_CONVERT) {
+    // Half a pixel less in x and y: rounding to the nearest then gives the floor.
+    for (var j = 0u; j < 4u; j++) {
+      m[j].x -= 0.5 * m[j].w;
+      m[j].y -= 0.5 * m[j].w;
+    }
+  }
+  return m;
+}
+
+// PARALLEL_PROLOGUE: see batch_prologue. BATCHES_PER_GROUP (the depth passes without TILE; needs
+// PARALLEL_PROLOGUE): each workgroup draws that many batches, a grid stride apart, so that
+// fewer workgroups start and end.
+override PARALLEL_PROLOGUE: bool = false;
+override BATCHES_PER_GROUP: u32 = 1u;
+// LEAN: the depth passes' lean loop (compute_raster_write.wgsl), for which the prologue also
+// finds whether the batch lies inside the view.
+override LEAN: bool = true;
+
 // How every geometry pass starts: thread 0 classifies the workgroup's batch (frustum, LOD,
 // precision) and reports it to count_batch(), which the including shader defines (counters, or
 // nothing); then every thread gets the precision in bits, 0 when the batch is culled or skipped
@@ -66,21 +88,30 @@ fn batch_prologue(group: u32, lid: u32) -> u32 {
   if (group >= params.batch_count) {
     return 0u;
   }
+  if (PARALLEL_PROLOGUE) {
+    // Every thread classifies the batch and makes its matrix (the same values from the same
+    // uniform data): no thread waits on thread 0's serial work, and no barrier.
+    let b = batches[group];
+    var skipped = false;
+    let bits = classify(params, b, &skipped);
+    if (lid == 0u) {
+      count_batch(b, bits, skipped);
+    }
+    if (bits == 0u) {
+      return 0u;
+    }
+    to_screen = prologue_matrix(b, bits);
+    batch_inside = (UNCLIPPED || LEAN) && box_inside(to_screen);
+    return bits;
+  }
   if (lid == 0u) {
     let b = batches[group];
     var skipped = false;
     let bits = classify(params, b, &skipped);
-    var m = batch_screen_matrix(params, b, bits);
-    if (FAST_CONVERT) {
-      // Half a pixel less in x and y: rounding to the nearest then gives the floor.
-      for (var j = 0u; j < 4u; j++) {
-        m[j].x -= 0.5 * m[j].w;
-        m[j].y -= 0.5 * m[j].w;
-      }
-    }
+    let m = prologue_matrix(b, bits);
     batch_matrix = m;
     batch_bits = bits;
-    if (UNCLIPPED && bits != 0u && box_inside(m)) {
+    if ((UNCLIPPED || LEAN) && bits != 0u && box_inside(m)) {
       batch_bits = bits | BATCH_INSIDE;
     }
     count_batch(b, bits, skipped);

@@ -4,7 +4,13 @@
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
 
 // Called by batch_prologue() on thread 0.
+// A measurement only (wrong counters): COUNT off leaves the batch counters' atomics out.
+override COUNT: bool = true;
+
 fn count_batch(b: GpuBatch, bits: u32, skipped: bool) {
+  if (!COUNT) {
+    return;
+  }
   atomicAdd(&counters[C_PROCESSED], 1u);
   if (bits == 0u) {
     atomicAdd(&counters[select(C_CULLED, C_LOD_SKIPPED, skipped)], 1u);

@@ -13,7 +13,7 @@
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> visibility: array<u32>;
 @group(0) @binding(2) var<storage, read> colors: array<u32>;
-@group(0) @binding(3) var<storage, read_write> accum: array<u32>;
+@group(0) @binding(3) var<storage, read_write> accum: array<vec4<u32>>;  // r, g, b, count
 
 @group(0) @binding(4) var<storage, read> batches: array<GpuBatch>;
 @group(0) @binding(5) var<storage, read> coarse: array<vec4<u32>>;  // four points a word
@@ -45,11 +45,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
   }
   let pixel = id.y * params.width + id.x;
   let depth_bits = visibility[pixel * 2u + 1u];
-  if (depth_bits == 0xffffffffu) {
-    return;  // empty
-  }
   let local_index = visibility[pixel * 2u] - params.segment_base;  // wraps when below
-  if (local_index >= params.segment_points) {
+  if (depth_bits == 0xffffffffu || local_index >= params.segment_points) {
+    // Empty, or another segment's point: the first segment's dispatch writes the empty pixel
+    // (the clear pass leaves this buffer alone), a later segment's overwrites it.
+    if (params.segment_base == 0u) {
+      accum[pixel] = vec4<u32>(0u);
+    }
     return;
   }
   // Highlight needs the position too: is the visible point inside the clip region?
@@ -63,9 +65,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     color = highlighted(color);
   }
   let c = channels(color);
-  let o = pixel * 4u;
-  accum[o] = c.x;
-  accum[o + 1u] = c.y;
-  accum[o + 2u] = c.z;
-  accum[o + 3u] = 1u;
+  accum[pixel] = vec4<u32>(c, 1u);
 }

@@ -56,3 +56,184 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   run_key = key;
 }
 
+
+// LEAN: the depth passes' loop for the common case, a 10-bit batch with no filter, no merging
+// and no subgroup reduction (lean_batch), written for the fewest instructions a point: no
+// precision or filter branches inside the loop, one range test per 16-byte word instead of two
+// per point, the viewport's size converted once, and in a batch that lies inside the view
+// (batch_inside: box_inside, a pixel to spare and in front of the near plane) no clipping tests
+// and no z at all. The pass is bound by the instructions it issues a point (bench/RESULTS.md);
+// the keys, and so the image, are the ones draw_point makes. (LEAN: compute_raster_batch.wgsl.)
+
+fn lean_batch(bits: u32) -> bool {
+  return LEAN && bits == 10u && PREFETCH && !CONTIGUOUS && !MERGE &&
+         !SUBGROUP_REDUCE && ABLATE_LOAD == false && filters.flags == 0u;
+}
+
+var<private> lean_size: vec2<f32>;
+
+// One 10-bit point: `inside` is a literal at every call, so each loop keeps only its own tests.
+fn lean_point(v: u32, index: u32, inside: bool) {
+  let q = unpack10(v);
+  let m = to_screen;
+  let c = m[3] + m[0] * q.x + m[1] * q.y + m[2] * q.z;
+  if (!inside && (c.w <= 0.0 || c.z > c.w)) {
+    return;
+  }
+  let s = c.xy * (1.0 / c.w);
+  var xy: vec2<u32>;
+  if (FAST_CONVERT) {
+    xy = bitcast<vec2<u32>>(s + 12582912.0) - vec2<u32>(0x4b400000u);
+    if (!inside && (xy.x >= params.width || xy.y >= params.height)) {
+      return;
+    }
+  } else {
+    if (!inside && (s.x < 0.0 || s.y < 0.0 || s.x >= lean_size.x || s.y >= lean_size.y)) {
+      return;
+    }
+    xy = vec2<u32>(s);
+  }
+  lean_write(xy.y * params.width + xy.x, bitcast<u32>(c.w), index);
+}
+
+// LEAN_CACHE: a thread keeps the last pixel it tested and a depth the buffer holds there or
+// nearer (the buffer's depths only decrease during the pass), so a farther point on the same
+// pixel is dropped without loading the buffer again. At overview distances a word's four points
+// mostly share a pixel. Points it drops would lose the early test anyway: the same image. Off:
+// 7 % slower on the H200 (its branches cost more than the loads it saves).
+override LEAN_CACHE: bool = false;
+var<private> cache_pixel: u32 = 0xffffffffu;
+var<private> cache_depth: u32;
+
+fn lean_write(pixel: u32, depth: u32, index: u32) {
+  if (!LEAN_CACHE || ABLATE != 0u) {
+    write_key(pixel, point_key(depth, index));
+    return;
+  }
+  if (pixel == cache_pixel && depth > cache_depth) {
+    return;
+  }
+  let held = depth_word(pixel);
+  cache_pixel = pixel;
+  if (depth > held) {
+    cache_depth = held;
+    return;
+  }
+  cache_depth = depth;
+  write_key_atomic(pixel, point_key(depth, index));
+}
+
+// LEAN_RUNS: in a word of four points inside the view, points in a row on one pixel write once,
+// the nearest key of the run: consecutive points of a sorted batch mostly share a pixel at
+// overview distances, and each write is an early test's load (and maybe an atomic) that the
+// others skip. The same keys reach the buffer, so the image is the same. Off: 4-6 % slower on
+// the H200 (the run logic costs more than the loads it saves).
+override LEAN_RUNS: bool = false;
+
+struct LeanHit {
+  pixel: u32,
+  key: Key,
+}
+
+// A point of a batch inside the view (no clipping tests): its pixel and key.
+fn lean_hit(v: u32, index: u32) -> LeanHit {
+  let q = unpack10(v);
+  let m = to_screen;
+  let c = m[3] + m[0] * q.x + m[1] * q.y + m[2] * q.z;
+  let s = c.xy * (1.0 / c.w);
+  var xy: vec2<u32>;
+  if (FAST_CONVERT) {
+    xy = bitcast<vec2<u32>>(s + 12582912.0) - vec2<u32>(0x4b400000u);
+  } else {
+    xy = vec2<u32>(s);
+  }
+  return LeanHit(xy.y * params.width + xy.x, point_key(bitcast<u32>(c.w), index));
+}
+
+// Adds `h` to the run (`run`: the pixel and nearest key so far), writing the run out when `h`
+// starts another pixel.
+fn lean_run(run: ptr<function, LeanHit>, h: LeanHit) {
+  if (h.pixel != (*run).pixel) {
+    write_key((*run).pixel, (*run).key);
+    *run = h;
+  } else if (key_less(h.key, (*run).key)) {
+    (*run).key = h.key;
+  }
+}
+
+// The four points of word `v` (points 4v..4v+3) that lie in [lo, end).
+fn lean_word(c: vec4<u32>, v: u32, lo: u32, end: u32, inside: bool) {
+  let first = v * 4u;
+  if (LEAN_RUNS && inside && first >= lo && first + 4u <= end) {
+    var run = lean_hit(c.x, first);
+    lean_run(&run, lean_hit(c.y, first + 1u));
+    lean_run(&run, lean_hit(c.z, first + 2u));
+    lean_run(&run, lean_hit(c.w, first + 3u));
+    write_key(run.pixel, run.key);
+    return;
+  }
+  if (first >= lo && first + 4u <= end) {
+    lean_point(c.x, first, inside);
+    lean_point(c.y, first + 1u, inside);
+    lean_point(c.z, first + 2u, inside);
+    lean_point(c.w, first + 3u, inside);
+    return;
+  }
+  for (var k = 0u; k < 4u; k++) {
+    if (first + k >= lo && first + k < end) {
+      lean_point(c[k], first + k, inside);
+    }
+  }
+}
+
+// The words wholly inside the batch take no range test; the partial first and last ones (at
+// most two a batch) are drawn by threads 0 and 1 after them.
+fn draw_batch_lean(b: GpuBatch, lid: u32) {
+  lean_size = vec2<f32>(f32(params.width), f32(params.height));
+  let lo = b.first;
+  let end = b.first + b.count;
+  let full_end = end / 4u;
+  if (PREFETCH_WORDS > 1u) {
+    // Two words a thread in flight before either is drawn.
+    for (var v = (lo + 3u) / 4u + lid; v < full_end; v += 2u * WORKGROUP) {
+      let v2 = v + WORKGROUP;
+      let c = coarse[v];
+      var c2 = vec4<u32>(0u);
+      if (v2 < full_end) {
+        c2 = coarse[v2];
+      }
+      if (batch_inside) {
+        lean_word(c, v, lo, end, true);
+        if (v2 < full_end) {
+          lean_word(c2, v2, lo, end, true);
+        }
+      } else {
+        lean_word(c, v, lo, end, false);
+        if (v2 < full_end) {
+          lean_word(c2, v2, lo, end, false);
+        }
+      }
+    }
+  } else if (batch_inside) {
+    for (var v = (lo + 3u) / 4u + lid; v < full_end; v += WORKGROUP) {
+      lean_word(coarse[v], v, lo, end, true);
+    }
+  } else {
+    for (var v = (lo + 3u) / 4u + lid; v < full_end; v += WORKGROUP) {
+      lean_word(coarse[v], v, lo, end, false);
+    }
+  }
+  var part = 0xffffffffu;
+  if (lid == 0u && (lo & 3u) != 0u) {
+    part = lo / 4u;
+  } else if (lid == 1u && (end & 3u) != 0u && (end / 4u != lo / 4u || (lo & 3u) == 0u)) {
+    part = end / 4u;
+  }
+  if (part != 0xffffffffu) {
+    if (batch_inside) {
+      lean_word(coarse[part], part, lo, end, true);
+    } else {
+      lean_word(coarse[part], part, lo, end, false);
+    }
+  }
+}

@@ -159,6 +159,18 @@ void run_raster_bench(const RasterArgs& args) {
   add("tile", [](Variant& v) { v.kernel.tile = true; });
   add("fast", [](Variant& v) { v.kernel.fast_convert = true; });  // no conversion instructions
   add("unclipped", [](Variant& v) { v.kernel.unclipped = true; });
+  add("no-lean", [](Variant& v) { v.kernel.lean = false; });
+  add("runs", [](Variant& v) { v.kernel.lean_runs = true; });
+  add("cache", [](Variant& v) { v.kernel.lean_cache = true; });
+  add("no-cache", [](Variant& v) { v.kernel.lean_cache = false; });
+  add("checked", [](Variant& v) { v.kernel.trusted = false; });
+  add("parallel", [](Variant& v) { v.kernel.parallel_prologue = true; });
+  for (uint32_t k : {2u, 4u, 8u, 16u})
+    add("group" + std::to_string(k), [k](Variant& v) {
+      v.kernel.parallel_prologue = true;
+      v.kernel.batches_per_group = k;
+    });
+  add("no-count", [](Variant& v) { v.kernel.ablate_count = true; });
   add("shaded-sums", [](Variant& v) { v.kernel.hqs_raw_rgb = false; });  // RGB sums via floats
   // Subgroup reduction of the points on one pixel (devices with subgroups, else the default).
   add("subgroup", [](Variant& v) { v.kernel.subgroup_reduce = true; });
@@ -430,12 +442,13 @@ void add_bench_raster_command(CLI::App& bench) {
          "Only these variants (compute-basic, compute-precision, merge, contiguous, "
          "prefetch, prefetch2, scalar, sums-scalar, sums-strided, sums-contiguous, sums-wg64, "
          "sums-wg128, sums-wg256, sums-wg512, sums-wg1024, atomic-early, wg64, wg256, tile, "
-         "subgroup, fast, unclipped, "
+         "subgroup, fast, unclipped, no-lean, runs, cache, no-cache, checked, parallel, group2, "
+         "group4, group8, group16, "
          "shaded-sums, compute-hqs, "
          "hqs-no-tile, hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
          "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, "
          "dilate-3px, billboard-1px; measurements with wrong images: no-atomic, "
-         "no-write, no-load, no-sums); a+b combines them, e.g. prefetch2+wg256")
+         "no-write, no-load, no-sums, no-count); a+b combines them, e.g. prefetch2+wg256")
       ->delimiter(',');
   cmd->add_flag("!--no-billboard", args->billboard, "Skip the billboard variant (saves 16 B/pt)");
   cmd->add_option("--seed", args->seed, "Scene seed")->capture_default_str();

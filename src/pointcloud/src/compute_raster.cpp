@@ -86,8 +86,10 @@ void dispatch_batches(WGPUComputePassEncoder pass, WGPUComputePipeline pipeline,
 }
 
 gpu::ComputePipeline make_compute(gpu::Context& ctx, const char* file,
-                                  std::span<const gpu::PipelineConstant> constants = {}) {
-  gpu::ShaderModule shader = gpu::create_shader_from_file(ctx, file);
+                                  std::span<const gpu::PipelineConstant> constants = {},
+                                  bool trusted = false) {
+  gpu::ShaderModule shader =
+      gpu::create_shader_from_file(ctx, file, gpu::default_shader_files(), {}, trusted);
   gpu::ComputePipeline pipeline =
       gpu::create_compute_pipeline(ctx, shader.get(), "main", nullptr, file, constants);
   ctx.check(file);
@@ -111,7 +113,18 @@ std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, 
   // Both passes of a frame project the same way, so that a point's pixel and depth agree.
   c.push_back({"FAST_CONVERT", kernel.fast_convert ? 1.0 : 0.0});
   c.push_back({"UNCLIPPED", kernel.unclipped ? 1.0 : 0.0});
+  const bool grouped = geometry && kernel.batches_per_group > 1;
+  if (grouped && (kernel.tile || !kernel.parallel_prologue))
+    fail("compute rasterizer: batches_per_group needs parallel_prologue and no tile");
+  c.push_back({"PARALLEL_PROLOGUE", kernel.parallel_prologue ? 1.0 : 0.0});
+  c.push_back({"LEAN", geometry && kernel.lean ? 1.0 : 0.0});
   if (geometry) {
+    c.push_back({"LEAN_RUNS", kernel.lean_runs ? 1.0 : 0.0});
+    c.push_back({"LEAN_CACHE", kernel.lean_cache ? 1.0 : 0.0});
+  }
+  c.push_back({"BATCHES_PER_GROUP", grouped ? double(kernel.batches_per_group) : 1.0});
+  if (geometry) {
+    c.push_back({"COUNT", kernel.ablate_count ? 0.0 : 1.0});
     c.push_back({"PLAIN_EARLY", kernel.plain_early ? 1.0 : 0.0});
     c.push_back({"SUBGROUP_REDUCE", kernel.subgroup_reduce ? 1.0 : 0.0});
     c.push_back({"ABLATE", double(kernel.ablate)});
@@ -242,6 +255,8 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   p.color_format = color_format;
   p.kernel = kernel;
   p.clear = make_compute(ctx, "compute_raster_clear.wgsl");
+  const gpu::PipelineConstant depth_only[] = {{"CLEAR_ACCUM", 0.0}};
+  p.clear_depth = make_compute(ctx, "compute_raster_clear.wgsl", depth_only);
   RasterKernel geometry_kernel = kernel;
   geometry_kernel.subgroup_reduce =
       kernel.subgroup_reduce && p.visibility64 && !kernel.merge && has_subgroups(ctx);
@@ -251,20 +266,20 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
     p.raster64 = make_compute(ctx,
                               geometry_kernel.subgroup_reduce ? "compute_raster64_subgroups.wgsl"
                                                               : "compute_raster64.wgsl",
-                              geometry);
+                              geometry, kernel.trusted);
     p.resolve = make_compute(ctx, "compute_raster_resolve.wgsl");
   } else {
-    p.depth32 = make_compute(ctx, "compute_raster_depth32.wgsl", geometry);
+    p.depth32 = make_compute(ctx, "compute_raster_depth32.wgsl", geometry, kernel.trusted);
   }
-  p.accumulate =
-      make_compute(ctx, "compute_raster_accumulate.wgsl", kernel_constants(kernel, false));
+  p.accumulate = make_compute(ctx, "compute_raster_accumulate.wgsl",
+                              kernel_constants(kernel, false), kernel.trusted);
   // The fallback's plain colour pass (the nearest points only) without the tile, which made it
   // 7 % slower on the H200 while it made HQS 1.8x faster (bench/RESULTS.md).
   if (!p.visibility64 && kernel.hqs_tile) {
     RasterKernel plain = kernel;
     plain.hqs_tile = false;
-    p.accumulate_plain =
-        make_compute(ctx, "compute_raster_accumulate.wgsl", kernel_constants(plain, false));
+    p.accumulate_plain = make_compute(ctx, "compute_raster_accumulate.wgsl",
+                                      kernel_constants(plain, false), kernel.trusted);
   }
   p.hqs_finish = make_compute(ctx, "compute_raster_hqs_finish.wgsl");
 
@@ -389,20 +404,23 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
 
   graph
       .add_pass("raster-clear", gpu::PassKind::Compute,
-                [&p, &cloud, upload_frame, depth_name, accum_name, groups_x,
-                 groups_y](gpu::PassContext& pc) {
+                [&p, &cloud, upload_frame, depth_name, accum_name, groups_x, groups_y,
+                 accumulate](gpu::PassContext& pc) {
                   gpu::Context& ctx = pc.gpu();
                   upload_frame(ctx);
                   wgpuCommandEncoderClearBuffer(pc.encoder(), p.counters.get(), 0, WGPU_WHOLE_SIZE);
                   if (cloud.segments.empty()) return;
-                  auto layout = gpu::bind_group_layout_of(p.clear);
+                  // Without accumulation the resolve pass writes every pixel of the colour sums
+                  // (empty ones too): only the depth buffer needs clearing, a third of the bytes.
+                  const gpu::ComputePipeline& clear = accumulate ? p.clear : p.clear_depth;
+                  auto layout = gpu::bind_group_layout_of(clear);
                   auto group =
                       gpu::create_bind_group(ctx, layout.get(),
                                              {gpu::bind_buffer(0, cloud.segments[0].params.get()),
                                               gpu::bind_buffer(1, pc.buffer(depth_name)),
                                               gpu::bind_buffer(2, pc.buffer(accum_name))});
                   auto pass = pc.begin_compute_pass();
-                  gpu::dispatch(pass.get(), p.clear.get(), {group.get()}, groups_x, groups_y);
+                  gpu::dispatch(pass.get(), clear.get(), {group.get()}, groups_x, groups_y);
                   wgpuComputePassEncoderEnd(pass.get());
                 })
       .create_buffer(depth_name, {pixels * (use64 ? 8 : 4), WGPUBufferUsage_Storage})
@@ -438,9 +456,10 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                     groups.push_back(gpu::create_bind_group(ctx, layout.get(), bindings));
                   }
                   auto pass = pc.begin_compute_pass();
+                  const uint32_t per_group = std::max(1u, p.kernel.batches_per_group);
                   for (size_t s = 0; s < cloud.segments.size(); ++s)
                     dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
-                                     cloud.segments[s].batch_count);
+                                     (cloud.segments[s].batch_count + per_group - 1) / per_group);
                   wgpuComputePassEncoderEnd(pass.get());
                 })
       .write(depth_name);

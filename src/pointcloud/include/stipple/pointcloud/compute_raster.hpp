@@ -119,6 +119,31 @@ struct RasterKernel {
   // HQS sums (and the fallback's colours) in the RGB mode from the colour's bytes, not shaded
   // through floats: the same sums, HQS 1.13x faster on the H200 (bench/RESULTS.md, run Q).
   bool hqs_raw_rgb = true;
+  // The depth passes' lean loop for 10-bit batches without filters (compute_raster_write.wgsl):
+  // no precision, filter or per-point range branches, and no clipping tests in batches inside
+  // the view. The pass issued about 100 instructions a point (the driver's SASS), the lean loop
+  // about 50: 1.67x faster on the H200 (bench/RESULTS.md, runs T-X).
+  bool lean = true;
+  // In the lean loop, a word's points in a row on one pixel write once (their nearest key):
+  // measured 4-6 % slower on the H200 (the run logic costs more than the loads it saves).
+  bool lean_runs = false;
+  // In the lean loop, each thread remembers its last pixel and a depth the buffer holds there,
+  // and drops farther points on it without loading the buffer: 7 % slower on the H200.
+  bool lean_cache = false;
+  // The batch passes compiled without naga's bounds checks (gpu::create_shader's `trusted`;
+  // wgpu-native): their indices are in range by construction (batch ranges checked on upload,
+  // pixels clipped to the viewport, tile entries bounded). 1.06x faster depth pass, 1.23x
+  // faster HQS accumulation on the H200.
+  bool trusted = true;
+  // Every thread of a batch's workgroup classifies the batch and makes its screen matrix
+  // itself, instead of thread 0 for all behind a barrier: 3.5 % slower on the H200 (the barrier
+  // costs less than the instructions it saves).
+  bool parallel_prologue = false;
+  // The depth passes (without `tile`; needs parallel_prologue): batches a workgroup draws, a
+  // grid stride apart (fewer workgroups to start and end): 2-17 % slower for 2-16.
+  uint32_t batches_per_group = 1;
+  // A measurement only (wrong counters): the depth passes without the batch counters' atomics.
+  bool ablate_count = false;
   // A measurement only (wrong images): 1 leaves the 64-bit depth pass's atomics out, 2 also its
   // early depth tests (bench raster's no-atomic and no-write variants).
   uint32_t ablate = 0;
@@ -141,6 +166,8 @@ struct ComputeRasterPipeline {
   RasterKernel kernel;
   WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
   gpu::ComputePipeline clear, raster64, depth32, accumulate, resolve, hqs_finish;
+  // The clear without the accumulation buffer (the resolve pass writes all of it).
+  gpu::ComputePipeline clear_depth;
   gpu::ComputePipeline accumulate_plain;  // the fallback's colours without HQS, where it differs
   gpu::RenderPipeline display;
   // The display as a compute pass (RGBA8Unorm targets with storage usage); null otherwise.
