@@ -122,7 +122,7 @@ struct RasterKernel {
   // The depth passes' lean loop for 10-bit batches without filters (compute_raster_write.wgsl):
   // no precision, filter or per-point range branches, and no clipping tests in batches inside
   // the view. The pass issued about 100 instructions a point (the driver's SASS), the lean loop
-  // about 50: 1.67x faster on the H200 (bench/RESULTS.md, runs T-X).
+  // about 50: 1.67x faster on the H200 (bench/RESULTS.md, runs U-Y).
   bool lean = true;
   // In the lean loop, a word's points in a row on one pixel write once (their nearest key):
   // measured 4-6 % slower on the H200 (the run logic costs more than the loads it saves).
