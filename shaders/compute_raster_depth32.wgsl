@@ -54,16 +54,7 @@ fn write_key_atomic(pixel: u32, depth: u32) {
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
         @builtin(local_invocation_index) lid: u32) {
   if (BATCHES_PER_GROUP > 1u) {
-    let stride = groups.x * groups.y;
-    for (var j = 0u; j < BATCHES_PER_GROUP; j++) {
-      let batch = batch_index(group, groups) + j * stride;
-      let bits = batch_prologue(batch, lid);
-      if (lean_batch(bits)) {
-        draw_batch_lean(batches[batch], lid);
-      } else if (bits != 0u) {
-        draw_batch_points(batches[batch], bits, lid);
-      }
-    }
+    draw_batch_group(group, groups, lid);
     return;
   }
   let batch = batch_index(group, groups);
@@ -85,9 +76,5 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups
     }
     return;
   }
-  if (lean_batch(bits)) {
-    draw_batch_lean(b, lid);
-    return;
-  }
-  draw_batch_points(b, bits, lid);
+  draw_batch(b, bits, lid);
 }

@@ -237,3 +237,25 @@ fn draw_batch_lean(b: GpuBatch, lid: u32) {
     }
   }
 }
+
+// A depth pass's batch at precision `bits` (not 0), without the workgroup tile.
+fn draw_batch(b: GpuBatch, bits: u32, lid: u32) {
+  if (lean_batch(bits)) {
+    draw_batch_lean(b, lid);
+  } else {
+    draw_batch_points(b, bits, lid);
+  }
+}
+
+// BATCHES_PER_GROUP > 1 (with PARALLEL_PROLOGUE, without TILE): the workgroup's batches, a grid
+// stride apart.
+fn draw_batch_group(group: vec3<u32>, groups: vec3<u32>, lid: u32) {
+  let stride = groups.x * groups.y;
+  for (var j = 0u; j < BATCHES_PER_GROUP; j++) {
+    let batch = batch_index(group, groups) + j * stride;
+    let bits = batch_prologue(batch, lid);
+    if (bits != 0u) {
+      draw_batch(batches[batch], bits, lid);
+    }
+  }
+}
