@@ -84,11 +84,6 @@ fn write_key(pixel: u32, key: u64) {
   atomicMin(&visibility[pixel], key);
 }
 
-// The atomic of write_key alone (the lean loop's cache has done the early test).
-fn write_key_atomic(pixel: u32, key: u64) {
-  atomicMin(&visibility[pixel], key);
-}
-
 #include "compute_raster_write.wgsl"
 
 @compute @workgroup_size(WORKGROUP)

@@ -283,3 +283,4 @@ fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
   }
   end_run();
 }
+

@@ -43,11 +43,6 @@ fn write_key(pixel: u32, depth: u32) {
   atomicMin(&depth_buffer[pixel], depth);
 }
 
-// The atomic of write_key alone (the lean loop's cache has done the early test).
-fn write_key_atomic(pixel: u32, depth: u32) {
-  atomicMin(&depth_buffer[pixel], depth);
-}
-
 #include "compute_raster_write.wgsl"
 
 @compute @workgroup_size(WORKGROUP)

@@ -57,121 +57,91 @@ fn draw_point(cells: vec3<f32>, index: u32) {
 }
 
 
-// LEAN: the depth passes' loop for the common case, a 10-bit batch with no filter, no merging
-// and no subgroup reduction (lean_batch), written for the fewest instructions a point: no
-// precision or filter branches inside the loop, one range test per 16-byte word instead of two
-// per point, the viewport's size converted once, and in a batch that lies inside the view
-// (batch_inside: box_inside, a pixel to spare and in front of the near plane) no clipping tests
-// and no z at all. The pass is bound by the instructions it issues a point (bench/RESULTS.md);
-// the keys, and so the image, are the ones draw_point makes. (LEAN: compute_raster_batch.wgsl.)
+// The lean loop's point: the key draw_point would write.
+fn lean_point(v: u32, index: u32, inside: bool) {
+  let p = lean_project(v, inside);
+  if (p.valid) {
+    write_key(p.pixel, point_key(bitcast<u32>(p.depth), index));
+  }
+}
 
+// A depth pass's batch at precision `bits` (not 0), without the workgroup tile.
+fn draw_batch(b: GpuBatch, bits: u32, lid: u32) {
+  if (lean_batch(bits)) {
+    draw_batch_lean(b, lid);
+  } else {
+    draw_batch_points(b, bits, lid);
+  }
+}
+
+// BATCHES_PER_GROUP > 1 (with PARALLEL_PROLOGUE, without TILE): the workgroup's batches, a grid
+// stride apart.
+fn draw_batch_group(group: vec3<u32>, groups: vec3<u32>, lid: u32) {
+  let stride = groups.x * groups.y;
+  for (var j = 0u; j < BATCHES_PER_GROUP; j++) {
+    let batch = batch_index(group, groups) + j * stride;
+    let bits = batch_prologue(batch, lid);
+    if (bits != 0u) {
+      draw_batch(batches[batch], bits, lid);
+    }
+  }
+}
+
+// LEAN: the depth passes' loop for the common case, a 10-bit batch with no filter, merging or
+// subgroup reduction (lean_batch), written for the fewest instructions a
+// point: no precision or filter branches inside the loop, a range test per 16-byte word (none
+// for words wholly inside the batch), the viewport's size converted once, and in a batch that
+// lies inside the view (batch_inside: box_inside, a pixel to spare and in front of the near
+// plane) no clipping tests and no z. The passes are bound by the instructions they issue a point
+// (bench/RESULTS.md, runs U-Y); the pixels and depths, and so the image, are the ones
+// project_point gives. (The LEAN constant: compute_raster_batch.wgsl.)
 fn lean_batch(bits: u32) -> bool {
-  return LEAN && bits == 10u && PREFETCH && !CONTIGUOUS && !MERGE &&
-         !SUBGROUP_REDUCE && ABLATE_LOAD == false && filters.flags == 0u;
+  return LEAN && bits == 10u && PREFETCH && !CONTIGUOUS && !ABLATE_LOAD && filters.flags == 0u &&
+         !MERGE && !SUBGROUP_REDUCE;
 }
 
 var<private> lean_size: vec2<f32>;
 
-// One 10-bit point: `inside` is a literal at every call, so each loop keeps only its own tests.
-fn lean_point(v: u32, index: u32, inside: bool) {
-  let q = unpack10(v);
+struct LeanProjected {
+  pixel: u32,
+  xy: vec2<u32>,
+  depth: f32,
+  q: vec3<f32>,  // the point in cells of its batch
+  valid: bool,
+}
+
+// One 10-bit point to its pixel: `inside` is a literal at every call, so each loop keeps only its
+// own tests.
+fn lean_project(v: u32, inside: bool) -> LeanProjected {
+  var r: LeanProjected;
+  r.valid = false;
+  r.q = unpack10(v);
   let m = to_screen;
-  let c = m[3] + m[0] * q.x + m[1] * q.y + m[2] * q.z;
+  let c = m[3] + m[0] * r.q.x + m[1] * r.q.y + m[2] * r.q.z;
   if (!inside && (c.w <= 0.0 || c.z > c.w)) {
-    return;
+    return r;
   }
   let s = c.xy * (1.0 / c.w);
-  var xy: vec2<u32>;
   if (FAST_CONVERT) {
-    xy = bitcast<vec2<u32>>(s + 12582912.0) - vec2<u32>(0x4b400000u);
-    if (!inside && (xy.x >= params.width || xy.y >= params.height)) {
-      return;
+    r.xy = bitcast<vec2<u32>>(s + 12582912.0) - vec2<u32>(0x4b400000u);
+    if (!inside && (r.xy.x >= params.width || r.xy.y >= params.height)) {
+      return r;
     }
   } else {
     if (!inside && (s.x < 0.0 || s.y < 0.0 || s.x >= lean_size.x || s.y >= lean_size.y)) {
-      return;
+      return r;
     }
-    xy = vec2<u32>(s);
+    r.xy = vec2<u32>(s);
   }
-  lean_write(xy.y * params.width + xy.x, bitcast<u32>(c.w), index);
-}
-
-// LEAN_CACHE: a thread keeps the last pixel it tested and a depth the buffer holds there or
-// nearer (the buffer's depths only decrease during the pass), so a farther point on the same
-// pixel is dropped without loading the buffer again. At overview distances a word's four points
-// mostly share a pixel. Points it drops would lose the early test anyway: the same image. Off:
-// 7 % slower on the H200 (its branches cost more than the loads it saves).
-override LEAN_CACHE: bool = false;
-var<private> cache_pixel: u32 = 0xffffffffu;
-var<private> cache_depth: u32;
-
-fn lean_write(pixel: u32, depth: u32, index: u32) {
-  if (!LEAN_CACHE || ABLATE != 0u) {
-    write_key(pixel, point_key(depth, index));
-    return;
-  }
-  if (pixel == cache_pixel && depth > cache_depth) {
-    return;
-  }
-  let held = depth_word(pixel);
-  cache_pixel = pixel;
-  if (depth > held) {
-    cache_depth = held;
-    return;
-  }
-  cache_depth = depth;
-  write_key_atomic(pixel, point_key(depth, index));
-}
-
-// LEAN_RUNS: in a word of four points inside the view, points in a row on one pixel write once,
-// the nearest key of the run: consecutive points of a sorted batch mostly share a pixel at
-// overview distances, and each write is an early test's load (and maybe an atomic) that the
-// others skip. The same keys reach the buffer, so the image is the same. Off: 4-6 % slower on
-// the H200 (the run logic costs more than the loads it saves).
-override LEAN_RUNS: bool = false;
-
-struct LeanHit {
-  pixel: u32,
-  key: Key,
-}
-
-// A point of a batch inside the view (no clipping tests): its pixel and key.
-fn lean_hit(v: u32, index: u32) -> LeanHit {
-  let q = unpack10(v);
-  let m = to_screen;
-  let c = m[3] + m[0] * q.x + m[1] * q.y + m[2] * q.z;
-  let s = c.xy * (1.0 / c.w);
-  var xy: vec2<u32>;
-  if (FAST_CONVERT) {
-    xy = bitcast<vec2<u32>>(s + 12582912.0) - vec2<u32>(0x4b400000u);
-  } else {
-    xy = vec2<u32>(s);
-  }
-  return LeanHit(xy.y * params.width + xy.x, point_key(bitcast<u32>(c.w), index));
-}
-
-// Adds `h` to the run (`run`: the pixel and nearest key so far), writing the run out when `h`
-// starts another pixel.
-fn lean_run(run: ptr<function, LeanHit>, h: LeanHit) {
-  if (h.pixel != (*run).pixel) {
-    write_key((*run).pixel, (*run).key);
-    *run = h;
-  } else if (key_less(h.key, (*run).key)) {
-    (*run).key = h.key;
-  }
+  r.pixel = r.xy.y * params.width + r.xy.x;
+  r.depth = c.w;
+  r.valid = true;
+  return r;
 }
 
 // The four points of word `v` (points 4v..4v+3) that lie in [lo, end).
 fn lean_word(c: vec4<u32>, v: u32, lo: u32, end: u32, inside: bool) {
   let first = v * 4u;
-  if (LEAN_RUNS && inside && first >= lo && first + 4u <= end) {
-    var run = lean_hit(c.x, first);
-    lean_run(&run, lean_hit(c.y, first + 1u));
-    lean_run(&run, lean_hit(c.z, first + 2u));
-    lean_run(&run, lean_hit(c.w, first + 3u));
-    write_key(run.pixel, run.key);
-    return;
-  }
   if (first >= lo && first + 4u <= end) {
     lean_point(c.x, first, inside);
     lean_point(c.y, first + 1u, inside);
@@ -187,9 +157,11 @@ fn lean_word(c: vec4<u32>, v: u32, lo: u32, end: u32, inside: bool) {
 }
 
 // The words wholly inside the batch take no range test; the partial first and last ones (at
-// most two a batch) are drawn by threads 0 and 1 after them.
+// most two a batch) are drawn by threads 0 and 1 after them. Ends with end_run().
 fn draw_batch_lean(b: GpuBatch, lid: u32) {
   lean_size = vec2<f32>(f32(params.width), f32(params.height));
+  cell_size = b.size * (1.0 / 1024.0);
+  cells_origin = b.offset + 0.5 * cell_size;  // point_position(), as draw_batch_points sets it
   let lo = b.first;
   let end = b.first + b.count;
   let full_end = end / 4u;
@@ -236,26 +208,5 @@ fn draw_batch_lean(b: GpuBatch, lid: u32) {
       lean_word(coarse[part], part, lo, end, false);
     }
   }
-}
-
-// A depth pass's batch at precision `bits` (not 0), without the workgroup tile.
-fn draw_batch(b: GpuBatch, bits: u32, lid: u32) {
-  if (lean_batch(bits)) {
-    draw_batch_lean(b, lid);
-  } else {
-    draw_batch_points(b, bits, lid);
-  }
-}
-
-// BATCHES_PER_GROUP > 1 (with PARALLEL_PROLOGUE, without TILE): the workgroup's batches, a grid
-// stride apart.
-fn draw_batch_group(group: vec3<u32>, groups: vec3<u32>, lid: u32) {
-  let stride = groups.x * groups.y;
-  for (var j = 0u; j < BATCHES_PER_GROUP; j++) {
-    let batch = batch_index(group, groups) + j * stride;
-    let bits = batch_prologue(batch, lid);
-    if (bits != 0u) {
-      draw_batch(batches[batch], bits, lid);
-    }
-  }
+  end_run();
 }

@@ -161,12 +161,6 @@ std::vector<std::pair<std::string, pc::RasterKernel>> kernel_variants() {
   k.lean = false;
   kernels.push_back({"no lean loop", k});
   k = {};
-  k.lean_runs = true;
-  kernels.push_back({"lean loop with runs", k});
-  k = {};
-  k.lean_cache = !k.lean_cache;
-  kernels.push_back({"lean loop, its cache switched", k});
-  k = {};
   k.trusted = false;
   kernels.push_back({"with naga's bounds checks", k});
   k = {};
@@ -613,18 +607,16 @@ TEST_P(ComputeRaster, FastConvertAndUnclippedDrawTheSameImageNearAndFar) {
 // The depth passes' lean loop (RasterKernel::lean, the default) for 10-bit batches gives the
 // keys the loop for every precision gives: from the overview (every batch inside the view: no
 // clipping tests) to a camera within the scene (batches cut by the screen's edges and the near
-// plane: the lean loop's clipping tests), with runs and with its cache switched. 64-bit and
-// 32-bit passes; tolerance 0.
+// plane: the lean loop's clipping tests); 64-bit and 32-bit depth passes, plain, with HQS and
+// with HQS in the elevation mode (its depth limits come from the lean pass). Tolerance 0.
 TEST_P(ComputeRaster, LeanLoopDrawsTheSameImageNearAndFar) {
   auto ctx = context();
   io::SceneParams scene;
   scene.point_count = 300'000;
   const auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Morton);
   const uint32_t w = 320, h = 180;
-  pc::RasterKernel general, runs, cache;
+  pc::RasterKernel general;
   general.lean = false;
-  runs.lean_runs = true;
-  cache.lean_cache = !cache.lean_cache;
   const bool has64 = pc::has_visibility64(*ctx);
   for (const double distance : {1.0, 0.3, 0.02}) {
     Camera camera = frame_box(batched.world_bounds, double(w) / h, 10.0, 25.0);
@@ -632,15 +624,24 @@ TEST_P(ComputeRaster, LeanLoopDrawsTheSameImageNearAndFar) {
     camera.position = centre + (camera.position - centre) * distance;
     for (bool fallback : {false, true}) {
       if (!fallback && !has64) continue;
-      SCOPED_TRACE(std::to_string(distance) + (fallback ? ", 32-bit fallback" : ", 64-bit"));
-      const auto reference = render_compute(*ctx, batched, camera, {}, w, h, fallback, 0,
-                                            pc::DisplayPass::Auto, general);
-      ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.05);
-      // The lean loop takes the 10-bit batches: there must be some at every distance.
-      ASSERT_GT(reference.counters.batches_by_bits[0], 0u);
-      for (const auto& kernel : {pc::RasterKernel{}, runs, cache}) {
-        const auto r = render_compute(*ctx, batched, camera, {}, w, h, fallback, 0,
-                                      pc::DisplayPass::Auto, kernel);
+      for (int mode = 0; mode < 3; ++mode) {  // plain, HQS, HQS by elevation
+        SCOPED_TRACE(std::to_string(distance) + (fallback ? ", 32-bit fallback" : ", 64-bit") +
+                     (mode == 0   ? ""
+                      : mode == 1 ? ", HQS"
+                                  : ", HQS by elevation"));
+        pc::ComputeRasterOptions options;
+        options.hqs = mode > 0;
+        if (mode == 2) {
+          options.shading = pc::PointShading{pc::ColorMode::Elevation};
+          options.shading.elevation_range = {batched.world_bounds.min.y,
+                                             batched.world_bounds.max.y};
+        }
+        const auto reference = render_compute(*ctx, batched, camera, options, w, h, fallback, 0,
+                                              pc::DisplayPass::Auto, general);
+        ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.05);
+        // The lean loop takes the 10-bit batches: there must be some at every distance.
+        ASSERT_GT(reference.counters.batches_by_bits[0], 0u);
+        const auto r = render_compute(*ctx, batched, camera, options, w, h, fallback);
         EXPECT_EQ(test::differing_fraction(reference.image, r.image, 0), 0.0);
         EXPECT_EQ(r.counters.points_rendered, reference.counters.points_rendered);
       }

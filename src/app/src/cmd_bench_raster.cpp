@@ -160,9 +160,6 @@ void run_raster_bench(const RasterArgs& args) {
   add("fast", [](Variant& v) { v.kernel.fast_convert = true; });  // no conversion instructions
   add("unclipped", [](Variant& v) { v.kernel.unclipped = true; });
   add("no-lean", [](Variant& v) { v.kernel.lean = false; });
-  add("runs", [](Variant& v) { v.kernel.lean_runs = true; });
-  add("cache", [](Variant& v) { v.kernel.lean_cache = true; });
-  add("no-cache", [](Variant& v) { v.kernel.lean_cache = false; });
   add("checked", [](Variant& v) { v.kernel.trusted = false; });
   add("parallel", [](Variant& v) { v.kernel.parallel_prologue = true; });
   for (uint32_t k : {2u, 4u, 8u, 16u})
@@ -442,7 +439,7 @@ void add_bench_raster_command(CLI::App& bench) {
          "Only these variants (compute-basic, compute-precision, merge, contiguous, "
          "prefetch, prefetch2, scalar, sums-scalar, sums-strided, sums-contiguous, sums-wg64, "
          "sums-wg128, sums-wg256, sums-wg512, sums-wg1024, atomic-early, wg64, wg256, tile, "
-         "subgroup, fast, unclipped, no-lean, runs, cache, no-cache, checked, parallel, group2, "
+         "subgroup, fast, unclipped, no-lean, checked, parallel, group2, "
          "group4, group8, group16, "
          "shaded-sums, compute-hqs, "
          "hqs-no-tile, hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "

@@ -118,10 +118,6 @@ std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, 
     fail("compute rasterizer: batches_per_group needs parallel_prologue and no tile");
   c.push_back({"PARALLEL_PROLOGUE", kernel.parallel_prologue ? 1.0 : 0.0});
   c.push_back({"LEAN", geometry && kernel.lean ? 1.0 : 0.0});
-  if (geometry) {
-    c.push_back({"LEAN_RUNS", kernel.lean_runs ? 1.0 : 0.0});
-    c.push_back({"LEAN_CACHE", kernel.lean_cache ? 1.0 : 0.0});
-  }
   c.push_back({"BATCHES_PER_GROUP", grouped ? double(kernel.batches_per_group) : 1.0});
   if (geometry) {
     c.push_back({"COUNT", kernel.ablate_count ? 0.0 : 1.0});

@@ -119,17 +119,11 @@ struct RasterKernel {
   // HQS sums (and the fallback's colours) in the RGB mode from the colour's bytes, not shaded
   // through floats: the same sums, HQS 1.13x faster on the H200 (bench/RESULTS.md, run Q).
   bool hqs_raw_rgb = true;
-  // The depth passes' lean loop for 10-bit batches without filters (compute_raster_write.wgsl):
+  // The depth passes' lean loop for 10-bit batches without filters (compute_raster_batch.wgsl):
   // no precision, filter or per-point range branches, and no clipping tests in batches inside
   // the view. The pass issued about 100 instructions a point (the driver's SASS), the lean loop
   // about 50: 1.67x faster on the H200 (bench/RESULTS.md, runs U-Y).
   bool lean = true;
-  // In the lean loop, a word's points in a row on one pixel write once (their nearest key):
-  // measured 4-6 % slower on the H200 (the run logic costs more than the loads it saves).
-  bool lean_runs = false;
-  // In the lean loop, each thread remembers its last pixel and a depth the buffer holds there,
-  // and drops farther points on it without loading the buffer: 7 % slower on the H200.
-  bool lean_cache = false;
   // The batch passes compiled without naga's bounds checks (gpu::create_shader's `trusted`;
   // wgpu-native): their indices are in range by construction (batch ranges checked on upload,
   // pixels clipped to the viewport, tile entries bounded). 1.06x faster depth pass, 1.23x
