@@ -56,7 +56,6 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   run_key = key;
 }
 
-
 // The lean loop's point: the key draw_point would write.
 fn lean_point(v: u32, index: u32, inside: bool) {
   let p = lean_project(v, inside);
@@ -88,13 +87,13 @@ fn draw_batch_group(group: vec3<u32>, groups: vec3<u32>, lid: u32) {
 }
 
 // LEAN: the depth passes' loop for the common case, a 10-bit batch with no filter, merging or
-// subgroup reduction (lean_batch), written for the fewest instructions a
-// point: no precision or filter branches inside the loop, a range test per 16-byte word (none
-// for words wholly inside the batch), the viewport's size converted once, and in a batch that
-// lies inside the view (batch_inside: box_inside, a pixel to spare and in front of the near
-// plane) no clipping tests and no z. The passes are bound by the instructions they issue a point
-// (bench/RESULTS.md, runs U-Y); the pixels and depths, and so the image, are the ones
-// project_point gives. (The LEAN constant: compute_raster_batch.wgsl.)
+// subgroup reduction (lean_batch), written for the fewest instructions a point: no precision or
+// filter branches inside the loop, a range test per 16-byte word (none for words wholly inside
+// the batch), the viewport's size converted once, and in a batch that lies inside the view
+// (batch_inside: box_inside, a pixel to spare and in front of the near plane) no clipping tests
+// and no z. The passes are bound by the instructions they issue a point (bench/RESULTS.md, runs
+// U-Y); the pixels and depths, and so the keys and the image, are the ones project_point gives.
+// (The LEAN constant: compute_raster_batch.wgsl.)
 fn lean_batch(bits: u32) -> bool {
   return LEAN && bits == 10u && PREFETCH && !CONTIGUOUS && !ABLATE_LOAD && filters.flags == 0u &&
          !MERGE && !SUBGROUP_REDUCE;
@@ -104,9 +103,7 @@ var<private> lean_size: vec2<f32>;
 
 struct LeanProjected {
   pixel: u32,
-  xy: vec2<u32>,
   depth: f32,
-  q: vec3<f32>,  // the point in cells of its batch
   valid: bool,
 }
 
@@ -115,25 +112,26 @@ struct LeanProjected {
 fn lean_project(v: u32, inside: bool) -> LeanProjected {
   var r: LeanProjected;
   r.valid = false;
-  r.q = unpack10(v);
+  let q = unpack10(v);
   let m = to_screen;
-  let c = m[3] + m[0] * r.q.x + m[1] * r.q.y + m[2] * r.q.z;
+  let c = m[3] + m[0] * q.x + m[1] * q.y + m[2] * q.z;
   if (!inside && (c.w <= 0.0 || c.z > c.w)) {
     return r;
   }
   let s = c.xy * (1.0 / c.w);
+  var xy: vec2<u32>;
   if (FAST_CONVERT) {
-    r.xy = bitcast<vec2<u32>>(s + 12582912.0) - vec2<u32>(0x4b400000u);
-    if (!inside && (r.xy.x >= params.width || r.xy.y >= params.height)) {
+    xy = bitcast<vec2<u32>>(s + 12582912.0) - vec2<u32>(0x4b400000u);
+    if (!inside && (xy.x >= params.width || xy.y >= params.height)) {
       return r;
     }
   } else {
     if (!inside && (s.x < 0.0 || s.y < 0.0 || s.x >= lean_size.x || s.y >= lean_size.y)) {
       return r;
     }
-    r.xy = vec2<u32>(s);
+    xy = vec2<u32>(s);
   }
-  r.pixel = r.xy.y * params.width + r.xy.x;
+  r.pixel = xy.y * params.width + xy.x;
   r.depth = c.w;
   r.valid = true;
   return r;
@@ -157,11 +155,9 @@ fn lean_word(c: vec4<u32>, v: u32, lo: u32, end: u32, inside: bool) {
 }
 
 // The words wholly inside the batch take no range test; the partial first and last ones (at
-// most two a batch) are drawn by threads 0 and 1 after them. Ends with end_run().
+// most two a batch) are drawn by threads 0 and 1 after them.
 fn draw_batch_lean(b: GpuBatch, lid: u32) {
   lean_size = vec2<f32>(f32(params.width), f32(params.height));
-  cell_size = b.size * (1.0 / 1024.0);
-  cells_origin = b.offset + 0.5 * cell_size;  // point_position(), as draw_batch_points sets it
   let lo = b.first;
   let end = b.first + b.count;
   let full_end = end / 4u;
