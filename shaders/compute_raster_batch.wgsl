@@ -283,4 +283,3 @@ fn draw_batch_points(b: GpuBatch, bits: u32, lid: u32) {
   }
   end_run();
 }
-

@@ -3,10 +3,10 @@
 
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
 
-// Called by batch_prologue() on thread 0.
 // A measurement only (wrong counters): COUNT off leaves the batch counters' atomics out.
 override COUNT: bool = true;
 
+// Called by batch_prologue() on thread 0 (on every thread's behalf with PARALLEL_PROLOGUE).
 fn count_batch(b: GpuBatch, bits: u32, skipped: bool) {
   if (!COUNT) {
     return;
