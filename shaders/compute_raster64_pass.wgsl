@@ -4,8 +4,9 @@
 // 64-bit atomicMin of (depth << 32 | point index). Needs ShaderInt64AtomicMinMax (wgpu-native).
 // Variants as pipeline constants: PREFETCH, CONTIGUOUS (compute_raster_batch.wgsl), PLAIN_EARLY,
 // MERGE and SUBGROUP_REDUCE (compute_raster_write.wgsl), TILE (compute_raster_tile.wgsl). The
-// shader is compute_raster64.wgsl, or compute_raster64_subgroups.wgsl where the device has
-// subgroups; each includes this file after the subgroup_write() it has.
+// shader is compute_raster64.wgsl, compute_raster64_subgroups.wgsl where the device has
+// subgroups, or compute_raster64_key.wgsl (the early test on the whole key); each includes this
+// file after the subgroup_write() and the early test (early_value, early_hidden) it has.
 #include "compute_raster_batch.wgsl"
 #include "compute_raster_counted.wgsl"
 #include "compute_raster_tile.wgsl"
@@ -75,10 +76,18 @@ fn write_key(pixel: u32, key: u64) {
     return;
   }
   // Early depth test: most occluded points never reach the atomic.
-  if (key_depth(key) > depth_word(pixel)) {
+  if (EARLY_TEST && early_hidden(key, early_value(pixel))) {
     return;
   }
   if (ABLATE == 1u && key != u64(0u)) {
+    return;
+  }
+  atomicMin(&visibility[pixel], key);
+}
+
+// write_key with the early test's value already read (`early`: early_value).
+fn write_key_tested(pixel: u32, key: u64, early: Early) {
+  if (early_hidden(key, early)) {
     return;
   }
   atomicMin(&visibility[pixel], key);

@@ -149,6 +149,112 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   }
 }
 
+// LEAN (compute_raster_batch.wgsl): the accumulation's lean loop, for 10-bit batches in the RGB
+// mode with sums from the colour's bytes and no filters, as the depth passes' (see lean_batch in
+// compute_raster_write.wgsl): no precision, filter or shading branches, no range test for words
+// wholly inside the batch, no clipping tests in batches inside the view. A word's four points
+// are projected, then their depth limits read together, then their colours (a point that does
+// not pass reads point 0's, which stays in cache, so that no read waits behind a branch), then
+// they join the thread's runs.
+fn lean_sums_batch(bits: u32) -> bool {
+  return LEAN && bits == 10u && PREFETCH && !CONTIGUOUS && !ABLATE_LOAD && !ABLATE_SUMS && MERGE &&
+         RAW_RGB && shading.mode == 1u && filters.flags == 0u;
+}
+
+// A lean point's depth limit: the tile's while the batch draws into it, else the screen's.
+fn lean_limit(p: LeanProjected) -> f32 {
+  if (TILE && tile_phase != 0u) {
+    let e = tile_entry_xy(p.xy);
+    if (e < TILE_PIXELS) {
+      return bitcast<f32>(atomicLoad(&tile_depth[e]));
+    }
+  }
+  return limit_of(p.pixel);
+}
+
+// A lean point that passes (`passes`) with colour `c`: into the thread's run.
+fn lean_sum(p: LeanProjected, passes: bool, c: u32) {
+  if (!passes) {
+    return;
+  }
+  let sum = vec4<u32>(c & 0xffu, (c >> 8u) & 0xffu, (c >> 16u) & 0xffu, 1u);
+  if (p.pixel == run_pixel) {
+    run_sum += sum;
+    return;
+  }
+  end_run();
+  run_pixel = p.pixel;
+  run_entry = TILE_PIXELS;
+  if (TILE && tile_phase != 0u) {
+    run_entry = tile_entry_xy(p.xy);
+  }
+  run_sum = sum;
+}
+
+// The four points of word `v` (points 4v..4v+3); unless `full` (a literal: the word lies wholly
+// inside the batch) only those in [lo, end).
+fn lean_sums_word(c: vec4<u32>, v: u32, lo: u32, end: u32, inside: bool, full: bool) {
+  let first = v * 4u;
+  let p0 = lean_project(c.x, inside);
+  let p1 = lean_project(c.y, inside);
+  let p2 = lean_project(c.z, inside);
+  let p3 = lean_project(c.w, inside);
+  let l0 = lean_limit(p0);
+  let l1 = lean_limit(p1);
+  let l2 = lean_limit(p2);
+  let l3 = lean_limit(p3);
+  var a0 = p0.valid && p0.depth <= l0;
+  var a1 = p1.valid && p1.depth <= l1;
+  var a2 = p2.valid && p2.depth <= l2;
+  var a3 = p3.valid && p3.depth <= l3;
+  if (!full) {
+    a0 = a0 && first >= lo && first < end;
+    a1 = a1 && first + 1u >= lo && first + 1u < end;
+    a2 = a2 && first + 2u >= lo && first + 2u < end;
+    a3 = a3 && first + 3u < end;
+  }
+  let c0 = colors[select(0u, first, a0)];
+  let c1 = colors[select(0u, first + 1u, a1)];
+  let c2 = colors[select(0u, first + 2u, a2)];
+  let c3 = colors[select(0u, first + 3u, a3)];
+  lean_sum(p0, a0, c0);
+  lean_sum(p1, a1, c1);
+  lean_sum(p2, a2, c2);
+  lean_sum(p3, a3, c3);
+}
+
+// The lean loop over batch `b`: the words wholly inside it, then the partial first and last
+// ones (threads 0 and 1).
+fn draw_sums_lean(b: GpuBatch, lid: u32) {
+  lean_size = vec2<f32>(f32(params.width), f32(params.height));
+  let lo = b.first;
+  let end = b.first + b.count;
+  let full_end = end / 4u;
+  if (batch_inside) {
+    for (var v = (lo + 3u) / 4u + lid; v < full_end; v += WORKGROUP) {
+      lean_sums_word(coarse[v], v, lo, end, true, true);
+    }
+  } else {
+    for (var v = (lo + 3u) / 4u + lid; v < full_end; v += WORKGROUP) {
+      lean_sums_word(coarse[v], v, lo, end, false, true);
+    }
+  }
+  let part = lean_partial_word(lo, end, lid);
+  if (part != 0xffffffffu) {
+    lean_sums_word(coarse[part], part, lo, end, false, false);
+  }
+  end_run();
+}
+
+// The pass's loop over batch `b` at precision `bits`.
+fn draw_sums(b: GpuBatch, bits: u32, lid: u32) {
+  if (lean_sums_batch(bits)) {
+    draw_sums_lean(b, lid);
+  } else {
+    draw_batch_points(b, bits, lid);
+  }
+}
+
 @compute @workgroup_size(WORKGROUP)
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
         @builtin(local_invocation_index) lid: u32) {
@@ -160,7 +266,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups
   let b = batches[batch];
   if (TILE && tile_begin(b, lid)) {
     tile_phase = 1u;
-    draw_batch_points(b, bits, lid);
+    draw_sums(b, bits, lid);
     workgroupBarrier();
     for (var i = lid; i < tile_size.x * tile_size.y; i += WORKGROUP) {
       let sum = vec4<u32>(atomicLoad(&tile_sums[i][0]), atomicLoad(&tile_sums[i][1]),
@@ -171,5 +277,5 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups
     }
     return;
   }
-  draw_batch_points(b, bits, lid);
+  draw_sums(b, bits, lid);
 }

@@ -76,8 +76,9 @@ fn prologue_matrix(b: GpuBatch, bits: u32) -> mat4x4<f32> {
 // fewer workgroups start and end.
 override PARALLEL_PROLOGUE: bool = false;
 override BATCHES_PER_GROUP: u32 = 1u;
-// LEAN: the depth passes' lean loop (compute_raster_write.wgsl), for which the prologue also
-// finds whether the batch lies inside the view.
+// LEAN: the lean loops for 10-bit batches (the depth passes': compute_raster_write.wgsl; the
+// accumulation's: compute_raster_accumulate.wgsl), for which the prologue also finds whether
+// the batch lies inside the view.
 override LEAN: bool = true;
 
 // How every geometry pass starts: thread 0 classifies the workgroup's batch (frustum, LOD,
@@ -140,6 +141,60 @@ fn box_inside(m: mat4x4<f32>) -> bool {
     }
   }
   return true;
+}
+
+var<private> lean_size: vec2<f32>;
+
+struct LeanProjected {
+  pixel: u32,
+  xy: vec2<u32>,  // the pixel's column and row (the accumulation's tile)
+  depth: f32,
+  valid: bool,
+}
+
+// One 10-bit point of the lean loops (compute_raster_write.wgsl, compute_raster_accumulate.wgsl)
+// to its pixel, as project_point takes it: `inside` is a literal at every call, so each loop
+// keeps only its own tests.
+fn lean_project(v: u32, inside: bool) -> LeanProjected {
+  var r: LeanProjected;
+  r.valid = false;
+  let q = unpack10(v);
+  let m = to_screen;
+  let c = m[3] + m[0] * q.x + m[1] * q.y + m[2] * q.z;
+  if (!inside && (c.w <= 0.0 || c.z > c.w)) {
+    return r;
+  }
+  let s = c.xy * (1.0 / c.w);
+  var xy: vec2<u32>;
+  if (FAST_CONVERT) {
+    xy = bitcast<vec2<u32>>(s + 12582912.0) - vec2<u32>(0x4b400000u);
+    if (!inside && (xy.x >= params.width || xy.y >= params.height)) {
+      return r;
+    }
+  } else {
+    if (!inside && (s.x < 0.0 || s.y < 0.0 || s.x >= lean_size.x || s.y >= lean_size.y)) {
+      return r;
+    }
+    xy = vec2<u32>(s);
+  }
+  r.pixel = xy.y * params.width + xy.x;
+  r.xy = xy;
+  r.depth = c.w;
+  r.valid = true;
+  return r;
+}
+
+// The lean loops draw the 16-byte words wholly inside a batch's points [lo, end) without range
+// tests; its partial first and last words (at most two) go to threads 0 and 1: the word this
+// thread draws after the loop, or 0xffffffff for none.
+fn lean_partial_word(lo: u32, end: u32, lid: u32) -> u32 {
+  if (lid == 0u && (lo & 3u) != 0u) {
+    return lo / 4u;
+  }
+  if (lid == 1u && (end & 3u) != 0u && (end / 4u != lo / 4u || (lo & 3u) == 0u)) {
+    return end / 4u;
+  }
+  return 0xffffffffu;
 }
 
 // Point `index` of a batch in cells of its box (cell_position), from 10, 20 or 30 bits per axis.

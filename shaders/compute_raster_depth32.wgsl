@@ -37,7 +37,21 @@ fn write_key(pixel: u32, depth: u32) {
       return;
     }
   }
-  if (depth >= depth_word(pixel)) {
+  if (EARLY_TEST && depth >= depth_word(pixel)) {
+    return;
+  }
+  atomicMin(&depth_buffer[pixel], depth);
+}
+
+alias Early = u32;
+
+fn early_value(pixel: u32) -> u32 {
+  return depth_word(pixel);
+}
+
+// write_key with the early test's depth already read (`early`: early_value).
+fn write_key_tested(pixel: u32, depth: u32, early: u32) {
+  if (depth >= early) {
     return;
   }
   atomicMin(&depth_buffer[pixel], depth);

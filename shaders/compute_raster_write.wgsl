@@ -18,6 +18,13 @@ override MERGE: bool = true;
 override SUBGROUP_REDUCE: bool = false;
 // A measurement of where the time goes, never a default (write_key of the 64-bit pass).
 override ABLATE: u32 = 0u;
+// EARLY_TEST: a point reads its pixel's depth before the atomic and skips it when hidden.
+// GROUP_EARLY (the lean loop): a full word's four early-test loads are issued together, before
+// any of its tests, instead of each after the previous point's test and atomic. The driver's
+// robust buffer access puts a range check before each load; with a test and an atomic between
+// them a thread waited for four loads in turn.
+override EARLY_TEST: bool = true;
+override GROUP_EARLY: bool = false;
 
 const NO_PIXEL: u32 = 0xffffffffu;
 var<private> run_pixel: u32 = NO_PIXEL;
@@ -99,47 +106,33 @@ fn lean_batch(bits: u32) -> bool {
          !MERGE && !SUBGROUP_REDUCE;
 }
 
-var<private> lean_size: vec2<f32>;
-
-struct LeanProjected {
-  pixel: u32,
-  depth: f32,
-  valid: bool,
-}
-
-// One 10-bit point to its pixel: `inside` is a literal at every call, so each loop keeps only its
-// own tests.
-fn lean_project(v: u32, inside: bool) -> LeanProjected {
-  var r: LeanProjected;
-  r.valid = false;
-  let q = unpack10(v);
-  let m = to_screen;
-  let c = m[3] + m[0] * q.x + m[1] * q.y + m[2] * q.z;
-  if (!inside && (c.w <= 0.0 || c.z > c.w)) {
-    return r;
+// A projected point whose pixel's early-test value (`early`: early_value of the including
+// shader; pixel 0's for an invalid point) has been read: its key, tested against it.
+fn lean_write(p: LeanProjected, index: u32, early: Early) {
+  if (p.valid) {
+    write_key_tested(p.pixel, point_key(bitcast<u32>(p.depth), index), early);
   }
-  let s = c.xy * (1.0 / c.w);
-  var xy: vec2<u32>;
-  if (FAST_CONVERT) {
-    xy = bitcast<vec2<u32>>(s + 12582912.0) - vec2<u32>(0x4b400000u);
-    if (!inside && (xy.x >= params.width || xy.y >= params.height)) {
-      return r;
-    }
-  } else {
-    if (!inside && (s.x < 0.0 || s.y < 0.0 || s.x >= lean_size.x || s.y >= lean_size.y)) {
-      return r;
-    }
-    xy = vec2<u32>(s);
-  }
-  r.pixel = xy.y * params.width + xy.x;
-  r.depth = c.w;
-  r.valid = true;
-  return r;
 }
 
 // The four points of word `v` (points 4v..4v+3) that lie in [lo, end).
 fn lean_word(c: vec4<u32>, v: u32, lo: u32, end: u32, inside: bool) {
   let first = v * 4u;
+  if (GROUP_EARLY && EARLY_TEST && ABLATE == 0u && first >= lo && first + 4u <= end) {
+    // An invalid point's pixel is 0 (LeanProjected starts zeroed): a load in range.
+    let p0 = lean_project(c.x, inside);
+    let p1 = lean_project(c.y, inside);
+    let p2 = lean_project(c.z, inside);
+    let p3 = lean_project(c.w, inside);
+    let w0 = early_value(p0.pixel);
+    let w1 = early_value(p1.pixel);
+    let w2 = early_value(p2.pixel);
+    let w3 = early_value(p3.pixel);
+    lean_write(p0, first, w0);
+    lean_write(p1, first + 1u, w1);
+    lean_write(p2, first + 2u, w2);
+    lean_write(p3, first + 3u, w3);
+    return;
+  }
   if (first >= lo && first + 4u <= end) {
     lean_point(c.x, first, inside);
     lean_point(c.y, first + 1u, inside);
@@ -191,12 +184,7 @@ fn draw_batch_lean(b: GpuBatch, lid: u32) {
       lean_word(coarse[v], v, lo, end, false);
     }
   }
-  var part = 0xffffffffu;
-  if (lid == 0u && (lo & 3u) != 0u) {
-    part = lo / 4u;
-  } else if (lid == 1u && (end & 3u) != 0u && (end / 4u != lo / 4u || (lo & 3u) == 0u)) {
-    part = end / 4u;
-  }
+  let part = lean_partial_word(lo, end, lid);
   if (part != 0xffffffffu) {
     if (batch_inside) {
       lean_word(coarse[part], part, lo, end, true);

@@ -164,6 +164,22 @@ std::vector<std::pair<std::string, pc::RasterKernel>> kernel_variants() {
   k.trusted = false;
   kernels.push_back({"with naga's bounds checks", k});
   k = {};
+  k.group_early = true;
+  kernels.push_back({"a word's early tests read together", k});
+  k = {};
+  k.early_test = false;
+  kernels.push_back({"no early depth test", k});
+  k = {};
+  k.early_key = true;
+  kernels.push_back({"early test on the whole key", k});
+  k.group_early = true;
+  kernels.push_back({"early test on the whole key, a word's read together", k});
+  k = {};
+  k.lean_sums = true;
+  kernels.push_back({"lean loop for the sums", k});
+  k.group_early = true;
+  kernels.push_back({"lean loop for the sums, a word's early tests read together", k});
+  k = {};
   k.parallel_prologue = true;
   kernels.push_back({"every thread classifies its batch", k});
   k.unclipped = k.fast_convert = true;
@@ -608,7 +624,10 @@ TEST_P(ComputeRaster, FastConvertAndUnclippedDrawTheSameImageNearAndFar) {
 // keys the loop for every precision gives: from the overview (every batch inside the view: no
 // clipping tests) to a camera within the scene (batches cut by the screen's edges and the near
 // plane: the lean loop's clipping tests); 64-bit and 32-bit depth passes, plain, with HQS and
-// with HQS in the elevation mode (its depth limits come from the lean pass). Tolerance 0.
+// with HQS in the elevation mode (its depth limits come from the lean pass). So do the
+// accumulation's lean loop (lean_sums: HQS sums, the fallback's colours; the elevation mode
+// keeps the general loop), the depth pass's grouped early tests (group_early) and its early
+// test on the whole key (early_key, where the device has 64-bit atomic loads). Tolerance 0.
 TEST_P(ComputeRaster, LeanLoopDrawsTheSameImageNearAndFar) {
   auto ctx = context();
   io::SceneParams scene;
@@ -616,7 +635,7 @@ TEST_P(ComputeRaster, LeanLoopDrawsTheSameImageNearAndFar) {
   const auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Morton);
   const uint32_t w = 320, h = 180;
   pc::RasterKernel general;
-  general.lean = false;
+  general.lean = general.lean_sums = false;
   const bool has64 = pc::has_visibility64(*ctx);
   for (const double distance : {1.0, 0.3, 0.02}) {
     Camera camera = frame_box(batched.world_bounds, double(w) / h, 10.0, 25.0);
@@ -644,6 +663,12 @@ TEST_P(ComputeRaster, LeanLoopDrawsTheSameImageNearAndFar) {
         const auto r = render_compute(*ctx, batched, camera, options, w, h, fallback);
         EXPECT_EQ(test::differing_fraction(reference.image, r.image, 0), 0.0);
         EXPECT_EQ(r.counters.points_rendered, reference.counters.points_rendered);
+        pc::RasterKernel lean_all;
+        lean_all.lean_sums = lean_all.group_early = lean_all.early_key = true;
+        const auto all = render_compute(*ctx, batched, camera, options, w, h, fallback, 0,
+                                        pc::DisplayPass::Auto, lean_all);
+        EXPECT_EQ(test::differing_fraction(reference.image, all.image, 0), 0.0) << "all lean";
+        EXPECT_EQ(all.counters.points_rendered, reference.counters.points_rendered);
       }
     }
   }

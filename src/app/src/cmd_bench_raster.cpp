@@ -161,6 +161,10 @@ void run_raster_bench(const RasterArgs& args) {
   add("unclipped", [](Variant& v) { v.kernel.unclipped = true; });
   add("no-lean", [](Variant& v) { v.kernel.lean = false; });
   add("checked", [](Variant& v) { v.kernel.trusted = false; });
+  add("group-early", [](Variant& v) { v.kernel.group_early = true; });
+  add("no-early", [](Variant& v) { v.kernel.early_test = false; });
+  add("early-key", [](Variant& v) { v.kernel.early_key = true; });
+  add("lean-sums", [](Variant& v) { v.kernel.lean_sums = true; });
   add("parallel", [](Variant& v) { v.kernel.parallel_prologue = true; });
   for (uint32_t k : {2u, 4u, 8u, 16u})
     add("group" + std::to_string(k), [k](Variant& v) {
@@ -439,7 +443,9 @@ void add_bench_raster_command(CLI::App& bench) {
          "Only these variants (compute-basic, compute-precision, merge, contiguous, "
          "prefetch, prefetch2, scalar, sums-scalar, sums-strided, sums-contiguous, sums-wg64, "
          "sums-wg128, sums-wg256, sums-wg512, sums-wg1024, atomic-early, wg64, wg256, tile, "
-         "subgroup, fast, unclipped, no-lean, checked, parallel, group2, "
+         "subgroup, fast, unclipped, no-lean, checked, group-early, no-early, early-key, "
+         "lean-sums, "
+         "parallel, group2, "
          "group4, group8, group16, "
          "shaded-sums, compute-hqs, "
          "hqs-no-tile, hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "

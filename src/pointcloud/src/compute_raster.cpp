@@ -117,13 +117,15 @@ std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, 
   if (grouped && (kernel.tile || !kernel.parallel_prologue))
     fail("compute rasterizer: batches_per_group needs parallel_prologue and no tile");
   c.push_back({"PARALLEL_PROLOGUE", kernel.parallel_prologue ? 1.0 : 0.0});
-  c.push_back({"LEAN", geometry && kernel.lean ? 1.0 : 0.0});
+  c.push_back({"LEAN", (geometry ? kernel.lean : kernel.lean_sums) ? 1.0 : 0.0});
   c.push_back({"BATCHES_PER_GROUP", grouped ? double(kernel.batches_per_group) : 1.0});
   if (geometry) {
     c.push_back({"COUNT", kernel.ablate_count ? 0.0 : 1.0});
     c.push_back({"PLAIN_EARLY", kernel.plain_early ? 1.0 : 0.0});
     c.push_back({"SUBGROUP_REDUCE", kernel.subgroup_reduce ? 1.0 : 0.0});
     c.push_back({"ABLATE", double(kernel.ablate)});
+    c.push_back({"EARLY_TEST", kernel.early_test ? 1.0 : 0.0});
+    c.push_back({"GROUP_EARLY", kernel.group_early ? 1.0 : 0.0});
   } else {
     c.push_back({"PACKED", kernel.packed_hqs ? 1.0 : 0.0});
     c.push_back({"ABLATE_SUMS", kernel.ablate_sums ? 1.0 : 0.0});
@@ -196,7 +198,8 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
 
 std::vector<WGPUFeatureName> compute_raster_features() {
   return {WGPUFeatureName(WGPUNativeFeature_ShaderInt64),
-          WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax), WGPUFeatureName_Subgroups,
+          WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax),
+          WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicAllOps), WGPUFeatureName_Subgroups,
           WGPUFeatureName(WGPUNativeFeature_Subgroup)};
 }
 
@@ -257,10 +260,13 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   geometry_kernel.subgroup_reduce =
       kernel.subgroup_reduce && p.visibility64 && !kernel.merge && has_subgroups(ctx);
   p.kernel.subgroup_reduce = geometry_kernel.subgroup_reduce;
+  p.kernel.early_key = kernel.early_key && !geometry_kernel.subgroup_reduce &&
+                       ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicAllOps));
   const auto geometry = kernel_constants(geometry_kernel, true);
   if (p.visibility64) {
     p.raster64 = make_compute(ctx,
                               geometry_kernel.subgroup_reduce ? "compute_raster64_subgroups.wgsl"
+                              : p.kernel.early_key            ? "compute_raster64_key.wgsl"
                                                               : "compute_raster64.wgsl",
                               geometry, kernel.trusted);
     p.resolve = make_compute(ctx, "compute_raster_resolve.wgsl");
@@ -445,7 +451,8 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                         gpu::bind_buffer(9, seg.attributes.get()),
                         gpu::bind_buffer(11, p.filter_uniforms.get()),
                         gpu::bind_buffer(12, p.polygon_vertices.get())};
-                    if (use64) {
+                    // (The early test on the whole key reads binding 5 itself.)
+                    if (use64 && !p.kernel.early_key) {
                       bindings.push_back(gpu::bind_buffer(6, depth));
                       bindings.push_back(gpu::bind_buffer(8, depth));
                     }

@@ -124,11 +124,29 @@ struct RasterKernel {
   // the view. The pass issued about 100 instructions a point (the driver's SASS), the lean loop
   // about 50: 1.67x faster on the H200 (bench/RESULTS.md, runs U-Y).
   bool lean = true;
+  // The accumulation pass's lean loop (HQS sums, the fallback's colours) for 10-bit batches in
+  // the RGB mode without filters (compute_raster_accumulate.wgsl): the depth passes' lean
+  // projection, a word's depth limits and then its colours read together. Off until measured
+  // on the H200 (a lean accumulation that inlined its whole point path there grew the pass
+  // 4.3x and made HQS 1.55x slower: bench/RESULTS.md, run Z).
+  bool lean_sums = false;
   // The batch passes compiled without naga's bounds checks (gpu::create_shader's `trusted`;
   // wgpu-native): their indices are in range by construction (batch ranges checked on upload,
   // pixels clipped to the viewport, tile entries bounded). 1.06x faster depth pass, 1.23x
   // faster HQS accumulation on the H200.
   bool trusted = true;
+  // The depth passes' early depth test (a plain read of the pixel's depth before the atomic).
+  // group_early: in the lean loop a word's four early-test reads issued together before its
+  // tests (compute_raster_write.wgsl): in the H200's code the driver's range check before each
+  // read puts it behind a branch, so a thread waits for the four one after the other, and the
+  // early test costs 30 % of the pass (bench/RESULTS.md, run Y). Off until measured there.
+  bool early_test = true;
+  bool group_early = false;
+  // The 64-bit pass's early test on the whole key, read with a 64-bit atomic load through the
+  // binding the atomicMin writes (compute_raster64_early_key.wgsl; devices with
+  // ShaderInt64AtomicAllOps, else the depth word as before): the test and the atomic share an
+  // address and a range check instead of two bindings' each. Off until measured on the H200.
+  bool early_key = false;
   // Every thread of a batch's workgroup classifies the batch and makes its screen matrix
   // itself, instead of thread 0 for all behind a barrier: 3.5 % slower on the H200 (the barrier
   // costs less than the instructions it saves).
