@@ -106,6 +106,23 @@ fn limit_of(pixel: u32) -> f32 {
   return nearest * (1.0 + params.depth_tolerance);
 }
 
+// The tile entry of the pixel at column and row `xy` while the batch draws into the tile, else
+// TILE_PIXELS (the screen's).
+fn drawing_entry(xy: vec2<u32>) -> u32 {
+  if (TILE && tile_phase != 0u) {
+    return tile_entry_xy(xy);
+  }
+  return TILE_PIXELS;
+}
+
+// The depth limit of `pixel`: its tile entry's (`entry`: drawing_entry) or the screen's.
+fn entry_limit(entry: u32, pixel: u32) -> f32 {
+  if (entry < TILE_PIXELS) {
+    return bitcast<f32>(atomicLoad(&tile_depth[entry]));
+  }
+  return limit_of(pixel);
+}
+
 fn draw_point(cells: vec3<f32>, index: u32) {
   let pr = project_point(cells);
   if (!pr.valid) {
@@ -119,15 +136,8 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   if (!MERGE || pr.pixel != run_pixel) {
     end_run();
     run_pixel = pr.pixel;
-    run_entry = TILE_PIXELS;
-    if (TILE && tile_phase != 0u) {
-      run_entry = tile_entry_xy(pr.xy);
-    }
-    if (run_entry < TILE_PIXELS) {
-      run_limit = bitcast<f32>(atomicLoad(&tile_depth[run_entry]));
-    } else {
-      run_limit = limit_of(pr.pixel);
-    }
+    run_entry = drawing_entry(pr.xy);
+    run_limit = entry_limit(run_entry, pr.pixel);
     run_sum = vec4<u32>(0u);
   }
   if (pr.depth > run_limit) {
@@ -161,19 +171,9 @@ fn lean_sums_batch(bits: u32) -> bool {
          RAW_RGB && shading.mode == 1u && filters.flags == 0u;
 }
 
-// A lean point's depth limit: the tile's while the batch draws into it, else the screen's.
-fn lean_limit(p: LeanProjected) -> f32 {
-  if (TILE && tile_phase != 0u) {
-    let e = tile_entry_xy(p.xy);
-    if (e < TILE_PIXELS) {
-      return bitcast<f32>(atomicLoad(&tile_depth[e]));
-    }
-  }
-  return limit_of(p.pixel);
-}
-
-// A lean point that passes (`passes`) with colour `c`: into the thread's run.
-fn lean_sum(p: LeanProjected, passes: bool, c: u32) {
+// A lean point (tile entry `entry`: drawing_entry) that passes (`passes`) with colour `c`: into
+// the thread's run.
+fn lean_sum(p: LeanProjected, entry: u32, passes: bool, c: u32) {
   if (!passes) {
     return;
   }
@@ -184,10 +184,7 @@ fn lean_sum(p: LeanProjected, passes: bool, c: u32) {
   }
   end_run();
   run_pixel = p.pixel;
-  run_entry = TILE_PIXELS;
-  if (TILE && tile_phase != 0u) {
-    run_entry = tile_entry_xy(p.xy);
-  }
+  run_entry = entry;
   run_sum = sum;
 }
 
@@ -199,10 +196,14 @@ fn lean_sums_word(c: vec4<u32>, v: u32, lo: u32, end: u32, inside: bool, full: b
   let p1 = lean_project(c.y, inside);
   let p2 = lean_project(c.z, inside);
   let p3 = lean_project(c.w, inside);
-  let l0 = lean_limit(p0);
-  let l1 = lean_limit(p1);
-  let l2 = lean_limit(p2);
-  let l3 = lean_limit(p3);
+  let e0 = drawing_entry(p0.xy);
+  let e1 = drawing_entry(p1.xy);
+  let e2 = drawing_entry(p2.xy);
+  let e3 = drawing_entry(p3.xy);
+  let l0 = entry_limit(e0, p0.pixel);
+  let l1 = entry_limit(e1, p1.pixel);
+  let l2 = entry_limit(e2, p2.pixel);
+  let l3 = entry_limit(e3, p3.pixel);
   var a0 = p0.valid && p0.depth <= l0;
   var a1 = p1.valid && p1.depth <= l1;
   var a2 = p2.valid && p2.depth <= l2;
@@ -217,10 +218,10 @@ fn lean_sums_word(c: vec4<u32>, v: u32, lo: u32, end: u32, inside: bool, full: b
   let c1 = colors[select(0u, first + 1u, a1)];
   let c2 = colors[select(0u, first + 2u, a2)];
   let c3 = colors[select(0u, first + 3u, a3)];
-  lean_sum(p0, a0, c0);
-  lean_sum(p1, a1, c1);
-  lean_sum(p2, a2, c2);
-  lean_sum(p3, a3, c3);
+  lean_sum(p0, e0, a0, c0);
+  lean_sum(p1, e1, a1, c1);
+  lean_sum(p2, e2, a2, c2);
+  lean_sum(p3, e3, a3, c3);
 }
 
 // The lean loop over batch `b`: the words wholly inside it, then the partial first and last

@@ -413,9 +413,9 @@ void run_raster_bench(const RasterArgs& args) {
   }
   std::printf(
       "\nframe ms: all passes of a frame (clear, geometry, resolve/accumulate, display), "
-      "median of %u; geom ms, acc ms: the depth and accumulation passes; Gpts/s: all N points per "
-      "frame time; GB/s: point data loaded per "
-      "second; %%bound: of the read kernel's bandwidth\n",
+      "median of %u; geom ms, acc ms: the depth and accumulation passes; Gpts/s: all N points "
+      "per frame time; GB/s: point data loaded per second; %%bound: of the read kernel's "
+      "bandwidth\n",
       args.frames);
   if (!args.json.empty()) {
     write_file_atomically(args.json, out.dump(2) + "\n");
@@ -450,9 +450,7 @@ void add_bench_raster_command(CLI::App& bench) {
          "prefetch, prefetch2, scalar, sums-scalar, sums-strided, sums-contiguous, sums-wg64, "
          "sums-wg128, sums-wg256, sums-wg512, sums-wg1024, atomic-early, wg64, wg256, tile, "
          "subgroup, fast, unclipped, no-lean, checked, group-early, no-early, early-key, "
-         "lean-sums, "
-         "parallel, group2, "
-         "group4, group8, group16, "
+         "lean-sums, parallel, group2, group4, group8, group16, "
          "shaded-sums, compute-hqs, "
          "hqs-no-tile, hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
          "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, "

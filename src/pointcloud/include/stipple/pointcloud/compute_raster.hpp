@@ -119,7 +119,7 @@ struct RasterKernel {
   // HQS sums (and the fallback's colours) in the RGB mode from the colour's bytes, not shaded
   // through floats: the same sums, HQS 1.13x faster on the H200 (bench/RESULTS.md, run Q).
   bool hqs_raw_rgb = true;
-  // The depth passes' lean loop for 10-bit batches without filters (compute_raster_batch.wgsl):
+  // The depth passes' lean loop for 10-bit batches without filters (compute_raster_write.wgsl):
   // no precision, filter or per-point range branches, and no clipping tests in batches inside
   // the view. The pass issued about 100 instructions a point (the driver's SASS), the lean loop
   // about 50: 1.67x faster on the H200 (bench/RESULTS.md, runs U-Y).
