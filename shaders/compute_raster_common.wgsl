@@ -37,6 +37,8 @@ const C_LOD_SKIPPED: u32 = 3u;
 const C_POINTS: u32 = 4u;
 const C_BATCHES_BITS: u32 = 5u;  // 3 entries: 10, 20, 30 bits
 const C_POINTS_BITS: u32 = 8u;   // 3 entries
+const C_EVENTS: u32 = 11u;       // the fallback's winner events (compute_raster_events.wgsl)
+const C_EVENTS_OVERFLOW: u32 = 12u;
 
 // 0 when culled or skipped, else the precision in bits; `skipped` is set for LOD skips.
 fn classify(p: Params, b: GpuBatch, skipped: ptr<function, bool>) -> u32 {

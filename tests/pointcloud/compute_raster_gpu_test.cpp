@@ -180,6 +180,10 @@ std::vector<std::pair<std::string, pc::RasterKernel>> kernel_variants() {
   k.group_early = true;
   kernels.push_back({"lean loop for the sums, a word's early tests read together", k});
   k = {};
+  k.fallback_events = pc::AutoSwitch::On;  // the fallback's winner events (Dawn's: the 64-bit
+                                           // path ignores them)
+  kernels.push_back({"winner events instead of the fallback's colour pass", k});
+  k = {};
   k.parallel_prologue = true;
   kernels.push_back({"every thread classifies its batch", k});
   k.unclipped = k.fast_convert = true;
@@ -497,26 +501,34 @@ TEST_P(ComputeRaster, SegmentsAndHqs) {
 // spread, not the result: the nearest point of each pixel (64-bit) or the sums at
 // the nearest depth (fallback, HQS) are the same. Tolerance: 0.1 % of the pixels may differ
 // (a point whose depth rounds differently in another code path can win a tie); measured 0.
-TEST_P(ComputeRaster, KernelVariantsDrawTheSameImage) {
+// Plain frames and HQS in two tests, each within the suite's time limit on two cores.
+void expect_kernel_variants_draw_the_same_image(gpu::Context& ctx, bool hqs) {
   STIPPLE_REQUIRE_DATA(path, "las/autzen_trim.las");
-  auto ctx = context();
   const uint32_t w = 480, h = 270;
   const auto [cloud, camera, batched] = load_framed(path, w, h);
-  for (bool hqs : {false, true}) {
-    pc::ComputeRasterOptions options;
-    options.hqs = hqs;
-    const auto reference = render_compute(*ctx, batched, camera, options, w, h);
-    ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.05);
-    for (const auto& [name, kernel] : kernel_variants()) {
-      const auto r = render_compute(*ctx, batched, camera, options, w, h, false, 0,
-                                    pc::DisplayPass::Auto, kernel);
-      const double differ = test::differing_fraction(reference.image, r.image, 0);
-      std::printf("%s%s: %.4f%% of the pixels differ\n", name.c_str(), hqs ? " (HQS)" : "",
-                  100 * differ);
-      EXPECT_LE(differ, 0.001) << name << (hqs ? " HQS" : "");
-      EXPECT_EQ(r.counters.points_rendered, reference.counters.points_rendered) << name;
-    }
+  pc::ComputeRasterOptions options;
+  options.hqs = hqs;
+  const auto reference = render_compute(ctx, batched, camera, options, w, h);
+  ASSERT_GT(test::coverage_stats(reference.image, kBlack, 0).coverage, 0.05);
+  for (const auto& [name, kernel] : kernel_variants()) {
+    const auto r = render_compute(ctx, batched, camera, options, w, h, false, 0,
+                                  pc::DisplayPass::Auto, kernel);
+    const double differ = test::differing_fraction(reference.image, r.image, 0);
+    std::printf("%s%s: %.4f%% of the pixels differ\n", name.c_str(), hqs ? " (HQS)" : "",
+                100 * differ);
+    EXPECT_LE(differ, 0.001) << name << (hqs ? " HQS" : "");
+    EXPECT_EQ(r.counters.points_rendered, reference.counters.points_rendered) << name;
   }
+}
+
+TEST_P(ComputeRaster, KernelVariantsDrawTheSameImage) {
+  auto ctx = context();
+  expect_kernel_variants_draw_the_same_image(*ctx, false);
+}
+
+TEST_P(ComputeRaster, KernelVariantsDrawTheSameHqsImage) {
+  auto ctx = context();
+  expect_kernel_variants_draw_the_same_image(*ctx, true);
 }
 
 // Subgroup reduction (RasterKernel::subgroup_reduce): where a subgroup's points share a pixel
@@ -635,7 +647,7 @@ TEST_P(ComputeRaster, LeanLoopDrawsTheSameImageNearAndFar) {
   const auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Morton);
   const uint32_t w = 320, h = 180;
   pc::RasterKernel general;
-  general.lean = general.lean_sums = false;
+  general.lean = general.lean_sums = general.lean_colours = false;
   const bool has64 = pc::has_visibility64(*ctx);
   for (const double distance : {1.0, 0.3, 0.02}) {
     Camera camera = frame_box(batched.world_bounds, double(w) / h, 10.0, 25.0);
@@ -669,6 +681,79 @@ TEST_P(ComputeRaster, LeanLoopDrawsTheSameImageNearAndFar) {
                                         pc::DisplayPass::Auto, lean_all);
         EXPECT_EQ(test::differing_fraction(reference.image, all.image, 0), 0.0) << "all lean";
         EXPECT_EQ(all.counters.points_rendered, reference.counters.points_rendered);
+      }
+    }
+  }
+}
+
+// The fallback's winner events (RasterKernel::fallback_events): the depth pass lists the points
+// that lowered or tied their pixel's depth, raster-events keeps those at the final depth with the
+// lowest index, and the resolve pass colours them: the 64-bit key's choice, so where the device
+// has 64-bit atomics the images are equal (tolerance 0), near and far, in RGB, by elevation and
+// with a class hidden, in one segment or several. Without 64-bit atomics (Dawn) they are compared
+// with the colour pass, which averages exact ties: same coverage, under 1 % of the pixels
+// differing by more than 2. Too small a list overflows, and then the colour pass runs: the plain
+// fallback's image exactly. Events from every point past the early test (events_on_win off):
+// the same image.
+TEST_P(ComputeRaster, FallbackEventsDrawTheVisibilityBuffersImage) {
+  auto ctx = context();
+  io::SceneParams scene;
+  scene.point_count = 300'000;
+  const auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Morton);
+  const uint32_t w = 320, h = 180;
+  const bool has64 = pc::has_visibility64(*ctx);
+  pc::RasterKernel events;
+  events.fallback_events = pc::AutoSwitch::On;
+  for (const double distance : {1.0, 0.3, 0.02}) {
+    Camera camera = frame_box(batched.world_bounds, double(w) / h, 10.0, 25.0);
+    const glm::dvec3 centre = batched.world_bounds.center();
+    camera.position = centre + (camera.position - centre) * distance;
+    for (int mode = 0; mode < 3; ++mode) {  // RGB, elevation, ground hidden
+      SCOPED_TRACE(std::to_string(distance) + (mode == 0   ? ", RGB"
+                                               : mode == 1 ? ", elevation"
+                                                           : ", ground hidden"));
+      pc::ComputeRasterOptions options;
+      if (mode == 1) {
+        options.shading = pc::PointShading{pc::ColorMode::Elevation};
+        options.shading.elevation_range = {batched.world_bounds.min.y, batched.world_bounds.max.y};
+      }
+      if (mode == 2) options.filter.set_class(2, false);
+      const auto ev = render_compute(*ctx, batched, camera, options, w, h, true, 0,
+                                     pc::DisplayPass::Auto, events);
+      const auto covered = test::coverage_stats(ev.image, kBlack, 0).covered;
+      ASSERT_GT(covered, w * h / 20);
+      EXPECT_FALSE(ev.counters.events_overflowed);
+      EXPECT_GE(ev.counters.events, covered);  // at least the nearest point of each pixel
+      const auto split = render_compute(*ctx, batched, camera, options, w, h, true,
+                                        5 * pc::kBatchPoints, pc::DisplayPass::Auto, events);
+      EXPECT_EQ(test::differing_fraction(ev.image, split.image, 0), 0.0) << "segments";
+      const auto colour_pass = render_compute(*ctx, batched, camera, options, w, h, true);
+      EXPECT_EQ(test::coverage_stats(colour_pass.image, kBlack, 0).covered, covered);
+      EXPECT_EQ(ev.counters.points_rendered, colour_pass.counters.points_rendered);
+      if (mode == 0) {
+        // Events from every point that passes the early test: more of them, the same image.
+        pc::RasterKernel tested = events;
+        tested.events_on_win = false;
+        const auto t = render_compute(*ctx, batched, camera, options, w, h, true, 0,
+                                      pc::DisplayPass::Auto, tested);
+        EXPECT_FALSE(t.counters.events_overflowed);
+        EXPECT_GE(t.counters.events, ev.counters.events);
+        EXPECT_EQ(test::differing_fraction(ev.image, t.image, 0), 0.0) << "events-tested";
+      }
+      if (has64) {
+        const auto key64 = render_compute(*ctx, batched, camera, options, w, h);
+        EXPECT_EQ(test::differing_fraction(key64.image, ev.image, 0), 0.0) << "64-bit";
+      } else {
+        EXPECT_LT(test::differing_fraction(colour_pass.image, ev.image, 2), 0.01);
+      }
+      if (distance == 1.0 && mode == 0) {
+        // One slot a pixel: fewer than the overview's events (several a pixel).
+        pc::RasterKernel small = events;
+        small.events_per_pixel = 1;
+        const auto over = render_compute(*ctx, batched, camera, options, w, h, true, 0,
+                                         pc::DisplayPass::Auto, small);
+        ASSERT_TRUE(over.counters.events_overflowed) << over.counters.events << " events";
+        EXPECT_EQ(test::differing_fraction(colour_pass.image, over.image, 0), 0.0) << "overflow";
       }
     }
   }

@@ -220,6 +220,19 @@ void run_raster_bench(const RasterArgs& args) {
     v.fallback = true;
     v.kernel.merge = true;
   });
+  // The fallback's winner events instead of its colour pass (with compute-fallback32, or on
+  // adapters without 64-bit atomics), with 4, 8 or 16 event slots a pixel.
+  for (uint32_t k : {4u, 8u, 16u})
+    add(k == 4 ? std::string("events") : "events" + std::to_string(k), [k](Variant& v) {
+      v.kernel.fallback_events = pc::AutoSwitch::On;
+      v.kernel.events_per_pixel = k;
+    });
+  add("no-events", [](Variant& v) { v.kernel.fallback_events = pc::AutoSwitch::Off; });
+  add("no-lean-colours", [](Variant& v) { v.kernel.lean_colours = false; });
+  add("events-tested", [](Variant& v) {
+    v.kernel.fallback_events = pc::AutoSwitch::On;
+    v.kernel.events_on_win = false;
+  });
   add("dilate-3px", [](Variant& v) { v.options.point_size = 3.0f; });
   if (args.billboard) add("billboard-1px", [](Variant& v) { v.billboard = true; });
   std::vector<std::string> specs = args.variants;
@@ -367,7 +380,11 @@ void run_raster_bench(const RasterArgs& args) {
           // The resolve reads one colour per pixel (negligible).
           double coords = 4.0 * double(c.points_by_bits[0]) + 8.0 * double(c.points_by_bits[1]) +
                           12.0 * double(c.points_by_bits[2]);
-          bool second = variant.options.hqs || !pipeline->visibility64;
+          // The fallback's winner events stand in for its second pass unless they overflowed.
+          const bool events_ran = !variant.options.hqs && !pipeline->visibility64 &&
+                                  pipeline->kernel.fallback_events == pc::AutoSwitch::On &&
+                                  !c.events_overflowed;
+          bool second = variant.options.hqs || (!pipeline->visibility64 && !events_ran);
           double loaded = coords + (second ? coords + 4.0 * double(c.points_rendered) : 0.0);
           double per_point = c.points_rendered ? loaded / double(c.points_rendered) : 0.0;
           double rate = ms > 0 ? loaded / (ms * 1e-3) * 1e-9 : 0.0;
@@ -388,6 +405,14 @@ void run_raster_bench(const RasterArgs& args) {
           run["bytes_per_point_loaded"] = per_point;
           run["loaded_gb_per_s"] = rate;
           run["visibility64"] = pipeline->visibility64;
+          if (pipeline->kernel.fallback_events == pc::AutoSwitch::On && !pipeline->visibility64) {
+            run["events"] = c.events;
+            run["events_overflowed"] = c.events_overflowed;
+            std::printf("  (%s %s: %.1fM winner events, %.2f a pixel%s)\n", v.name.c_str(),
+                        variant.name.c_str(), double(c.events) * 1e-6,
+                        double(c.events) / (double(args.width) * args.height),
+                        c.events_overflowed ? ", overflowed: the colour pass ran" : "");
+          }
           run["percent_of_read_bound"] = read_gbs > 0 ? 100.0 * rate / read_gbs : 0.0;
         } else {
           double rate = ms > 0 ? 16.0 * double(n) / (ms * 1e-3) * 1e-9 : 0.0;
@@ -453,7 +478,8 @@ void add_bench_raster_command(CLI::App& bench) {
          "lean-sums, parallel, group2, group4, group8, group16, "
          "shaded-sums, compute-hqs, "
          "hqs-no-tile, hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
-         "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, "
+         "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, events, "
+         "events8, events16, events-tested, no-events, no-lean-colours, "
          "dilate-3px, billboard-1px; measurements with wrong images: no-atomic, "
          "no-write, no-load, no-sums, no-count); a+b combines them, e.g. prefetch2+wg256")
       ->delimiter(',');

@@ -44,7 +44,7 @@ struct GpuBatch {
 };
 static_assert(sizeof(GpuBatch) == kGpuBatchBytes);
 
-constexpr uint32_t kCounterWords = 11;  // see C_* in compute_raster_common.wgsl
+constexpr uint32_t kCounterWords = 13;  // see C_* in compute_raster_common.wgsl
 
 // Mirrors Shading in compute_raster_shading.wgsl.
 struct ShadingUniforms {
@@ -77,12 +77,30 @@ ShadingUniforms shading_uniforms(const PointShading& s, const Camera& camera) {
 }
 
 // One workgroup per batch, in rows of at most 65,535 (WebGPU's guaranteed dimension limit).
+constexpr uint32_t kDispatchRow = 65'535;
+
 void dispatch_batches(WGPUComputePassEncoder pass, WGPUComputePipeline pipeline,
                       WGPUBindGroup group, uint32_t batches) {
   if (batches == 0) return;
-  constexpr uint32_t kRow = 65'535;
-  const uint32_t x = std::min(batches, kRow), y = (batches + kRow - 1) / kRow;
+  const uint32_t x = std::min(batches, kDispatchRow),
+                 y = (batches + kDispatchRow - 1) / kDispatchRow;
   gpu::dispatch(pass, pipeline, {group}, x, y);
+}
+
+// The accumulation pass's bindings for one segment: its points, the depth buffer and the sums.
+gpu::BindGroup accumulate_bind_group(gpu::Context& ctx, WGPUBindGroupLayout layout,
+                                     const GpuBatchedCloud::Segment& seg,
+                                     const GpuBatchedCloud& cloud, const ComputeRasterPipeline& p,
+                                     WGPUBuffer depth, WGPUBuffer sums) {
+  return gpu::create_bind_group(
+      ctx, layout,
+      {gpu::bind_buffer(0, seg.params.get()), gpu::bind_buffer(1, seg.batches.get()),
+       gpu::bind_buffer(2, seg.coarse.get()), gpu::bind_buffer(3, seg.medium.get()),
+       gpu::bind_buffer(4, seg.fine.get()), gpu::bind_buffer(5, seg.color.get()),
+       gpu::bind_buffer(6, depth), gpu::bind_buffer(7, sums),
+       gpu::bind_buffer(9, seg.attributes.get()), gpu::bind_buffer(10, cloud.shading.get()),
+       gpu::bind_buffer(11, p.filter_uniforms.get()),
+       gpu::bind_buffer(12, p.polygon_vertices.get())});
 }
 
 gpu::ComputePipeline make_compute(gpu::Context& ctx, const char* file,
@@ -253,6 +271,7 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   p.visibility64 = !force_fallback && has_visibility64(ctx);
   p.color_format = color_format;
   p.kernel = kernel;
+  p.max_storage_binding = ctx.limits.maxStorageBufferBindingSize;
   p.clear = make_compute(ctx, "compute_raster_clear.wgsl");
   const gpu::PipelineConstant depth_only[] = {{"CLEAR_ACCUM", 0.0}};
   p.clear_depth = make_compute(ctx, "compute_raster_clear.wgsl", depth_only);
@@ -271,15 +290,61 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
                               geometry, kernel.trusted);
     p.resolve = make_compute(ctx, "compute_raster_resolve.wgsl");
   } else {
-    p.depth32 = make_compute(ctx, "compute_raster_depth32.wgsl", geometry, kernel.trusted);
+    // wgpu-native lets the early test read the depth buffer through a second, plain binding
+    // (as the 64-bit pass does); Dawn refuses the aliasing, so there it is an atomic load.
+    p.depth32_plain_early = kernel.plain_early && ctx.description.backend == "wgpu";
+    p.depth32 = make_compute(
+        ctx,
+        p.depth32_plain_early ? "compute_raster_depth32_plain.wgsl" : "compute_raster_depth32.wgsl",
+        geometry, kernel.trusted);
+    const bool events_wanted =
+        kernel.fallback_events == AutoSwitch::On ||
+        (kernel.fallback_events == AutoSwitch::Auto && ctx.description.adapter_type != "CPU");
+    p.kernel.fallback_events = events_wanted && kernel.events_per_pixel > 0 &&
+                                       ctx.limits.maxStorageBuffersPerShaderStage >= 9
+                                   ? AutoSwitch::On
+                                   : AutoSwitch::Off;
+    if (p.kernel.fallback_events == AutoSwitch::On) {
+      RasterKernel untiled = geometry_kernel;  // the tile's flush has no point index
+      untiled.tile = false;
+      auto constants = kernel_constants(untiled, true);
+      constants.push_back({"EVENT_ON_WIN", kernel.events_on_win ? 1.0 : 0.0});
+      p.depth32_events =
+          make_compute(ctx,
+                       p.depth32_plain_early ? "compute_raster_depth32_events_plain.wgsl"
+                                             : "compute_raster_depth32_events.wgsl",
+                       constants, kernel.trusted);
+      // One layout for the three entry points, which use different subsets of it.
+      using B = gpu::BufferBinding;
+      p.events_layout = gpu::create_compute_layout(
+          ctx, {B::Uniform, B::Storage, B::ReadOnlyStorage, B::Storage, B::Storage, B::Storage},
+          "raster-events");
+      p.events_pipeline_layout = gpu::create_pipeline_layout(ctx, {p.events_layout.get()});
+      gpu::ShaderModule events = gpu::create_shader_from_file(ctx, "compute_raster_events.wgsl");
+      WGPUPipelineLayout layout = p.events_pipeline_layout.get();
+      p.events_overflow = gpu::create_compute_pipeline(ctx, events.get(), "overflow_main", layout,
+                                                       "raster-events-overflow");
+      p.events_init = gpu::create_compute_pipeline(ctx, events.get(), "init_main", layout,
+                                                   "raster-events-init");
+      p.events_scan = gpu::create_compute_pipeline(ctx, events.get(), "events_main", layout,
+                                                   "raster-events-scan");
+      p.resolve = make_compute(ctx, "compute_raster_resolve.wgsl");
+      RasterKernel plain = kernel;
+      plain.hqs_tile = false;
+      plain.lean_sums = kernel.lean_sums || kernel.lean_colours;
+      p.accumulate_overflow = make_compute(ctx, "compute_raster_accumulate.wgsl",
+                                           kernel_constants(plain, false), kernel.trusted);
+      ctx.check("creating raster-events");
+    }
   }
   p.accumulate = make_compute(ctx, "compute_raster_accumulate.wgsl",
                               kernel_constants(kernel, false), kernel.trusted);
   // The fallback's plain colour pass (the nearest points only) without the tile, which made it
   // 7 % slower on the H200 while it made HQS 1.8x faster (bench/RESULTS.md).
-  if (!p.visibility64 && kernel.hqs_tile) {
+  if (!p.visibility64 && (kernel.hqs_tile || kernel.lean_colours != kernel.lean_sums)) {
     RasterKernel plain = kernel;
     plain.hqs_tile = false;
+    plain.lean_sums = kernel.lean_sums || kernel.lean_colours;
     p.accumulate_plain = make_compute(ctx, "compute_raster_accumulate.wgsl",
                                       kernel_constants(plain, false), kernel.trusted);
   }
@@ -345,11 +410,23 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                                const ComputeRasterOptions& options, uint32_t width, uint32_t height,
                                const std::string& color_target) {
   const bool use64 = p.visibility64;
-  const bool accumulate = options.hqs || !use64;
+  // The fallback's winner events (RasterKernel::fallback_events) stand in for its colour pass.
+  const bool events = !use64 && !options.hqs && p.kernel.fallback_events == AutoSwitch::On;
+  const bool accumulate = options.hqs || (!use64 && !events);
   const bool large = options.point_size >= 2.0f;  // dilated after the geometry pass
   const bool packed = accumulate && p.kernel.packed_hqs;
   const uint64_t pixels = uint64_t(width) * height;
   const std::string depth_name = "raster-depth-buffer", accum_name = "raster-accum";
+  const std::string events_name = "raster-events", visibility_name = "raster-visibility";
+  constexpr uint64_t kEventRegions = 1024;  // as in compute_raster_depth32_events_pass.wgsl
+  uint64_t event_bytes = 0;
+  if (events) {
+    // Three words an event, the regions' counters first; within the binding limit.
+    const uint64_t limit = std::min<uint64_t>(p.max_storage_binding, uint64_t(1) << 31);
+    uint64_t per_region = (pixels * p.kernel.events_per_pixel + kEventRegions - 1) / kEventRegions;
+    per_region = std::min(per_region, (limit / 4 - kEventRegions) / (3 * kEventRegions));
+    event_bytes = (kEventRegions + kEventRegions * 3 * per_region) * 4;
+  }
   const uint32_t groups_x = (width + 15) / 16, groups_y = (height + 15) / 16;
 
   // The filter's uniforms are made now, so that a region past the GPU's limits is an error here
@@ -404,68 +481,79 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
     }
   };
 
-  graph
-      .add_pass("raster-clear", gpu::PassKind::Compute,
-                [&p, &cloud, upload_frame, depth_name, accum_name, groups_x, groups_y,
-                 accumulate](gpu::PassContext& pc) {
-                  gpu::Context& ctx = pc.gpu();
-                  upload_frame(ctx);
-                  wgpuCommandEncoderClearBuffer(pc.encoder(), p.counters.get(), 0, WGPU_WHOLE_SIZE);
-                  if (cloud.segments.empty()) return;
-                  // Without accumulation the resolve pass writes every pixel of the colour sums
-                  // (empty ones too): only the depth buffer needs clearing, a third of the bytes.
-                  const gpu::ComputePipeline& clear = accumulate ? p.clear : p.clear_depth;
-                  auto layout = gpu::bind_group_layout_of(clear);
-                  auto group =
-                      gpu::create_bind_group(ctx, layout.get(),
-                                             {gpu::bind_buffer(0, cloud.segments[0].params.get()),
-                                              gpu::bind_buffer(1, pc.buffer(depth_name)),
-                                              gpu::bind_buffer(2, pc.buffer(accum_name))});
-                  auto pass = pc.begin_compute_pass();
-                  gpu::dispatch(pass.get(), clear.get(), {group.get()}, groups_x, groups_y);
-                  wgpuComputePassEncoderEnd(pass.get());
-                })
-      .create_buffer(depth_name, {pixels * (use64 ? 8 : 4), WGPUBufferUsage_Storage})
+  gpu::PassBuilder clear_pass = graph.add_pass(
+      "raster-clear", gpu::PassKind::Compute,
+      [&p, &cloud, upload_frame, depth_name, accum_name, groups_x, groups_y, accumulate, events,
+       events_name](gpu::PassContext& pc) {
+        gpu::Context& ctx = pc.gpu();
+        upload_frame(ctx);
+        wgpuCommandEncoderClearBuffer(pc.encoder(), p.counters.get(), 0, WGPU_WHOLE_SIZE);
+        if (events)  // the regions' counters
+          wgpuCommandEncoderClearBuffer(pc.encoder(), pc.buffer(events_name), 0, kEventRegions * 4);
+        if (cloud.segments.empty()) return;
+        // Without accumulation the resolve pass writes every pixel of the colour sums
+        // (empty ones too): only the depth buffer needs clearing, a third of the bytes.
+        const gpu::ComputePipeline& clear = accumulate ? p.clear : p.clear_depth;
+        auto layout = gpu::bind_group_layout_of(clear);
+        auto group = gpu::create_bind_group(ctx, layout.get(),
+                                            {gpu::bind_buffer(0, cloud.segments[0].params.get()),
+                                             gpu::bind_buffer(1, pc.buffer(depth_name)),
+                                             gpu::bind_buffer(2, pc.buffer(accum_name))});
+        auto pass = pc.begin_compute_pass();
+        gpu::dispatch(pass.get(), clear.get(), {group.get()}, groups_x, groups_y);
+        wgpuComputePassEncoderEnd(pass.get());
+      });
+  // With events, a word after the last pixel holds raster-events' overflow flag.
+  clear_pass
+      .create_buffer(depth_name,
+                     {pixels * (use64 ? 8 : 4) + (events ? 4 : 0), WGPUBufferUsage_Storage})
       .create_buffer(accum_name, {pixels * 16, WGPUBufferUsage_Storage});
+  if (events)
+    clear_pass.create_buffer(events_name,
+                             {event_bytes, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst});
 
-  graph
-      .add_pass("raster-depth", gpu::PassKind::Compute,
-                [&p, &cloud, use64, depth_name](gpu::PassContext& pc) {
-                  gpu::Context& ctx = pc.gpu();
-                  const gpu::ComputePipeline& pipeline = use64 ? p.raster64 : p.depth32;
-                  auto layout = gpu::bind_group_layout_of(pipeline);
-                  std::vector<gpu::BindGroup> groups;
-                  WGPUBuffer depth = pc.buffer(depth_name);
-                  for (auto& seg : cloud.segments) {
-                    // 64-bit: the visibility buffer again as 32-bit words, atomic (binding 6) and
-                    // plain (binding 8), for the early depth test (wgpu-native allows the
-                    // aliasing).
-                    std::vector<gpu::Binding> bindings = {
-                        gpu::bind_buffer(0, seg.params.get()),
-                        gpu::bind_buffer(1, seg.batches.get()),
-                        gpu::bind_buffer(2, seg.coarse.get()),
-                        gpu::bind_buffer(3, seg.medium.get()),
-                        gpu::bind_buffer(4, seg.fine.get()),
-                        gpu::bind_buffer(5, depth),
-                        gpu::bind_buffer(7, p.counters.get()),
-                        gpu::bind_buffer(9, seg.attributes.get()),
-                        gpu::bind_buffer(11, p.filter_uniforms.get()),
-                        gpu::bind_buffer(12, p.polygon_vertices.get())};
-                    // (The early test on the whole key reads binding 5 itself.)
-                    if (use64 && !p.kernel.early_key) {
-                      bindings.push_back(gpu::bind_buffer(6, depth));
-                      bindings.push_back(gpu::bind_buffer(8, depth));
-                    }
-                    groups.push_back(gpu::create_bind_group(ctx, layout.get(), bindings));
-                  }
-                  auto pass = pc.begin_compute_pass();
-                  const uint32_t per_group = std::max(1u, p.kernel.batches_per_group);
-                  for (size_t s = 0; s < cloud.segments.size(); ++s)
-                    dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
-                                     (cloud.segments[s].batch_count + per_group - 1) / per_group);
-                  wgpuComputePassEncoderEnd(pass.get());
-                })
-      .write(depth_name);
+  gpu::PassBuilder depth_pass = graph.add_pass(
+      "raster-depth", gpu::PassKind::Compute,
+      [&p, &cloud, use64, events, depth_name, events_name](gpu::PassContext& pc) {
+        gpu::Context& ctx = pc.gpu();
+        const gpu::ComputePipeline& pipeline = use64    ? p.raster64
+                                               : events ? p.depth32_events
+                                                        : p.depth32;
+        auto layout = gpu::bind_group_layout_of(pipeline);
+        std::vector<gpu::BindGroup> groups;
+        WGPUBuffer depth = pc.buffer(depth_name);
+        for (auto& seg : cloud.segments) {
+          // 64-bit: the visibility buffer again as 32-bit words, atomic (binding 6) and
+          // plain (binding 8), for the early depth test (wgpu-native allows the
+          // aliasing).
+          std::vector<gpu::Binding> bindings = {gpu::bind_buffer(0, seg.params.get()),
+                                                gpu::bind_buffer(1, seg.batches.get()),
+                                                gpu::bind_buffer(2, seg.coarse.get()),
+                                                gpu::bind_buffer(3, seg.medium.get()),
+                                                gpu::bind_buffer(4, seg.fine.get()),
+                                                gpu::bind_buffer(5, depth),
+                                                gpu::bind_buffer(7, p.counters.get()),
+                                                gpu::bind_buffer(9, seg.attributes.get()),
+                                                gpu::bind_buffer(11, p.filter_uniforms.get()),
+                                                gpu::bind_buffer(12, p.polygon_vertices.get())};
+          // (The early test on the whole key reads binding 5 itself.)
+          if (use64 && !p.kernel.early_key) {
+            bindings.push_back(gpu::bind_buffer(6, depth));
+            bindings.push_back(gpu::bind_buffer(8, depth));
+          }
+          if (!use64 && p.depth32_plain_early) bindings.push_back(gpu::bind_buffer(8, depth));
+          if (events) bindings.push_back(gpu::bind_buffer(6, pc.buffer(events_name)));
+          groups.push_back(gpu::create_bind_group(ctx, layout.get(), bindings));
+        }
+        auto pass = pc.begin_compute_pass();
+        const uint32_t per_group = std::max(1u, p.kernel.batches_per_group);
+        for (size_t s = 0; s < cloud.segments.size(); ++s)
+          dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
+                           (cloud.segments[s].batch_count + per_group - 1) / per_group);
+        wgpuComputePassEncoderEnd(pass.get());
+      });
+  depth_pass.write(depth_name);
+  if (events) depth_pass.write(events_name);
 
   if (accumulate) {
     // Packed HQS sums into eight words a pixel, then raster-hqs-finish writes the plain layout.
@@ -484,19 +572,8 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                   auto layout = gpu::bind_group_layout_of(pipeline);
                   std::vector<gpu::BindGroup> groups;
                   for (auto& seg : cloud.segments)
-                    groups.push_back(gpu::create_bind_group(
-                        ctx, layout.get(),
-                        {gpu::bind_buffer(0, seg.params.get()),
-                         gpu::bind_buffer(1, seg.batches.get()),
-                         gpu::bind_buffer(2, seg.coarse.get()),
-                         gpu::bind_buffer(3, seg.medium.get()), gpu::bind_buffer(4, seg.fine.get()),
-                         gpu::bind_buffer(5, seg.color.get()),
-                         gpu::bind_buffer(6, pc.buffer(depth_name)),
-                         gpu::bind_buffer(7, pc.buffer(sums)),
-                         gpu::bind_buffer(9, seg.attributes.get()),
-                         gpu::bind_buffer(10, cloud.shading.get()),
-                         gpu::bind_buffer(11, p.filter_uniforms.get()),
-                         gpu::bind_buffer(12, p.polygon_vertices.get())}));
+                    groups.push_back(accumulate_bind_group(ctx, layout.get(), seg, cloud, p,
+                                                           pc.buffer(depth_name), pc.buffer(sums)));
                   auto pass = pc.begin_compute_pass();
                   for (size_t s = 0; s < cloud.segments.size(); ++s)
                     dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
@@ -529,10 +606,53 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
       accumulate_pass.write(accum_name);
     }
   } else {
+    if (events) {
+      graph
+          .add_pass(
+              "raster-events", gpu::PassKind::Compute,
+              [&p, &cloud, depth_name, events_name, visibility_name, groups_x,
+               groups_y](gpu::PassContext& pc) {
+                gpu::Context& ctx = pc.gpu();
+                if (cloud.segments.empty()) return;
+                // The colour pass's full dispatch a segment (as dispatch_batches sizes it).
+                std::vector<uint32_t> sizes;
+                for (const auto& seg : cloud.segments) {
+                  const uint32_t x = std::min(seg.batch_count, kDispatchRow);
+                  sizes.insert(sizes.end(),
+                               {x, (seg.batch_count + kDispatchRow - 1) / kDispatchRow, 1u});
+                }
+                const uint64_t bytes = sizes.size() * 4;
+                if (!p.events_dispatch || wgpuBufferGetSize(p.events_dispatch.get()) != bytes)
+                  p.events_dispatch = gpu::create_buffer(
+                      ctx, bytes,
+                      WGPUBufferUsage_Storage | WGPUBufferUsage_Indirect | WGPUBufferUsage_CopyDst,
+                      "raster-events-dispatch");
+                gpu::write_buffer(ctx, p.events_dispatch.get(), 0, sizes.data(), bytes);
+                auto group =
+                    gpu::create_bind_group(ctx, p.events_layout.get(),
+                                           {gpu::bind_buffer(0, cloud.segments[0].params.get()),
+                                            gpu::bind_buffer(1, pc.buffer(depth_name)),
+                                            gpu::bind_buffer(2, pc.buffer(events_name)),
+                                            gpu::bind_buffer(3, pc.buffer(visibility_name)),
+                                            gpu::bind_buffer(4, p.counters.get()),
+                                            gpu::bind_buffer(5, p.events_dispatch.get())});
+                auto pass = pc.begin_compute_pass();
+                gpu::dispatch(pass.get(), p.events_overflow.get(), {group.get()}, 1, 1);
+                gpu::dispatch(pass.get(), p.events_init.get(), {group.get()}, groups_x, groups_y);
+                gpu::dispatch(pass.get(), p.events_scan.get(), {group.get()},
+                              uint32_t(kEventRegions), 1);
+                wgpuComputePassEncoderEnd(pass.get());
+              })
+          .read(events_name)
+          .write(depth_name)
+          .create_buffer(visibility_name, {pixels * 8, WGPUBufferUsage_Storage});
+    }
+    const std::string& visibility = events ? visibility_name : depth_name;
     graph
         .add_pass(
             "raster-resolve", gpu::PassKind::Compute,
-            [&p, &cloud, depth_name, accum_name, groups_x, groups_y](gpu::PassContext& pc) {
+            [&p, &cloud, depth_name = visibility, accum_name, groups_x,
+             groups_y](gpu::PassContext& pc) {
               gpu::Context& ctx = pc.gpu();
               auto layout = gpu::bind_group_layout_of(p.resolve);
               std::vector<gpu::BindGroup> groups;
@@ -554,8 +674,35 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                 gpu::dispatch(pass.get(), p.resolve.get(), {groups[s].get()}, groups_x, groups_y);
               wgpuComputePassEncoderEnd(pass.get());
             })
-        .read(depth_name)
+        .read(visibility)
         .write(accum_name);
+    if (events) {
+      // Adds the colours where the events overflowed (the resolve wrote zeros there); else
+      // raster-events made its dispatches empty.
+      graph
+          .add_pass("raster-accumulate", gpu::PassKind::Compute,
+                    [&p, &cloud, depth_name, accum_name](gpu::PassContext& pc) {
+                      gpu::Context& ctx = pc.gpu();
+                      if (cloud.segments.empty()) return;
+                      auto layout = gpu::bind_group_layout_of(p.accumulate_overflow);
+                      std::vector<gpu::BindGroup> groups;
+                      for (auto& seg : cloud.segments)
+                        groups.push_back(accumulate_bind_group(ctx, layout.get(), seg, cloud, p,
+                                                               pc.buffer(depth_name),
+                                                               pc.buffer(accum_name)));
+                      auto pass = pc.begin_compute_pass();
+                      wgpuComputePassEncoderSetPipeline(pass.get(), p.accumulate_overflow.get());
+                      for (size_t s = 0; s < cloud.segments.size(); ++s) {
+                        wgpuComputePassEncoderSetBindGroup(pass.get(), 0, groups[s].get(), 0,
+                                                           nullptr);
+                        wgpuComputePassEncoderDispatchWorkgroupsIndirect(
+                            pass.get(), p.events_dispatch.get(), s * 12);
+                      }
+                      wgpuComputePassEncoderEnd(pass.get());
+                    })
+          .read(depth_name)
+          .write(accum_name);
+    }
   }
 
   // Seed 002, III-D: the occlusion check, then hole filling, each into a buffer of its own;
@@ -686,6 +833,8 @@ RasterCounters read_raster_counters(gpu::Context& ctx, const ComputeRasterPipeli
     c.batches_by_bits[k] = w[5 + k];
     c.points_by_bits[k] = w[8 + k];
   }
+  c.events = w[11];
+  c.events_overflowed = w[12] != 0;
   return c;
 }
 

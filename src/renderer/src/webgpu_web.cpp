@@ -100,6 +100,7 @@ STIPPLE_EM(CommandBufferRelease)
 STIPPLE_EM(ComputePassEncoderSetPipeline)
 STIPPLE_EM(ComputePassEncoderSetBindGroup)
 STIPPLE_EM(ComputePassEncoderDispatchWorkgroups)
+STIPPLE_EM(ComputePassEncoderDispatchWorkgroupsIndirect)
 STIPPLE_EM(ComputePassEncoderEnd)
 STIPPLE_EM(ComputePassEncoderRelease)
 STIPPLE_EM(RenderPassEncoderSetPipeline)
@@ -1008,6 +1009,11 @@ void ComputePassEncoderDispatchWorkgroups(WGPUComputePassEncoder p, uint32_t x, 
                                           uint32_t z) {
   stipple_em_wgpuComputePassEncoderDispatchWorkgroups(EMH(ComputePassEncoder, p), x, y, z);
 }
+void ComputePassEncoderDispatchWorkgroupsIndirect(WGPUComputePassEncoder p, WGPUBuffer buffer,
+                                                  uint64_t offset) {
+  stipple_em_wgpuComputePassEncoderDispatchWorkgroupsIndirect(EMH(ComputePassEncoder, p),
+                                                              EMH(Buffer, buffer), offset);
+}
 void ComputePassEncoderEnd(WGPUComputePassEncoder p) {
   stipple_em_wgpuComputePassEncoderEnd(EMH(ComputePassEncoder, p));
 }
@@ -1178,43 +1184,37 @@ const Entry kEntries[] =
                                              STIPPLE_ENTRY(BufferGetMappedRange) STIPPLE_ENTRY(
                                                  BufferGetConstMappedRange) STIPPLE_ENTRY(BufferUnmap)
                                                  STIPPLE_ENTRY(BufferDestroy) STIPPLE_ENTRY(
-                                                     BufferRelease) STIPPLE_ENTRY(TextureCreateView) STIPPLE_ENTRY(TextureRelease)
-                                                     STIPPLE_ENTRY(TextureViewRelease) STIPPLE_ENTRY(
-                                                         SamplerRelease) STIPPLE_ENTRY(ShaderModuleRelease)
-                                                         STIPPLE_ENTRY(BindGroupLayoutRelease) STIPPLE_ENTRY(
-                                                             BindGroupRelease) STIPPLE_ENTRY(PipelineLayoutRelease)
-                                                             STIPPLE_ENTRY(ComputePipelineGetBindGroupLayout) STIPPLE_ENTRY(
-                                                                 ComputePipelineRelease) STIPPLE_ENTRY(RenderPipelineGetBindGroupLayout)
-                                                                 STIPPLE_ENTRY(RenderPipelineRelease) STIPPLE_ENTRY(
-                                                                     QuerySetRelease) STIPPLE_ENTRY(CommandEncoderBeginComputePass)
-                                                                     STIPPLE_ENTRY(CommandEncoderBeginRenderPass) STIPPLE_ENTRY(
-                                                                         CommandEncoderClearBuffer) STIPPLE_ENTRY(CommandEncoderCopyBufferToBuffer)
-                                                                         STIPPLE_ENTRY(CommandEncoderCopyTextureToBuffer) STIPPLE_ENTRY(
-                                                                             CommandEncoderResolveQuerySet) STIPPLE_ENTRY(CommandEncoderFinish)
-                                                                             STIPPLE_ENTRY(CommandEncoderRelease) STIPPLE_ENTRY(
-                                                                                 CommandBufferRelease) STIPPLE_ENTRY(ComputePassEncoderSetPipeline)
-                                                                                 STIPPLE_ENTRY(ComputePassEncoderSetBindGroup) STIPPLE_ENTRY(
-                                                                                     ComputePassEncoderDispatchWorkgroups)
-                                                                                     STIPPLE_ENTRY(ComputePassEncoderEnd) STIPPLE_ENTRY(
-                                                                                         ComputePassEncoderRelease) STIPPLE_ENTRY(RenderPassEncoderSetPipeline)
-                                                                                         STIPPLE_ENTRY(RenderPassEncoderSetBindGroup) STIPPLE_ENTRY(
-                                                                                             RenderPassEncoderSetVertexBuffer) STIPPLE_ENTRY(RenderPassEncoderSetIndexBuffer)
-                                                                                             STIPPLE_ENTRY(RenderPassEncoderSetScissorRect) STIPPLE_ENTRY(
-                                                                                                 RenderPassEncoderDraw) STIPPLE_ENTRY(RenderPassEncoderDrawIndexed)
-                                                                                                 STIPPLE_ENTRY(RenderPassEncoderDrawIndirect) STIPPLE_ENTRY(
-                                                                                                     RenderPassEncoderEnd)
-                                                                                                     STIPPLE_ENTRY(RenderPassEncoderRelease) STIPPLE_ENTRY(
-                                                                                                         SurfaceConfigure)
-                                                                                                         STIPPLE_ENTRY(SurfaceUnconfigure) STIPPLE_ENTRY(
-                                                                                                             SurfaceGetCapabilities)
+                                                     BufferRelease) STIPPLE_ENTRY(TextureCreateView)
+                                                     STIPPLE_ENTRY(TextureRelease) STIPPLE_ENTRY(
+                                                         TextureViewRelease) STIPPLE_ENTRY(SamplerRelease)
+                                                         STIPPLE_ENTRY(ShaderModuleRelease) STIPPLE_ENTRY(
+                                                             BindGroupLayoutRelease) STIPPLE_ENTRY(BindGroupRelease)
+                                                             STIPPLE_ENTRY(PipelineLayoutRelease) STIPPLE_ENTRY(
+                                                                 ComputePipelineGetBindGroupLayout)
+                                                                 STIPPLE_ENTRY(
+                                                                     ComputePipelineRelease)
+                                                                     STIPPLE_ENTRY(
+                                                                         RenderPipelineGetBindGroupLayout)
+                                                                         STIPPLE_ENTRY(RenderPipelineRelease) STIPPLE_ENTRY(QuerySetRelease) STIPPLE_ENTRY(CommandEncoderBeginComputePass) STIPPLE_ENTRY(CommandEncoderBeginRenderPass) STIPPLE_ENTRY(CommandEncoderClearBuffer) STIPPLE_ENTRY(CommandEncoderCopyBufferToBuffer) STIPPLE_ENTRY(CommandEncoderCopyTextureToBuffer) STIPPLE_ENTRY(CommandEncoderResolveQuerySet) STIPPLE_ENTRY(CommandEncoderFinish) STIPPLE_ENTRY(CommandEncoderRelease) STIPPLE_ENTRY(CommandBufferRelease) STIPPLE_ENTRY(ComputePassEncoderSetPipeline) STIPPLE_ENTRY(ComputePassEncoderSetBindGroup) STIPPLE_ENTRY(ComputePassEncoderDispatchWorkgroups) STIPPLE_ENTRY(ComputePassEncoderDispatchWorkgroupsIndirect) STIPPLE_ENTRY(ComputePassEncoderEnd) STIPPLE_ENTRY(ComputePassEncoderRelease) STIPPLE_ENTRY(RenderPassEncoderSetPipeline) STIPPLE_ENTRY(
+                                                                             RenderPassEncoderSetBindGroup) STIPPLE_ENTRY(RenderPassEncoderSetVertexBuffer)
+                                                                             STIPPLE_ENTRY(
+                                                                                 RenderPassEncoderSetIndexBuffer) STIPPLE_ENTRY(RenderPassEncoderSetScissorRect)
+                                                                                 STIPPLE_ENTRY(
+                                                                                     RenderPassEncoderDraw) STIPPLE_ENTRY(RenderPassEncoderDrawIndexed)
+                                                                                     STIPPLE_ENTRY(
+                                                                                         RenderPassEncoderDrawIndirect) STIPPLE_ENTRY(RenderPassEncoderEnd)
+                                                                                         STIPPLE_ENTRY(
+                                                                                             RenderPassEncoderRelease) STIPPLE_ENTRY(SurfaceConfigure)
+                                                                                             STIPPLE_ENTRY(SurfaceUnconfigure) STIPPLE_ENTRY(
+                                                                                                 SurfaceGetCapabilities)
+                                                                                                 STIPPLE_ENTRY(
+                                                                                                     SurfaceCapabilitiesFreeMembers)
+                                                                                                     STIPPLE_ENTRY(
+                                                                                                         SurfaceGetCurrentTexture)
+                                                                                                         STIPPLE_ENTRY(
+                                                                                                             SurfacePresent)
                                                                                                              STIPPLE_ENTRY(
-                                                                                                                 SurfaceCapabilitiesFreeMembers)
-                                                                                                                 STIPPLE_ENTRY(
-                                                                                                                     SurfaceGetCurrentTexture)
-                                                                                                                     STIPPLE_ENTRY(
-                                                                                                                         SurfacePresent)
-                                                                                                                         STIPPLE_ENTRY(
-                                                                                                                             SurfaceRelease)};
+                                                                                                                 SurfaceRelease)};
 #undef STIPPLE_ENTRY
 
 }  // namespace

@@ -150,6 +150,10 @@ struct RasterCounters {
   uint64_t points_rendered = 0;
   uint32_t batches_by_bits[3] = {0, 0, 0};  // 10, 20, 30 bits
   uint64_t points_by_bits[3] = {0, 0, 0};
+  // The 32-bit fallback's winner events (RasterKernel::fallback_events): how many the depth pass
+  // appended, and whether they outgrew the list (the colour pass then ran).
+  uint64_t events = 0;
+  bool events_overflowed = false;
 };
 // What the GPU should count for this camera (a float view-projection like the renderer's).
 RasterCounters reference_counters(const std::vector<Batch>& batches, const Camera& camera,

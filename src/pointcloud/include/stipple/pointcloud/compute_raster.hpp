@@ -73,6 +73,9 @@ inline uint64_t raster_array_bytes(uint64_t points) {
 }
 
 // How the batch passes run (seed 001, sections 3.2-3.6); `bench raster` measures each choice.
+// A kernel choice that can depend on the adapter: Auto lets the pipeline decide.
+enum class AutoSwitch : uint8_t { Auto, On, Off };
+
 struct RasterKernel {
   uint32_t workgroup = 128;  // threads per batch workgroup (the seed's 128)
   // The accumulation pass's (HQS, the 32-bit fallback's second pass); 0: `workgroup`. 256:
@@ -147,6 +150,23 @@ struct RasterKernel {
   // ShaderInt64AtomicAllOps, else the depth word as before): the test and the atomic share an
   // address and a range check instead of two bindings' each. Off until measured on the H200.
   bool early_key = false;
+  // The 32-bit fallback without its colour pass (plain frames; HQS keeps it): the depth pass
+  // appends an event (pixel, depth, point index) for each point its atomicMin found no nearer
+  // than itself (compute_raster_depth32_events_pass.wgsl), raster-events keeps the events at each
+  // pixel's final depth, lowest index first, as the 64-bit key does (compute_raster_events.wgsl),
+  // and the 64-bit path's resolve pass colours them. The event list holds events_per_pixel
+  // events a pixel of the frame; when it overflows, the colour pass runs as before. Needs 9
+  // storage buffers a stage (else off). Auto: on except on CPU adapters. On the H200 the
+  // fallback's frame 2.2x faster (run AA: 1.73 events a pixel at the overview); on lavapipe
+  // 1.24x slower (a thread there waits long for an atomic's answer: the depth pass 2.5x).
+  AutoSwitch fallback_events = AutoSwitch::Auto;
+  // The fallback's colour pass (without HQS) with the lean loop of lean_sums: 1.39x faster on
+  // the H200 (run AA), where HQS's sums with it were 1.17x slower at the overview.
+  bool lean_colours = true;
+  uint32_t events_per_pixel = 4;
+  // Off: every point that passes the early test appends an event, not only those the atomicMin
+  // found no nearer than themselves (no thread waits for the atomic's answer; more events).
+  bool events_on_win = true;
   // Every thread of a batch's workgroup classifies the batch and makes its screen matrix
   // itself, instead of thread 0 for all behind a barrier: 3.5 % slower on the H200 (the barrier
   // costs less than the instructions it saves).
@@ -181,6 +201,17 @@ struct ComputeRasterPipeline {
   // The clear without the accumulation buffer (the resolve pass writes all of it).
   gpu::ComputePipeline clear_depth;
   gpu::ComputePipeline accumulate_plain;  // the fallback's colours without HQS, where it differs
+  // RasterKernel::fallback_events: its depth pass, raster-events' three entry points and the
+  // colour pass that runs only when the events overflowed (an indirect dispatch that raster-events
+  // sizes; with `resolve`).
+  gpu::ComputePipeline depth32_events, events_overflow, events_init, events_scan,
+      accumulate_overflow;
+  gpu::Buffer events_dispatch;  // the colour pass's indirect dispatch sizes, a segment each
+  gpu::BindGroupLayout events_layout;
+  gpu::PipelineLayout events_pipeline_layout;
+  // The 32-bit depth passes read the early test's depth through a plain binding (wgpu-native).
+  bool depth32_plain_early = false;
+  uint64_t max_storage_binding = 0;  // the device's maxStorageBufferBindingSize (the event list)
   gpu::RenderPipeline display;
   // The display as a compute pass (RGBA8Unorm targets with storage usage); null otherwise.
   gpu::ComputePipeline display_compute;
