@@ -13,6 +13,7 @@
 #include <nanobind/stl/vector.h>
 
 #include "stipple/core/error.hpp"
+#include "stipple/core/memory.hpp"
 #include "stipple/tiler/tiler.hpp"
 
 namespace nb = nanobind;
@@ -76,7 +77,7 @@ nb::dict tile(std::vector<std::string> inputs, std::string output, std::string f
   o.format = format == "pnts" ? tiler::Format::Pnts : tiler::Format::Glb;
   o.crs = std::move(crs);
   o.spacing = spacing;
-  o.max_memory = tiler::parse_size(max_memory);
+  o.max_memory = parse_size(max_memory);
   o.threads = threads;
   o.force = force;
   o.max_node_points = max_node_points;
@@ -104,7 +105,7 @@ nb::dict merge(std::vector<std::string> parts, std::string output, bool force, u
   o.output = std::move(output);
   o.force = force;
   o.threads = threads;
-  o.max_memory = tiler::parse_size(max_memory);
+  o.max_memory = parse_size(max_memory);
   PyProgress p{std::move(progress)};
   o.progress = p.wrap();
   tiler::TileStats s;

@@ -9,6 +9,7 @@
 #include "stipple/app/commands.hpp"
 #include "stipple/core/atomic_file.hpp"
 #include "stipple/core/error.hpp"
+#include "stipple/core/memory.hpp"
 #include "stipple/pointcloud/pointlets.hpp"
 #include "stipple/tiler/tiler.hpp"
 
@@ -47,7 +48,7 @@ void add_pointlets_command(CLI::App& cli) {
   cmd->callback([args] {
     pc::PointletBuildOptions o = args->options;
     o.order = args->order == "morton" ? pc::SpatialOrder::Morton : pc::SpatialOrder::Hilbert;
-    o.memory_budget = tiler::parse_size(args->memory);
+    o.memory_budget = parse_size(args->memory);
     const auto path = pc::pointlet_cache_path(args->inputs, args->cache_dir, o);
     if (args->rebuild) std::filesystem::remove(path);
     bool built = false;

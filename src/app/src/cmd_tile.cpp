@@ -7,6 +7,7 @@
 #include "stipple/app/web_page.hpp"
 #include "stipple/core/atomic_file.hpp"
 #include "stipple/core/error.hpp"
+#include "stipple/core/memory.hpp"
 #include "stipple/tiler/tiler.hpp"
 
 namespace stipple::app {
@@ -75,7 +76,7 @@ void add_tile_command(CLI::App& cli) {
   merge->add_option("--threads", args->merge.threads, "Worker threads (default: all cores)");
   merge->add_flag("--force", args->merge.force, "Replace an existing output directory");
   merge->callback([args] {
-    args->merge.max_memory = tiler::parse_size(args->merge_memory);
+    args->merge.max_memory = parse_size(args->merge_memory);
     tiler::TileStats s = tiler::merge_parts(args->merge);
     std::printf("merged %zu parts: %llu points in %llu tiles (depth %d) in %.2f s\n",
                 args->merge.parts.size(), static_cast<unsigned long long>(s.points),
@@ -93,7 +94,7 @@ void add_tile_command(CLI::App& cli) {
       std::tie(args->options.subset_index, args->options.subset_count) =
           tiler::parse_subset(args->subset);
     args->options.format = args->format == "pnts" ? tiler::Format::Pnts : tiler::Format::Glb;
-    args->options.max_memory = tiler::parse_size(args->memory);
+    args->options.max_memory = parse_size(args->memory);
     args->options.sample_threads = args->profile || !args->stats.empty();
     tiler::TileStats s = tiler::build_tileset(args->options);
     std::printf(

@@ -12,6 +12,7 @@
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
+#include "stipple/core/memory.hpp"
 #include "stipple/engine/engine.hpp"
 #include "stipple/io/copc.hpp"
 #include "stipple/io/ept.hpp"
@@ -23,7 +24,6 @@
 #include "stipple/pointcloud/scene.hpp"
 #include "stipple/pointcloud/virtual_cloud.hpp"
 #include "stipple/renderer/gpu.hpp"
-#include "stipple/tiler/tiler.hpp"
 #include "stipple/tiles3d/render_load.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 
@@ -46,7 +46,7 @@ double max_sse_for(const SceneOptions& options) {
 namespace {
 
 uint64_t host_budget(const SceneOptions& options) {
-  if (!options.host_memory.empty()) return tiler::parse_size(options.host_memory);
+  if (!options.host_memory.empty()) return parse_size(options.host_memory);
   const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
   return pages > 0 && page > 0 ? uint64_t(pages) * uint64_t(page) / 4 : uint64_t(4) << 30;
 }
@@ -232,7 +232,7 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
     v.options.host_budget =
         budget > 4 * v.options.staging_bytes ? budget - 2 * v.options.staging_bytes : budget / 2;
     v.options.process_budget = budget;
-    if (!options.gpu_memory.empty()) v.options.gpu_budget = tiler::parse_size(options.gpu_memory);
+    if (!options.gpu_memory.empty()) v.options.gpu_budget = parse_size(options.gpu_memory);
     v.options.bucket = options.bucket;
     v.options.hqs = options.hqs;
     v.options.fill_radius = options.fill_radius < 0 ? 1u : uint32_t(options.fill_radius);

@@ -58,29 +58,6 @@ namespace stipple::tiler {
 
 namespace fs = std::filesystem;
 
-uint64_t parse_size(const std::string& text) {
-  if (text.empty()) fail("empty size");
-  size_t used = 0;
-  double v = 0;
-  try {
-    v = std::stod(text, &used);
-  } catch (...) {
-    fail("'{}' is not a size (e.g. 2G, 512M)", text);
-  }
-  std::string unit = text.substr(used);
-  double mult = 1;
-  if (unit == "k" || unit == "K" || unit == "KB" || unit == "KiB")
-    mult = 1024.0;
-  else if (unit == "m" || unit == "M" || unit == "MB" || unit == "MiB")
-    mult = 1024.0 * 1024;
-  else if (unit == "g" || unit == "G" || unit == "GB" || unit == "GiB")
-    mult = 1024.0 * 1024 * 1024;
-  else if (!unit.empty())
-    fail("'{}' is not a size (e.g. 2G, 512M)", text);
-  if (!(v > 0)) fail("size '{}' must be positive", text);
-  return uint64_t(v * mult);
-}
-
 namespace {
 
 struct NodeKey {

@@ -82,7 +82,4 @@ struct MergeOptions {
 // mismatched part.
 TileStats merge_parts(const MergeOptions& options);
 
-// "2G", "512M", "64k", "1000000" -> bytes. Throws stipple::Error on anything else.
-uint64_t parse_size(const std::string& text);
-
 }  // namespace stipple::tiler
