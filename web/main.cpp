@@ -1,12 +1,14 @@
 // The web viewer's program: libstipple's engine, plugins, render graph and shaders on the
-// browser's WebGPU (a thin front end, as app/ is for the command line). It renders what
-// `stipple render` renders for the same options: the built-in scene, or a 3D Tiles tileset by
-// URL (--url, from the page's ?url=), streamed frame by frame with the camera, one engine frame
-// per animation frame; draws the image on the page's canvas and reports on the page
-// (window.stipple: done, error, tile problems, stats, camera). Once drawn, the camera follows
-// the page's pointer (mouse and touch), wheel and keys; a LAS/LAZ file dropped on the page (or
-// chosen with its button) is opened next, as a ?url= of it would be. The points' look comes
-// from `stipple render`'s options of the same names (?color=, ?point-size=, ?no-edl=,
+// browser's WebGPU (a thin front end, as app/ is for the command line). The scene is assembled
+// by libstipple's scene module as `stipple render` assembles it (scene::plan_scene: the same
+// plugins, renderer choice, framing, point size and streaming): the built-in scene, a LAS/LAZ
+// file, or a 3D Tiles tileset, COPC, Potree or EPT source by URL (--url, from the page's ?url=),
+// streamed frame by frame with the camera, one engine frame per animation frame. What is the
+// page's own stays here: it draws the image on the page's canvas and reports on the page
+// (window.stipple: done, error, tile problems, stats, camera); once drawn, the camera follows the
+// page's pointer (mouse and touch), wheel and keys; a LAS/LAZ file dropped on the page (or chosen
+// with its button) is opened next, as a ?url= of it would be. The points' look comes from
+// `stipple render`'s options of the same names (?color=, ?point-size=, ?no-edl=,
 // ?edl-strength=, ?edl-radius=; ?edl=0 or 1 too), and changes with the page's controls
 // (Module.stippleControls) while the view runs; the stats panel's figures (window.stipple.stats)
 // are those of native `stipple view`'s panel, a few times a second.
@@ -32,14 +34,12 @@
 #include "stipple/engine/engine.hpp"
 #include "stipple/engine/plugins.hpp"
 #include "stipple/engine/render_plugins.hpp"
-#include "stipple/io/copc.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/math/camera.hpp"
-#include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
-#include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/pointcloud/scene.hpp"
+#include "stipple/scene/scene.hpp"
 #include "stipple/tiles3d/streamer.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 
@@ -60,20 +60,16 @@ namespace {
 using namespace stipple;
 
 struct Options {
-  uint32_t width = 1280, height = 720;
-  uint64_t scene_points = 1'000'000;
-  uint32_t seed = 1;
-  double azimuth = 30.0, elevation = 40.0, fov = 50.0;
-  // A tileset (tileset.json URL): as `stipple render URL`, with its defaults.
+  // Inputs, the built-in scene, the points' look (colour mode, EDL and point size, 0: from the
+  // data's density) and the streaming budgets, as `stipple render`'s options of the same names.
+  scene::SceneOptions scene;
+  scene::SceneView view;  // the canvas's size; framed from the default azimuth and elevation
+  // A URL to open (the page's ?url=): a LAS/LAZ file is fetched into the page's memory and read
+  // whole; anything else (tileset.json, COPC, Potree, EPT) is streamed.
   std::string url;
-  uint64_t memory_mb = 512;
-  double max_sse = 0;   // 0: the source's default, as `stipple render` (COPC 2, 3D Tiles 16)
-  uint64_t frames = 1;  // drawn after the tileset is streamed (frame times)
-  uint64_t max_frames = 10000;     // then drawn as is, with a warning
-  std::vector<std::string> files;  // LAS files (a LAS ?url= is fetched into the page's memory)
-  bool interactive = true;         // camera controls once drawn (0: stop after the first view)
-  // Colour mode, EDL and point size (0: from the data's density), as `stipple render`'s.
-  pc::PointRenderSettings render;
+  uint64_t frames = 1;          // streamed sources: drawn once streamed (frame times)
+  uint64_t max_frames = 10000;  // then drawn as is, with a warning
+  bool interactive = true;      // camera controls once drawn (0: stop after the first view)
 };
 
 uint64_t number(const std::string& name, const char* value) {
@@ -103,24 +99,28 @@ float ranged_number(const std::string& name, const char* value, double lo, doubl
 
 Options parse(int argc, char** argv) {
   Options o;
+  // The page's memory is at most 2 GiB (-sMAXIMUM_MEMORY): a cloud that needs more is refused
+  // with the reason before it is read (the browser build has no pointlet cache).
+  o.scene.host_memory = "2G";
+  auto& render = o.scene.render;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     if (i + 1 >= argc) fail("{}: a value is missing", a);
     const char* v = argv[++i];
     if (a == "--width")
-      o.width = uint32_t(number(a, v));
+      o.view.width = uint32_t(number(a, v));
     else if (a == "--height")
-      o.height = uint32_t(number(a, v));
+      o.view.height = uint32_t(number(a, v));
     else if (a == "--scene-points")
-      o.scene_points = number(a, v);
+      o.scene.scene_points = number(a, v);
     else if (a == "--seed")
-      o.seed = uint32_t(number(a, v));
+      o.scene.seed = uint32_t(number(a, v));
     else if (a == "--url")
       o.url = v;
     else if (a == "--memory-mb")
-      o.memory_mb = number(a, v);
+      o.scene.memory_mb = number(a, v);
     else if (a == "--max-sse")
-      o.max_sse = real_number(a, v);
+      o.scene.max_sse = real_number(a, v);
     else if (a == "--frames")
       o.frames = std::max<uint64_t>(1, number(a, v));
     else if (a == "--max-frames")
@@ -128,23 +128,24 @@ Options parse(int argc, char** argv) {
     else if (a == "--interactive")
       o.interactive = number(a, v) != 0;
     else if (a == "--color")
-      o.render.color = pc::parse_color_mode(v);
+      render.color = pc::parse_color_mode(v);
     else if (a == "--point-size")
-      o.render.point_size = ranged_number(a, v, 0.0, 64.0);
+      render.point_size = ranged_number(a, v, 0.0, 64.0);
     else if (a == "--edl")  // the page's checkbox: 1 on, 0 off
-      o.render.edl = number(a, v) != 0;
+      render.edl = number(a, v) != 0;
     else if (a == "--no-edl")  // `stipple render --no-edl`, as ?no-edl=1
-      o.render.edl = number(a, v) == 0;
+      render.edl = number(a, v) == 0;
     else if (a == "--edl-strength")
-      o.render.edl_strength = ranged_number(a, v, 0.0, 10000.0);
+      render.edl_strength = ranged_number(a, v, 0.0, 10000.0);
     else if (a == "--edl-radius")
-      o.render.edl_radius = ranged_number(a, v, 0.5, 16.0);
+      render.edl_radius = ranged_number(a, v, 0.5, 16.0);
     else
       fail("unknown option '{}'", a);
   }
-  if (o.width == 0 || o.height == 0 || o.width > 8192 || o.height > 8192)
+  if (o.view.width == 0 || o.view.height == 0 || o.view.width > 8192 || o.view.height > 8192)
     fail("the image size must be 1..8192 pixels a side");
-  if (o.memory_mb == 0 || o.memory_mb > (uint64_t(1) << 20)) fail("--memory-mb: 1..1048576");
+  if (o.scene.memory_mb == 0 || o.scene.memory_mb > (uint64_t(1) << 20))
+    fail("--memory-mb: 1..1048576");
   return o;
 }
 
@@ -163,18 +164,6 @@ void show(const gpu::Image& image) {
 
 void report(const char* key, const std::string& value) {
   EM_ASM({ Module.stippleReport(UTF8ToString($0), UTF8ToString($1)); }, key, value.c_str());
-}
-
-// What every page draws with: the engine's core plugins, the device (compute rasterizer
-// features requested, the renderer chosen once the adapter is known) and the frame graph.
-void add_core_plugins(Engine& engine) {
-  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
-  GpuPlugin gpu;
-  gpu.options.optional_features = pc::compute_raster_features();
-  engine.add_plugin(std::move(gpu));
-  RenderGraphPlugin graph;
-  graph.keep_history = true;
-  engine.add_plugin(std::move(graph));
 }
 
 // The page's controls as the view now draws (window.stipple.controls, JSON): the colour mode
@@ -281,76 +270,6 @@ class StatsPanel {
 
 std::string orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured, glm::dvec3 target,
                   bool streams, uint32_t height, StatsPanel& panel);
-
-// Returns the path of a file to open next (dropped on the page), or "" when not interactive.
-std::string run_scene(const Options& o) {
-  Engine engine;
-  add_core_plugins(engine);
-  pc::PointCloudPlugin points;
-  points.inputs.files.assign(o.files.begin(), o.files.end());
-  points.inputs.scene.point_count = o.scene_points;
-  points.inputs.scene.seed = o.seed;
-  points.settings.render = o.render;
-  // The file read (a LAZ decoded by LASzip) or the scene generated: loadMs on the page.
-  const double load_start = emscripten_get_now();
-  engine.add_plugin(std::move(points));
-  const double load_ms = emscripten_get_now() - load_start;
-  // Frames until the page moves on (the camera controls draw more of them).
-  engine.add_plugin(HeadlessTargetPlugin{o.width, o.height, "", 0});
-  auto captured = std::make_shared<gpu::Image>();
-  engine.render().insert_resource(
-      FrameCapture{[captured](uint64_t, const gpu::Image& image) { *captured = image; }});
-
-  // The camera and point size as `stipple render` chooses them (fitted to the points).
-  Registry& main = engine.main();
-  ViewFit fit(o.width, o.height, o.azimuth, o.elevation, o.fov);
-  main.view<pc::PointCloudData>().each([&](const pc::PointCloudData& data) {
-    if (data.cloud) pc::fit_cloud(fit, *data.cloud);
-  });
-  if (fit.empty()) fit.add_corners(main.resource<pc::SceneInfo>().world_bounds);
-  const Camera camera = fit.camera();
-  main.emplace<Camera>(main.create(), camera);
-  auto& settings = main.resource<pc::PointDrawSettings>();
-  const bool sized_by_data = settings.render.point_size <= 0;
-  main.view<pc::PointCloudData>().each([&](const pc::PointCloudData& data) {
-    if (settings.render.point_size <= 0)
-      settings.render.point_size = pc::auto_point_size(*data.cloud, camera, o.height);
-  });
-  // As `stipple render --renderer auto`: 10M points, or 1-pixel points sized by the data's
-  // density (not a --point-size given), go to the compute rasterizer.
-  const char* renderer = "billboard";
-  const uint64_t count = o.files.empty() ? o.scene_points : main.resource<pc::SceneInfo>().points;
-  if (count >= 10'000'000 || (sized_by_data && settings.render.point_size <= 1.0f)) {
-    settings.compute = true;
-    settings.hqs = settings.render.splat == pc::SplatMode::Blend;
-    renderer = "compute";
-  }
-  const double start = emscripten_get_now();
-  engine.run(1);
-  const double ms = emscripten_get_now() - start;
-  if (captured->rgba.empty()) fail("no frame was drawn");
-  show(*captured);
-  const auto& description = main.resource<GpuContext>()->description;
-  report("renderer", renderer);
-  report("adapter", fmt::format("{} {} ({})", description.vendor, description.architecture,
-                                description.backend));
-  report("points", std::to_string(main.resource<pc::SceneInfo>().points));
-  report("pointSize", fmt::format("{:.3f}", settings.render.point_size));
-  report("ms", fmt::format("{:.1f}", ms));
-  report("loadMs", fmt::format("{:.1f}", load_ms));
-  report_controls(main);
-  StatsPanel panel(renderer);
-  panel.frame(ms);
-  panel.publish(engine, true);
-  report("done", "1");
-  std::string next;
-  if (o.interactive) {
-    const glm::dvec3 target = main.resource<pc::SceneInfo>().world_bounds.center();
-    next = orbit(engine, captured, target, false, o.height, panel);
-  }
-  engine.shutdown();
-  return next;
-}
 
 // The tile problems so far (failed tiles, content warnings), one line per kind with how many
 // tiles had it: the first tile's message in full (it names the tile's URI).
@@ -476,151 +395,113 @@ std::string wait_for_open() {
   }
 }
 
-// A tileset by URL, as `stipple render URL` draws it (the same plugins, renderer choice, framing
-// and point size), one engine frame per animation frame while its tiles stream in. Once the
-// streamer is idle the camera is fitted to the drawn points (streamed again for that view), the
-// point size to their density, and `frames` more frames are drawn: then it reports done.
+// The page's view of `o`: the scene assembled as `stipple render` assembles it (scene::
+// plan_scene, add_scene_plugin, place_camera; for a streamed source settle_streamed_scene), drawn
+// on the page's canvas. A point cloud is drawn once; a streamed source one engine frame per
+// animation frame while its tiles stream in, until it has settled and `frames` more frames are
+// drawn. Then it reports done and, when interactive, the camera follows the page's controls.
 // Returns the path of a file to open next (dropped on the page), or "" when not interactive.
-std::string run_tileset(const Options& o) {
+std::string run_view(const Options& o) {
   Engine engine;
-  add_core_plugins(engine);
-  // As `stipple render --renderer auto` for a tileset: the compute rasterizer (blending as HQS)
-  // when the memory budget holds 10M points or more, else billboards; for COPC, when its header
-  // counts 10M points or more. COPC refines down to 2 px by default (its error is the spacing).
-  const bool copc = io::is_copc_input(o.url);
-  const uint64_t points =
-      copc ? io::open_copc(o.url, [](const std::string& uri) { return io::fetch(uri); })
-                 ->header.point_count
-           : (o.memory_mb << 20) / pc::kRasterPointBytes;
-  const bool compute = points >= 10'000'000;
-  const double max_sse = o.max_sse > 0 ? o.max_sse : copc ? 2.0 : 16.0;
-  tiles3d::TilesetPlugin tiles;
-  tiles.compute = compute;
-  tiles.raster.hqs = compute && tiles.render.splat == pc::SplatMode::Blend;
-  tiles.raster.fill_radius = 0;
-  tiles.raster.occlusion_beta = 0.0f;
-  tiles.render = o.render;
-  tiles.uri = o.url;
-  tiles.streamer.traversal.max_sse = max_sse;
-  tiles.streamer.traversal.memory_budget = o.memory_mb << 20;
-  tiles.streamer.traversal.point_budget = 0;
-  engine.add_plugin(std::move(tiles));
-  engine.add_plugin(HeadlessTargetPlugin{o.width, o.height, "", 0});
+  scene::add_engine_core(engine, {.keep_history = true});
+  Registry& main = engine.main();
+  scene::ScenePlan plan = scene::plan_scene(o.scene, *main.resource<GpuContext>());
+  const bool streamed = plan.source.streamed();
+  // The file read (a LAZ decoded by LASzip) or the scene generated: loadMs on the page.
+  const double load_start = emscripten_get_now();
+  scene::add_scene_plugin(engine, plan);
+  const double load_ms = emscripten_get_now() - load_start;
+  // Frames until the page moves on (the camera controls draw more of them).
+  engine.add_plugin(HeadlessTargetPlugin{o.view.width, o.view.height, "", 0});
   auto captured = std::make_shared<gpu::Image>();
   engine.render().insert_resource(
       FrameCapture{[captured](uint64_t, const gpu::Image& image) { *captured = image; }});
-
-  Registry& main = engine.main();
-  {
-    ViewFit fit(o.width, o.height, o.azimuth, o.elevation, o.fov);
-    fit.add_corners(main.resource<tiles3d::TilesetStream>().world_bounds);
-    main.emplace<Camera>(main.create(), fit.camera());
-  }
-  // Fitted once streamed, unless given (as `stipple render --point-size`).
-  const bool auto_size = o.render.point_size <= 0;
-  if (auto_size) main.resource<pc::PointDrawSettings>().render.point_size = 2.0f;
-  // What the frames did (the system below): done once `frames` frames after the stream settled.
-  struct Progress {
-    uint64_t settled = 0;
-    bool reframe = true, done = false;
+  scene::place_camera(engine, plan, o.view, true);
+  const char* renderer = plan.compute() ? "compute" : "billboard";
+  report("renderer", renderer);
+  StatsPanel panel(renderer);
+  auto report_adapter = [&] {
+    const auto& d = main.resource<GpuContext>()->description;
+    report("adapter", fmt::format("{} {} ({})", d.vendor, d.architecture, d.backend));
   };
-  auto progress = std::make_shared<Progress>();
-  engine.add_system(
-      MainStage::Update,
-      [progress, o, auto_size](Registry& r) {
-        Progress& p = *progress;
-        auto& s = r.resource<tiles3d::TilesetStream>();
-        const auto& stats = r.resource<tiles3d::TilesetStats>();
-        const bool capped = stats.frames >= o.max_frames;
-        if (p.done || (!stats.idle && !capped)) return;
-        if (p.reframe && !capped && stats.drawn_points > 0) {
-          p.reframe = false;
-          ViewFit fit(o.width, o.height, o.azimuth, o.elevation, o.fov);
-          tiles3d::fit_drawn_tiles(fit, s);
-          r.view<Camera>().each([&](Camera& c) { c = fit.camera(); });
-          return;
-        }
-        if (p.settled == 0 && !stats.idle)
-          STIPPLE_WARN("{} frames reached before the tileset was streamed", o.max_frames);
-        if (p.settled == 0 && stats.drawn_points == 0 &&
-            (stats.loads_completed > 0 || stats.errors > 0) && stats.resident_points == 0)
-          fail("{}: nothing to render: the tiles in view hold no points{}", o.url,
-               s.first_problem.empty() ? "" : fmt::format(" ({})", s.first_problem));
-        if (p.settled++ == 0 && auto_size && stats.drawn_points > 0) {
-          Aabb drawn;
-          for (uint32_t t : s.draw)
-            for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
-          r.view<Camera>().each([&](const Camera& c) {
-            r.resource<pc::PointDrawSettings>().render.point_size =
-                pc::auto_point_size(drawn, stats.drawn_points, c, o.height);
-          });
-        }
-        if (p.settled >= o.frames) p.done = true;
-      },
-      "web_render_when_streamed");
-
-  report("renderer", compute ? "compute" : "billboard");
-  StatsPanel panel(compute ? "compute" : "billboard");
   const double start = emscripten_get_now();
-  std::vector<double> settled_ms;  // frame times once streamed
-  size_t problems = 0;
-  for (;;) {
-    const double frame_start = emscripten_get_now();
-    engine.update();
-    // Frames drawn once streamed (the system above ran before this frame was drawn).
-    if (progress->settled > 0) settled_ms.push_back(emscripten_get_now() - frame_start);
-    panel.frame(emscripten_get_now() - frame_start);
-    panel.publish(engine);
-    if (!captured->rgba.empty()) show(*captured);
-    const auto& s = main.resource<tiles3d::TilesetStream>();
-    const auto& stats = main.resource<tiles3d::TilesetStats>();
-    size_t n = 0;
-    for (const auto& [kind, count] : s.problems) n += count;
-    if (n != problems) {
-      problems = n;
-      report("tileProblems", tile_problems(s));
+  if (!streamed) {
+    engine.run(1);
+    const double ms = emscripten_get_now() - start;
+    if (captured->rgba.empty()) fail("no frame was drawn");
+    show(*captured);
+    report_adapter();
+    report("points", std::to_string(main.resource<pc::SceneInfo>().points));
+    report("pointSize",
+           fmt::format("{:.3f}", main.resource<pc::PointDrawSettings>().render.point_size));
+    report("ms", fmt::format("{:.1f}", ms));
+    report("loadMs", fmt::format("{:.1f}", load_ms));
+    panel.frame(ms);
+  } else {
+    scene::settle_streamed_scene(engine, plan, o.view, o.max_frames);
+    std::vector<double> settled_ms;  // frame times once streamed
+    size_t problems = 0;
+    for (;;) {
+      const double frame_start = emscripten_get_now();
+      engine.update();
+      const auto& settle = main.resource<scene::StreamSettle>();
+      // Frames drawn once streamed (the settling system ran before this frame was drawn).
+      if (settle.settled > 0) settled_ms.push_back(emscripten_get_now() - frame_start);
+      panel.frame(emscripten_get_now() - frame_start);
+      panel.publish(engine);
+      if (!captured->rgba.empty()) show(*captured);
+      const auto& s = main.resource<tiles3d::TilesetStream>();
+      const auto& stats = main.resource<tiles3d::TilesetStats>();
+      size_t n = 0;
+      for (const auto& [kind, count] : s.problems) n += count;
+      if (n != problems) {
+        problems = n;
+        report("tileProblems", tile_problems(s));
+      }
+      report("progress", fmt::format("{} tiles, {} points{}", stats.drawn_tiles, stats.drawn_points,
+                                     stats.idle ? "" : ", loading"));
+      if (settle.settled >= o.frames) break;
+      stipple_next_frame();
     }
-    report("progress", fmt::format("{} tiles, {} points{}", stats.drawn_tiles, stats.drawn_points,
-                                   stats.idle ? "" : ", loading"));
-    if (progress->done) break;
-    stipple_next_frame();
-  }
-  engine.wait_for_render();
-  const auto& stats = main.resource<tiles3d::TilesetStats>();
-  const auto& description = main.resource<GpuContext>()->description;
-  report("adapter", fmt::format("{} {} ({})", description.vendor, description.architecture,
-                                description.backend));
-  report("tiles", std::to_string(stats.drawn_tiles));
-  report("points", std::to_string(stats.drawn_points));
-  report("errors", std::to_string(stats.errors));
-  report("pointSize",
-         fmt::format("{:.3f}", main.resource<pc::PointDrawSettings>().render.point_size));
-  report("ms", fmt::format("{:.1f}", emscripten_get_now() - start));
-  if (!settled_ms.empty()) {
-    std::sort(settled_ms.begin(), settled_ms.end());
-    report("frameMs", fmt::format("{:.1f}", settled_ms[settled_ms.size() / 2]));
+    engine.wait_for_render();
+    const auto& stats = main.resource<tiles3d::TilesetStats>();
+    report_adapter();
+    report("tiles", std::to_string(stats.drawn_tiles));
+    report("points", std::to_string(stats.drawn_points));
+    report("errors", std::to_string(stats.errors));
+    report("pointSize",
+           fmt::format("{:.3f}", main.resource<pc::PointDrawSettings>().render.point_size));
+    report("ms", fmt::format("{:.1f}", emscripten_get_now() - start));
+    if (!settled_ms.empty()) {
+      std::sort(settled_ms.begin(), settled_ms.end());
+      report("frameMs", fmt::format("{:.1f}", settled_ms[settled_ms.size() / 2]));
+    }
   }
   report_controls(main);
   panel.publish(engine, true);
   report("done", "1");
   std::string next;
   if (o.interactive) {
-    Aabb drawn;
-    const auto& s = main.resource<tiles3d::TilesetStream>();
-    for (uint32_t t : s.draw)
-      for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
-    next = orbit(engine, captured, drawn.empty() ? s.world_bounds.center() : drawn.center(), true,
-                 o.height, panel);
+    glm::dvec3 target = main.resource<pc::SceneInfo>().world_bounds.center();
+    if (streamed) {
+      Aabb drawn;
+      const auto& s = main.resource<tiles3d::TilesetStream>();
+      for (uint32_t t : s.draw)
+        for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
+      target = drawn.empty() ? s.world_bounds.center() : drawn.center();
+    }
+    next = orbit(engine, captured, target, streamed, o.view.height, panel);
   }
   engine.shutdown();
   return next;
 }
 
 // A LAS file by URL (.las/.laz, case aside): read whole like `stipple render file.las` does.
+// (COPC by URL, named .copc.laz, streams.)
 bool is_las_url(const std::string& url) {
   std::string path = io::uri_path(url);
   for (auto& c : path) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return path.ends_with(".las") || path.ends_with(".laz");
+  return (path.ends_with(".las") || path.ends_with(".laz")) && !path.ends_with(".copc.laz");
 }
 
 // Fetches `url` (the browser's fetch) into a file of the page's in-memory file system, which
@@ -639,14 +520,6 @@ std::string fetch_to_memory(const std::string& url) {
   return path;
 }
 
-// Options for a file the page put in its file system: the page's view, the file instead of
-// its ?url= (the same path as a LAS ?url=, which is fetched into the file system first).
-Options with_file(Options o, const std::string& path) {
-  o.url.clear();
-  o.files = {path};
-  return o;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -663,23 +536,11 @@ int main(int argc, char** argv) {
   for (;;) {
     std::string next;
     try {
-      // COPC streams like a tileset (by URL or from the page's file system), as `stipple
-      // render` streams it; other LAS/LAZ files are read whole.
-      if (o.files.size() == 1 && io::is_copc_input(o.files[0])) {
-        o.url = o.files[0];
-        o.files.clear();
-      }
-      if (!o.url.empty() && io::is_copc_input(o.url)) {
-        next = run_tileset(o);
-      } else if (is_las_url(o.url)) {
-        o.files.push_back(fetch_to_memory(o.url));
-        o.url.clear();
-        next = run_scene(o);
-      } else if (o.url.empty()) {
-        next = run_scene(o);
-      } else {
-        next = run_tileset(o);
-      }
+      // A LAS/LAZ URL is fetched into the page's file system first and read whole there, as
+      // `stipple render file.laz` reads it; what is streamed is opened by its URL.
+      if (!o.url.empty()) o.scene.inputs = {is_las_url(o.url) ? fetch_to_memory(o.url) : o.url};
+      o.url.clear();
+      next = run_view(o);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "stipple: %s\n", e.what());
       report("error", e.what());
@@ -687,6 +548,7 @@ int main(int argc, char** argv) {
       next = wait_for_open();
     }
     if (next.empty()) return 0;
-    o = with_file(o, next);
+    // The file the page put in its file system: the page's view, the file instead of its ?url=.
+    o.scene.inputs = {next};
   }
 }

@@ -15,6 +15,7 @@
 #include "stipple/core/error.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/io/potree.hpp"
+#include "stipple/io/source.hpp"
 #include "stipple/io/tileset.hpp"
 #include "stipple/tiles3d/render_load.hpp"
 #include "tiles_fixtures.hpp"
@@ -154,7 +155,7 @@ TEST(Potree1, StreamsEveryPointForRendering) {
   tiles3d::RenderLoadOptions o;
   o.streamer.traversal.max_sse = 0.01;  // refine everything
   const std::string cloud = (dir / "cloud.js").string();
-  ASSERT_TRUE(tiles3d::is_tileset_input(cloud));
+  ASSERT_EQ(io::source_format(cloud), io::SourceFormat::Potree);
   auto r = tiles3d::load_tileset_for_render(cloud, o);
   EXPECT_TRUE(r.errors.empty()) << r.errors.front().message;
   EXPECT_EQ(r.cloud.point_count, 12000u);

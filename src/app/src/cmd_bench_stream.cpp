@@ -90,23 +90,18 @@ class SampleWriter {
 
 void run_stream_bench(const StreamBenchArgs& a) {
   Engine engine;
-  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
-  GpuPlugin gpu;
-  gpu.options.backend = a.backend;
-  gpu.options.optional_features = pc::compute_raster_features();
-  engine.add_plugin(std::move(gpu));
-  RenderGraphPlugin graph;
-  graph.keep_history = true;
-  engine.add_plugin(std::move(graph));
+  add_engine_core(engine, {a.backend, false, true, ""});
   SceneOptions scene;
   scene.inputs = {a.input};
-  if (!is_tileset_scene(scene)) fail("bench stream: {} is not a tileset or a COPC file", a.input);
   scene.renderer = a.renderer == "compute" ? Renderer::Compute : Renderer::Billboard;
   scene.max_sse = a.max_sse;
   scene.memory_mb = a.memory_mb;
   scene.budget = a.budget;
   scene.render.point_size = a.renderer == "compute" ? 1.0f : 2.0f;
-  add_scene_plugin(engine, scene);
+  const ScenePlan plan = plan_scene(scene, *engine.render().resource<GpuContext>());
+  if (!plan.source.streamed())
+    fail("bench stream: {} is not a tileset or a COPC file, nor a Potree or EPT cloud", a.input);
+  add_scene_plugin(engine, plan);
   engine.add_plugin(HeadlessTargetPlugin{a.width, a.height, "", 0});
 
   Registry& main = engine.main();

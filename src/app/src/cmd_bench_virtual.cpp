@@ -56,14 +56,7 @@ struct VirtualBenchArgs {
 
 std::unique_ptr<Engine> make_engine(const VirtualBenchArgs& a, uint64_t bucket, uint32_t fill) {
   auto engine = std::make_unique<Engine>();
-  engine->add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
-  GpuPlugin gpu;
-  gpu.options.backend = a.backend;
-  gpu.options.optional_features = pc::compute_raster_features();
-  engine->add_plugin(std::move(gpu));
-  RenderGraphPlugin graph;
-  graph.keep_history = true;  // per-frame GPU times
-  engine->add_plugin(std::move(graph));
+  add_engine_core(*engine, {a.backend, false, true, ""});  // per-frame GPU times
   SceneOptions scene;
   scene.inputs = a.inputs;
   scene.force_virtual = true;
@@ -74,7 +67,7 @@ std::unique_ptr<Engine> make_engine(const VirtualBenchArgs& a, uint64_t bucket, 
   scene.bucket = bucket;
   scene.fill_radius = int(fill);
   scene.occlusion_beta = a.occlusion_beta;
-  add_scene_plugin(*engine, scene);
+  add_scene_plugin(*engine, plan_scene(scene, *engine->render().resource<GpuContext>()));
   engine->add_plugin(HeadlessTargetPlugin{a.width, a.height, "", 0});
   return engine;
 }

@@ -15,6 +15,7 @@
 #include "stipple/io/copc.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
+#include "stipple/io/source.hpp"
 #include "stipple/io/tileset.hpp"
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/tiles3d/render_load.hpp"
@@ -294,7 +295,8 @@ void run_info(const InfoArgs& args) {
   if (args.inputs.empty()) fail("info: give a file, or --gpu");
   nlohmann::json all = nlohmann::json::array();
   for (const auto& input : args.inputs) {
-    if (io::is_copc_input(input)) {
+    const io::SourceFormat format = io::source_format(input);
+    if (format == io::SourceFormat::Copc) {
       io::LasHeader header;
       auto j = copc_json(input, args.max_tiles, &header);
       if (args.json) {
@@ -305,7 +307,7 @@ void run_info(const InfoArgs& args) {
       }
       continue;
     }
-    if (tiles3d::is_tileset_input(input)) {
+    if (io::is_streamed(format)) {
       auto j = tileset_json(input, args.max_tiles);
       if (args.json) {
         all.push_back(j);

@@ -54,25 +54,14 @@ void run_view(const ViewArgs& args) {
       fail("{}: the folder {} does not exist", out.string(), folder.string());
   }
   Engine engine;
-  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
-  if (!args.single_thread) engine.add_plugin(PipelinedRenderingPlugin{});
-  GpuPlugin gpu;
-  gpu.options.backend = args.backend;
-  gpu.options.optional_features = pc::compute_raster_features();  // for --renderer auto
-  engine.add_plugin(std::move(gpu));
-  engine.add_plugin(RenderGraphPlugin{});
-  const bool tileset = is_tileset_scene(args.scene);
+  add_engine_core(engine, {args.backend, !args.single_thread, false, ""});
   SceneOptions options = args.scene;
-  apply_filters(options);
-  options.keep_extras = true;  // the panel can turn GPS-time and point-source filters on
-  std::string reason;
-  options.renderer = resolve_renderer(options, *engine.render().resource<GpuContext>(), &reason);
-  // Blending's form on the compute rasterizer is HQS: a tileset auto-drawn there keeps it.
-  if (args.scene.renderer == Renderer::Auto && tileset && options.renderer == Renderer::Compute)
-    options.hqs = options.hqs || options.render.splat == pc::SplatMode::Blend;
-  std::printf("renderer: %s (%s)\n", renderer_name(options.renderer), reason.c_str());
+  options.keep_extras = true;      // the panel can turn GPS-time and point-source filters on
   options.chunk_points = 1 << 16;  // a finer point budget
-  add_scene_plugin(engine, options);
+  ScenePlan plan = plan_scene(options, *engine.render().resource<GpuContext>());
+  std::printf("renderer: %s (%s)\n", renderer_name(plan.options.renderer),
+              plan.renderer_reason.c_str());
+  add_scene_plugin(engine, plan);
   platform::WindowOptions window;
   window.title = "stipple";
   window.width = args.width;
@@ -92,15 +81,12 @@ void run_view(const ViewArgs& args) {
   Registry& main = engine.main();
   glm::uvec2 size = main.resource<viewer::WindowState>().framebuffer_size;
   if (size.x == 0 || size.y == 0) size = {args.width, args.height};
-  Camera camera = scene_camera(main, args.camera, size.x, size.y, 30.0, 40.0, args.fov);
-  main.emplace<Camera>(main.create(), camera);
-  auto& settings = main.resource<pc::PointDrawSettings>();
-  main.view<pc::PointCloudData>().each([&](const pc::PointCloudData& data) {
-    if (settings.render.point_size <= 0)
-      settings.render.point_size = pc::auto_point_size(*data.cloud, camera, std::max(size.y, 1u));
-  });
-  // Streamed tiles arrive later: a size that suits the default screen-space error.
-  if (tileset && settings.render.point_size <= 0) settings.render.point_size = 2.0f;
+  SceneView view;
+  view.width = size.x;
+  view.height = std::max(size.y, 1u);
+  view.camera = args.camera;
+  view.fov = args.fov;
+  place_camera(engine, plan, view, false);
   engine.run();
   engine.shutdown();
 }

@@ -548,9 +548,22 @@ Tileset load_tileset(const std::string& uri, const TilesetOptions& options) {
 
 Tileset load_tileset(const std::string& uri, const Fetcher& fetcher,
                      const TilesetOptions& options) {
-  if (is_copc_input(uri)) return load_copc_tileset(uri, fetcher, options);
-  if (is_potree_input(uri)) return load_potree_tileset(uri, fetcher, options);
-  if (is_ept_input(uri)) return load_ept_tileset(uri, fetcher, options);
+  return load_tileset(uri, source_format(uri), fetcher, options);
+}
+
+Tileset load_tileset(const std::string& uri, SourceFormat format, const Fetcher& fetcher,
+                     const TilesetOptions& options) {
+  switch (format) {
+    case SourceFormat::Copc:
+      return load_copc_tileset(uri, fetcher, options);
+    case SourceFormat::Potree:
+      return load_potree_tileset(uri, fetcher, options);
+    case SourceFormat::Ept:
+      return load_ept_tileset(uri, fetcher, options);
+    case SourceFormat::Tileset:
+    case SourceFormat::Las:  // not a tileset: its bytes say so (parse_tileset's error)
+      break;
+  }
   auto bytes = fetcher(uri);
   return parse_tileset(bytes, uri, fetcher, options);
 }

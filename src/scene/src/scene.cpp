@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <stdexcept>
 #include <utility>
 
@@ -14,34 +13,19 @@
 #include "stipple/core/log.hpp"
 #include "stipple/core/memory.hpp"
 #include "stipple/engine/engine.hpp"
+#include "stipple/engine/plugins.hpp"
+#include "stipple/engine/render_plugins.hpp"
 #include "stipple/io/copc.hpp"
-#include "stipple/io/ept.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
-#include "stipple/io/potree.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/scene.hpp"
-#include "stipple/pointcloud/virtual_cloud.hpp"
 #include "stipple/renderer/gpu.hpp"
-#include "stipple/tiles3d/render_load.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
+#include "virtual_scene.hpp"
 
 namespace stipple::scene {
-
-bool is_tileset_scene(const SceneOptions& options) {
-  return options.inputs.size() == 1 && tiles3d::is_tileset_input(options.inputs[0]);
-}
-
-double max_sse_for(const SceneOptions& options) {
-  if (options.max_sse > 0) return options.max_sse;
-  // COPC, Potree and EPT nodes' error is their point spacing: refine down to 2 px.
-  return is_tileset_scene(options) &&
-                 (io::is_copc_input(options.inputs[0]) || io::is_potree_input(options.inputs[0]) ||
-                  io::is_ept_input(options.inputs[0]))
-             ? 2.0
-             : 16.0;
-}
 
 namespace {
 
@@ -53,31 +37,62 @@ uint64_t host_budget(const SceneOptions& options) {
 
 }  // namespace
 
+SceneSource classify_scene(const SceneOptions& options) {
+  SceneSource source;
+  source.host_budget = host_budget(options);
+  if (options.points) {
+    if (!options.inputs.empty()) fail("points in memory and input files cannot be drawn together");
+    source.kind = SourceKind::Memory;
+    source.points = options.points->point_count;
+    return source;
+  }
+  if (options.inputs.empty()) {
+    source.points = options.scene_points;
+    return source;
+  }
+  // One streamed source alone; otherwise every input is a point file (the LAS reader says what
+  // is wrong with one that is not).
+  const io::SourceFormat first = io::source_format(options.inputs[0]);
+  if (options.inputs.size() == 1 && io::is_streamed(first)) {
+    source.kind = SourceKind::Streamed;
+    source.format = first;
+    if (first == io::SourceFormat::Copc) {
+      // The header and VLRs only: the plugin opens the hierarchy (and reads the root node).
+      const io::Fetcher fetcher = [](const std::string& uri) { return io::fetch(uri); };
+      source.points = io::open_copc(options.inputs[0], fetcher)->header.point_count;
+    }
+    return source;
+  }
+  source.kind = SourceKind::PointFiles;
+  for (const auto& in : options.inputs) source.points += io::read_las_header(in).point_count;
+  // GPS-time and point-source filters are drawn by the billboard path: the in-memory path keeps
+  // them possible.
+  if (options.force_virtual) {
+    source.virtualized = true;
+    source.virtual_reason = "--virtual";
+  } else if (!options.render.filter.needs_extras()) {
+    // The in-memory path holds about 40 bytes a point (chunks, upload, batches).
+    const uint64_t need = source.points * 40;
+    if (need > source.host_budget) {
+      source.virtualized = true;
+      source.virtual_reason = fmt::format(
+          "{} points need about {:.1f} GiB in memory, over the host budget of "
+          "{:.1f} GiB (--host-memory)",
+          source.points, double(need) / (1 << 30), double(source.host_budget) / (1 << 30));
+    }
+  }
+  return source;
+}
+
+double max_sse_for(const SceneOptions& options, const SceneSource& source) {
+  if (options.max_sse > 0) return options.max_sse;
+  // COPC, Potree and EPT nodes' error is their point spacing: refine down to 2 px.
+  return source.streamed() && source.format != io::SourceFormat::Tileset ? 2.0 : 16.0;
+}
+
 void apply_filters(SceneOptions& options) {
   options.render.filter = make_filter(options.filters);
   options.render.clip = make_region(options.filters);
-}
-
-bool use_virtual_path(const SceneOptions& options, std::string* reason) {
-  if (options.inputs.empty() || is_tileset_scene(options)) return false;
-  // GPS-time and point-source filters are drawn by the billboard path: the in-memory path keeps
-  // them possible.
-  if (options.render.filter.needs_extras() && !options.force_virtual) return false;
-  if (options.force_virtual) {
-    if (reason) *reason = "--virtual";
-    return true;
-  }
-  // The in-memory path holds about 40 bytes a point (chunks, upload, batches).
-  uint64_t points = 0;
-  for (const auto& in : options.inputs) points += io::read_las_header(in).point_count;
-  const uint64_t need = points * 40, budget = host_budget(options);
-  if (need <= budget) return false;
-  if (reason)
-    *reason = fmt::format(
-        "{} points need about {:.1f} GiB in memory, over the host budget of "
-        "{:.1f} GiB (--host-memory)",
-        points, double(need) / (1 << 30), double(budget) / (1 << 30));
-  return true;
 }
 
 const char* renderer_name(Renderer renderer) {
@@ -91,8 +106,8 @@ const char* renderer_name(Renderer renderer) {
   }
 }
 
-Renderer resolve_renderer(const SceneOptions& options, const gpu::Context& ctx,
-                          std::string* reason) {
+Renderer resolve_renderer(const SceneOptions& options, const SceneSource& source,
+                          const gpu::Context& ctx, std::string* reason) {
   auto say = [&](Renderer r, std::string why) {
     if (reason) *reason = std::move(why);
     return r;
@@ -106,41 +121,53 @@ Renderer resolve_renderer(const SceneOptions& options, const gpu::Context& ctx,
         "out --renderer compute and --virtual");
   if (options.renderer != Renderer::Auto) return say(options.renderer, "--renderer");
   if (extras) return say(Renderer::Billboard, "auto: GPS-time and point-source filters");
-  if (use_virtual_path(options))
-    return say(Renderer::Compute, "auto: the virtualized path draws with it");
-  // Points known up front: LAS/LAZ headers, a COPC header, the built-in scene; a 3D Tiles
-  // tileset's size is not.
+  if (source.virtualized) return say(Renderer::Compute, "auto: the virtualized path draws with it");
   constexpr uint64_t kComputeFrom = 10'000'000;
-  uint64_t points = 0;
-  if (options.points) {
-    points = options.points->point_count;
-  } else if (options.inputs.empty()) {
-    points = options.scene_points;
-  } else if (is_tileset_scene(options)) {
-    if (!io::is_copc_input(options.inputs[0])) {
-      // A tileset's size is not known up front (the tiles are read as the view refines): what
-      // can be drawn at once is what the memory budget holds.
-      points = (options.memory_mb << 20) / pc::kRasterPointBytes;
-      if (points >= kComputeFrom)
-        return say(Renderer::Compute,
-                   fmt::format("auto: up to {} points streamed in --memory-mb {}, on {}", points,
-                               options.memory_mb, ctx.description.adapter_type));
-      return say(Renderer::Billboard,
-                 fmt::format("auto: up to {} points streamed in --memory-mb {}, under {}", points,
-                             options.memory_mb, kComputeFrom));
-    }
-    // The header and VLRs only: the plugin opens the hierarchy (and reads the root node).
-    const io::Fetcher fetcher = [](const std::string& uri) { return io::fetch(uri); };
-    points = io::open_copc(options.inputs[0], fetcher)->header.point_count;
-  } else {
-    for (const auto& in : options.inputs) points += io::read_las_header(in).point_count;
+  if (source.streamed() && source.format != io::SourceFormat::Copc) {
+    // A tileset's size is not known up front (the tiles are read as the view refines): what
+    // can be drawn at once is what the memory budget holds.
+    const uint64_t points = (options.memory_mb << 20) / pc::kRasterPointBytes;
+    if (points >= kComputeFrom)
+      return say(Renderer::Compute,
+                 fmt::format("auto: up to {} points streamed in --memory-mb {}, on {}", points,
+                             options.memory_mb, ctx.description.adapter_type));
+    return say(Renderer::Billboard,
+               fmt::format("auto: up to {} points streamed in --memory-mb {}, under {}", points,
+                           options.memory_mb, kComputeFrom));
   }
-  if (points >= kComputeFrom)
+  if (source.points >= kComputeFrom)
     return say(Renderer::Compute,
-               fmt::format("auto: {} points on {}", points, ctx.description.adapter_type));
-  return say(
-      Renderer::Billboard,
-      fmt::format("auto: {} points, under {}: point sizes above one pixel", points, kComputeFrom));
+               fmt::format("auto: {} points on {}", source.points, ctx.description.adapter_type));
+  return say(Renderer::Billboard, fmt::format("auto: {} points, under {}: point sizes above one "
+                                              "pixel",
+                                              source.points, kComputeFrom));
+}
+
+ScenePlan plan_scene(const SceneOptions& options, const gpu::Context& ctx) {
+  ScenePlan plan;
+  plan.options = options;
+  plan.renderer_auto = options.renderer == Renderer::Auto;
+  apply_filters(plan.options);
+  plan.source = classify_scene(plan.options);
+  plan.options.renderer = resolve_renderer(plan.options, plan.source, ctx, &plan.renderer_reason);
+  // Blending's form on the compute rasterizer is HQS: a streamed source auto-drawn there keeps
+  // it.
+  if (options.renderer == Renderer::Auto && plan.compute() && plan.source.streamed())
+    plan.options.hqs = plan.options.hqs || plan.options.render.splat == pc::SplatMode::Blend;
+  return plan;
+}
+
+void add_engine_core(Engine& engine, const EngineCore& core) {
+  engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
+  if (core.pipelined) engine.add_plugin(PipelinedRenderingPlugin{});
+  GpuPlugin gpu;
+  gpu.options.backend = core.backend;
+  gpu.options.optional_features = pc::compute_raster_features();
+  engine.add_plugin(std::move(gpu));
+  RenderGraphPlugin graph;
+  graph.keep_history = core.keep_history;
+  graph.dump_graph = core.dump_graph;
+  engine.add_plugin(std::move(graph));
 }
 
 std::vector<double> parse_numbers(const std::string& text, size_t expected, const char* what) {
@@ -173,9 +200,7 @@ Camera frame_scene(Registry& main, uint32_t width, uint32_t height, double azimu
   main.view<pc::PointCloudData>().each([&](const pc::PointCloudData& data) {
     if (data.cloud) pc::fit_cloud(fit, *data.cloud);
   });
-  if (fit.empty())
-    if (const auto* handle = main.try_resource<pc::VirtualCloudHandle>())
-      pc::fit_virtual_cloud(fit, *handle);
+  if (fit.empty()) fit_virtual_scene(fit, main);
   if (fit.empty())
     if (const auto* stream = main.try_resource<tiles3d::TilesetStream>())
       fit.add_corners(stream->world_bounds);
@@ -197,60 +222,29 @@ Camera scene_camera(Registry& main, const std::string& text, uint32_t width, uin
   return camera;
 }
 
-void add_scene_plugin(Engine& engine, const SceneOptions& options) {
+void add_scene_plugin(Engine& engine, const ScenePlan& plan) {
+  const SceneOptions& options = plan.options;
   const bool compute = options.renderer == Renderer::Compute;
-  if (is_tileset_scene(options)) {
-    // 3D Tiles: streamed frame by frame with the camera (out of core).
+  if (plan.source.streamed()) {
+    // Streamed frame by frame with the camera (out of core).
     tiles3d::TilesetPlugin tiles;
     tiles.compute = compute;
     tiles.raster.hqs = options.hqs;
     tiles.raster.fill_radius = options.fill_radius < 0 ? 0u : uint32_t(options.fill_radius);
     tiles.raster.occlusion_beta = options.occlusion_beta;
     tiles.uri = options.inputs[0];
-    tiles.streamer.traversal.max_sse = max_sse_for(options);
+    tiles.format = plan.source.format;
+    tiles.streamer.traversal.max_sse = max_sse_for(options, plan.source);
     tiles.streamer.traversal.memory_budget = options.memory_mb << 20;
     tiles.streamer.traversal.point_budget = options.budget;
     tiles.render = options.render;
     engine.add_plugin(std::move(tiles));
     return;
   }
-  std::string reason;
-  if (use_virtual_path(options, &reason)) {
-    std::printf("drawing from a pointlet cache (%s)%s\n", reason.c_str(),
-                compute ? "" : "; the virtualized path draws with the compute rasterizer");
-    pc::VirtualPointCloudPlugin v;
-    v.options.files.assign(options.inputs.begin(), options.inputs.end());
-    v.options.cache_dir = options.cache_dir;
-    v.options.build.pointlets = options.pointlets;
-    v.options.build.memory_budget = std::min<uint64_t>(host_budget(options) / 2, uint64_t(4) << 30);
-    // The host budget is the process's: the loaded points get what the two mapped staging
-    // slots leave, and once the first frame has run, at most what the rest of the process
-    // (libraries, driver, tables, and the GPU buffers on a software GPU) leaves of it.
-    const uint64_t budget = host_budget(options);
-    v.options.staging_bytes =
-        std::clamp<uint64_t>(budget / 16, uint64_t(1) << 20, uint64_t(64) << 20);
-    v.options.host_budget =
-        budget > 4 * v.options.staging_bytes ? budget - 2 * v.options.staging_bytes : budget / 2;
-    v.options.process_budget = budget;
-    if (!options.gpu_memory.empty()) v.options.gpu_budget = parse_size(options.gpu_memory);
-    v.options.bucket = options.bucket;
-    v.options.hqs = options.hqs;
-    v.options.fill_radius = options.fill_radius < 0 ? 1u : uint32_t(options.fill_radius);
-    v.options.occlusion_beta = options.occlusion_beta;
-    v.render = options.render;
-    engine.add_plugin(std::move(v));
-    const auto& c = engine.main().resource<pc::VirtualCloudCache>();
-    if (c.built)
-      std::printf("built %s: %llu points in %llu pointlets of %llu in %.2f s\n", c.path.c_str(),
-                  static_cast<unsigned long long>(c.points),
-                  static_cast<unsigned long long>(c.pointlets),
-                  static_cast<unsigned long long>(c.pointlet_points), c.build.seconds);
-    else
-      std::printf("reused %s (the input is unchanged)\n", c.path.c_str());
+  if (plan.source.virtualized) {
+    add_virtual_scene(engine, plan);
     return;
   }
-  if (options.points && !options.inputs.empty())
-    fail("points in memory and input files cannot be drawn together");
   pc::PointCloudPlugin points;
   points.inputs.files.assign(options.inputs.begin(), options.inputs.end());
   points.inputs.points = options.points;
@@ -265,6 +259,101 @@ void add_scene_plugin(Engine& engine, const SceneOptions& options) {
   points.settings.fill_radius = options.fill_radius < 0 ? 0u : uint32_t(options.fill_radius);
   points.settings.occlusion_beta = options.occlusion_beta;
   engine.add_plugin(std::move(points));
+}
+
+Camera place_camera(Engine& engine, ScenePlan& plan, const SceneView& view,
+                    bool one_pixel_compute) {
+  Registry& main = engine.main();
+  const Camera camera = scene_camera(main, view.camera, view.width, view.height, view.azimuth,
+                                     view.elevation, view.fov);
+  main.emplace<Camera>(main.create(), camera);
+  auto& settings = main.resource<pc::PointDrawSettings>();
+  const bool sized_by_data = settings.render.point_size <= 0;
+  size_t clouds = 0;
+  main.view<pc::PointCloudData>().each([&](const pc::PointCloudData& data) {
+    ++clouds;
+    if (settings.render.point_size <= 0)
+      settings.render.point_size =
+          pc::auto_point_size(*data.cloud, camera, std::max(view.height, 1u));
+  });
+  // Streamed tiles arrive later: a size that suits the default screen-space error until then.
+  if (plan.source.streamed() && settings.render.point_size <= 0) settings.render.point_size = 2.0f;
+  if (one_pixel_compute && plan.renderer_auto && !plan.compute() && !plan.source.streamed() &&
+      sized_by_data && settings.render.point_size <= 1.0f && clouds > 0 &&
+      !plan.options.render.filter.needs_extras()) {
+    settings.compute = true;
+    settings.hqs = settings.render.splat == pc::SplatMode::Blend;
+    plan.options.renderer = Renderer::Compute;
+    plan.options.hqs = settings.hqs;
+    plan.renderer_reason = "auto: 1-pixel points";
+  }
+  return camera;
+}
+
+void settle_streamed_scene(Engine& engine, const ScenePlan& plan, const SceneView& view,
+                           uint64_t max_frames) {
+  Registry& main = engine.main();
+  main.insert_resource(StreamSettle{});
+  const bool auto_size = plan.options.render.point_size <= 0;
+  engine.add_system(
+      MainStage::Update,
+      [max_frames, view, auto_size, reframe = view.camera.empty(),
+       memory_mb = plan.options.memory_mb, point_budget = plan.options.budget,
+       max_sse = max_sse_for(plan.options, plan.source),
+       uri = plan.options.inputs[0]](Registry& r) mutable {
+        StreamSettle& settle = r.resource<StreamSettle>();
+        auto& s = r.resource<tiles3d::TilesetStream>();
+        const auto& stats = r.resource<tiles3d::TilesetStats>();
+        settle.capped = stats.frames >= max_frames;
+        // The traversal keeps the selection within the memory budget (coarser tiles where the
+        // view wants more), so the streamer goes idle in every case.
+        settle.loading = !stats.idle && !settle.capped;
+        if (settle.loading) return;
+        // Framed from the source's volume (which may be far larger than the data) until the
+        // first tiles are in: then once from their points, and streamed again for that view.
+        if (reframe && !settle.capped && stats.drawn_points > 0) {
+          reframe = false;
+          ViewFit fit(view.width, view.height, view.azimuth, view.elevation, view.fov);
+          tiles3d::fit_drawn_tiles(fit, s);
+          r.view<Camera>().each([&](Camera& c) { c = fit.camera(); });
+          return;
+        }
+        if (settle.settled == 0 && !stats.idle)
+          STIPPLE_WARN("--max-frames {} reached before the tileset was streamed", max_frames);
+        if (settle.settled == 0 && stats.budget_limited && stats.drawn_tiles == 0)
+          STIPPLE_WARN(
+              "--memory-mb {} is smaller than the coarsest tiles this view needs: "
+              "nothing is drawn (raise --memory-mb)",
+              memory_mb);
+        else if (settle.settled == 0 && stats.budget_limited)
+          STIPPLE_WARN(
+              "the view wants more than --memory-mb {}{} allow: drawn at a screen-space error "
+              "of {:.1f} px instead of --max-sse {} (raise them for more detail)",
+              memory_mb, point_budget ? fmt::format(" and --budget {}", point_budget) : "",
+              stats.sse_threshold, max_sse);
+        else if (settle.settled == 0 && stats.drawn_points == 0) {
+          // Content was read and none of it is points (meshes, an empty pnts): an input with
+          // no points is an error, as for LAS. Nothing read: no tile is in view.
+          if ((stats.loads_completed > 0 || stats.errors > 0) && stats.resident_points == 0)
+            fail("{}: nothing to render: the tiles in view hold no points{}", uri,
+                 s.first_problem.empty() ? "" : fmt::format(" ({})", s.first_problem));
+          STIPPLE_WARN("{}: no tile with points is in view: the image shows the background only",
+                       uri);
+        }
+        if (settle.settled++ == 0 && auto_size && stats.drawn_points > 0) {
+          Aabb drawn;
+          for (uint32_t t : s.draw)
+            for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
+          const Camera* camera = nullptr;
+          r.view<Camera>().each([&](const Camera& c) {
+            if (!camera) camera = &c;
+          });
+          if (camera)
+            r.resource<pc::PointDrawSettings>().render.point_size =
+                pc::auto_point_size(drawn, stats.drawn_points, *camera, view.height);
+        }
+      },
+      "settle_streamed_scene");
 }
 
 }  // namespace stipple::scene

@@ -16,12 +16,6 @@
 
 namespace stipple::tiles3d {
 
-bool is_tileset_input(const std::string& input) {
-  // A Potree 1.x cloud.js is not named .json.
-  return io::is_url(input) || io::is_tileset_uri(input) || io::is_copc_input(input) ||
-         io::is_potree_input(input);
-}
-
 glm::dmat4 world_from_tileset(const io::Tileset& ts) {
   const glm::dmat4 y_up(1, 0, 0, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1);
   // COPC and Potree are in their files' projected coordinates, whatever their magnitude.

@@ -451,7 +451,11 @@ void TilesetPlugin::build(Engine& engine) {
   ts_options.fetch = streamer.fetch;
   TilesetStream s;
   std::set<std::string> not_drawn;
-  auto tileset = std::make_shared<io::Tileset>(io::load_tileset(uri, ts_options));
+  const io::Fetcher fetcher = [&ts_options](const std::string& u) {
+    return io::fetch(u, ts_options.fetch);
+  };
+  auto tileset = std::make_shared<io::Tileset>(
+      io::load_tileset(uri, format ? *format : io::source_format(uri), fetcher, ts_options));
   s.tileset = tileset;
   for (const auto& w : s.tileset->warnings) report_tile_problem(s, {0, w});
   for (const auto& e : s.tileset->errors) report_tile_problem(s, {0, e});

@@ -8,17 +8,17 @@
 
 namespace stipple::app {
 
+using scene::add_engine_core;
 using scene::add_scene_plugin;
-using scene::apply_filters;
+using scene::EngineCore;
 using scene::frame_scene;
-using scene::is_tileset_scene;
-using scene::max_sse_for;
+using scene::place_camera;
+using scene::plan_scene;
 using scene::Renderer;
 using scene::renderer_name;
-using scene::resolve_renderer;
-using scene::scene_camera;
 using scene::SceneOptions;
-using scene::use_virtual_path;
+using scene::ScenePlan;
+using scene::SceneView;
 
 // --renderer, --hqs, --max-sse, --memory-mb and the virtualized path's --virtual, --bucket,
 // --pointlets, --cache, --host-memory, --gpu-memory, and the filter and clip flags: the same

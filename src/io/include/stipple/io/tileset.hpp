@@ -18,6 +18,7 @@
 #include <glm/vec3.hpp>
 
 #include "stipple/io/fetch.hpp"
+#include "stipple/io/source.hpp"
 
 namespace stipple::io {
 
@@ -141,6 +142,9 @@ using Fetcher = std::function<std::vector<uint8_t>(const std::string& uri)>;
 Tileset load_tileset(const std::string& uri, const TilesetOptions& options = {});
 // The same through `fetcher` (tests count or fault requests with it).
 Tileset load_tileset(const std::string& uri, const Fetcher& fetcher,
+                     const TilesetOptions& options = {});
+// The same for an input already classified (source_format): the format picks the loader.
+Tileset load_tileset(const std::string& uri, SourceFormat format, const Fetcher& fetcher,
                      const TilesetOptions& options = {});
 // The same from bytes already read, fetching what they reference through `fetcher`.
 Tileset parse_tileset(std::span<const uint8_t> json_bytes, const std::string& uri,

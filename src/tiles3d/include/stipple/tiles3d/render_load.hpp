@@ -12,8 +12,6 @@
 
 namespace stipple::tiles3d {
 
-bool is_tileset_input(const std::string& input);  // *.json or an http(s) URL
-
 // Tileset frame -> engine world: geocentric tilesets are re-expressed in the east-north-up
 // frame at the root's centre (so "up" is up), then Z-up becomes Y-up.
 glm::dmat4 world_from_tileset(const io::Tileset& tileset);

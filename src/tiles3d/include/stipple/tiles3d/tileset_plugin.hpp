@@ -27,6 +27,7 @@
 #include <string_view>
 #include <vector>
 
+#include "stipple/io/source.hpp"
 #include "stipple/math/aabb.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/paged_points.hpp"
@@ -118,6 +119,9 @@ struct TilesetPlugin {
   static constexpr std::array<std::string_view, 4> dependencies{"GpuPlugin", "RenderGraphPlugin",
                                                                 "CameraPlugin", "TransformPlugin"};
   std::string uri;  // tileset.json path or URL
+  // What `uri` is, where the caller has classified it (scene::classify_scene); else found from
+  // the uri here (io::source_format).
+  std::optional<io::SourceFormat> format;
   tiles3d::StreamerOptions streamer;
   uint32_t width = 1280, height = 720;  // viewport for the screen-space error
   pc::PointRenderSettings render;       // copied into PointDrawSettings

@@ -1,0 +1,54 @@
+#include <algorithm>
+#include <cstdio>
+#include <utility>
+
+#include "stipple/core/memory.hpp"
+#include "stipple/engine/engine.hpp"
+#include "stipple/pointcloud/virtual_cloud.hpp"
+#include "virtual_scene.hpp"
+
+namespace stipple::scene {
+
+void add_virtual_scene(Engine& engine, const ScenePlan& plan) {
+  const SceneOptions& options = plan.options;
+  std::printf("drawing from a pointlet cache (%s)%s\n", plan.source.virtual_reason.c_str(),
+              options.renderer == Renderer::Compute
+                  ? ""
+                  : "; the virtualized path draws with the compute rasterizer");
+  pc::VirtualPointCloudPlugin v;
+  v.options.files.assign(options.inputs.begin(), options.inputs.end());
+  v.options.cache_dir = options.cache_dir;
+  v.options.build.pointlets = options.pointlets;
+  const uint64_t budget = plan.source.host_budget;
+  v.options.build.memory_budget = std::min<uint64_t>(budget / 2, uint64_t(4) << 30);
+  // The host budget is the process's: the loaded points get what the two mapped staging
+  // slots leave, and once the first frame has run, at most what the rest of the process
+  // (libraries, driver, tables, and the GPU buffers on a software GPU) leaves of it.
+  v.options.staging_bytes =
+      std::clamp<uint64_t>(budget / 16, uint64_t(1) << 20, uint64_t(64) << 20);
+  v.options.host_budget =
+      budget > 4 * v.options.staging_bytes ? budget - 2 * v.options.staging_bytes : budget / 2;
+  v.options.process_budget = budget;
+  if (!options.gpu_memory.empty()) v.options.gpu_budget = parse_size(options.gpu_memory);
+  v.options.bucket = options.bucket;
+  v.options.hqs = options.hqs;
+  v.options.fill_radius = options.fill_radius < 0 ? 1u : uint32_t(options.fill_radius);
+  v.options.occlusion_beta = options.occlusion_beta;
+  v.render = options.render;
+  engine.add_plugin(std::move(v));
+  const auto& c = engine.main().resource<pc::VirtualCloudCache>();
+  if (c.built)
+    std::printf("built %s: %llu points in %llu pointlets of %llu in %.2f s\n", c.path.c_str(),
+                static_cast<unsigned long long>(c.points),
+                static_cast<unsigned long long>(c.pointlets),
+                static_cast<unsigned long long>(c.pointlet_points), c.build.seconds);
+  else
+    std::printf("reused %s (the input is unchanged)\n", c.path.c_str());
+}
+
+void fit_virtual_scene(ViewFit& fit, Registry& main) {
+  if (const auto* handle = main.try_resource<pc::VirtualCloudHandle>())
+    pc::fit_virtual_cloud(fit, *handle);
+}
+
+}  // namespace stipple::scene
