@@ -22,7 +22,7 @@ deps_only=0
 [[ "${1:-}" == "--deps" ]] && deps_only=1
 sudo_cmd=""
 [[ $(id -u) -ne 0 ]] && sudo_cmd="sudo"
-log() { printf '[build-web] %s\n' "$*"; }
+log() { printf '[build-web %d:%02d] %s\n' $((SECONDS / 60)) $((SECONDS % 60)) "$*"; }
 
 # ---- clang/lld/llvm 19 (bookworm) ------------------------------------------------------
 need_apt=0
@@ -266,6 +266,7 @@ wasm_decoder brotli-wasm "$br_ver" "brotli=$br_ver-2" "brotli_$br_ver.orig.tar.g
 
 # ---- the web build ---------------------------------------------------------------------
 # ccache launches emcc like any compiler (its objects are keyed on the emcc command line).
+log "compiling libstipple and the viewer to WebAssembly (build-web/)"
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 build="$root/build-web"
@@ -277,3 +278,4 @@ if [[ ! -f "$build/build.ninja" ]]; then
     -DSTIPPLE_WERROR="${CI:+ON}" -DSTIPPLE_TESTS=OFF "${launcher[@]}" >/dev/null
 fi
 out=$(cmake --build "$build" -j"$(nproc)" 2>&1) || { printf '%s\n' "$out" >&2; exit 1; }
+log "done"

@@ -12,7 +12,8 @@ deps_only=0
 [[ "${1:-}" == "--deps" ]] && deps_only=1
 sudo_cmd=""
 [[ $(id -u) -ne 0 ]] && sudo_cmd="sudo"
-log() { printf '[setup] %s\n' "$*"; }
+# Each line says the minutes and seconds since the start, so a log shows where the time goes.
+log() { printf '[setup %d:%02d] %s\n' $((SECONDS / 60)) $((SECONDS % 60)) "$*"; }
 
 # ---- Debian packages -------------------------------------------------------------------
 # Mesa 25 (lavapipe that Dawn accepts) comes from bookworm-backports; liblaszip-dev 3.5 from
