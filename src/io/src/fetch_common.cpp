@@ -1,4 +1,5 @@
-// URIs, byte ranges and local files: the parts of io::fetch that need no HTTP client.
+// URIs, byte ranges and local files: the parts of io::fetch that need no HTTP client, and fetch()
+// itself, which reads URLs through the build's client (detail::perform_http) and fetch_http.
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
@@ -60,6 +61,16 @@ std::vector<uint8_t> read_file_range(const std::string& uri, const ByteRange& r,
 }  // namespace detail
 
 using detail::starts_with_ci;
+
+std::vector<uint8_t> fetch(const std::string& uri, const FetchOptions& options, FetchStats* stats) {
+  if (!is_url(uri)) {
+    ByteRange range;
+    if (parse_range_uri(uri, &range)) return detail::read_file_range(uri, range, options, stats);
+    if (stats) stats->attempts = 1;
+    return detail::read_file(uri.substr(0, uri.find('#')), options);  // fields after '#' are ours
+  }
+  return fetch_http(http_request(uri, options), detail::perform_http, detail::sleep_ms, stats);
+}
 
 std::string range_uri(const std::string& uri, uint64_t offset, uint64_t size) {
   const size_t hash = uri.find('#');
