@@ -2,39 +2,25 @@
 // point within a relative depth tolerance of the pixel's nearest depth adds its colour (shaded
 // in the frame's mode) and a count; the display pass divides. The depth comes from the 32-bit
 // depth buffer or from the high word of the 64-bit visibility buffer (depth_stride /
-// depth_word).
+// depth_word). Two pipelines of this shader run: HQS's sums (TILE on, the general loop) and the
+// 32-bit fallback's colours, the nearest points only (TILE off, the lean loop for 10-bit
+// batches: LEAN, compute_raster_batch.wgsl).
 //
-// PACKED (seed 001, 3.6: one 64-bit add for up to 255 points, with overflow protection; here in
-// two 32-bit words): a pixel's first 255 points add red | green << 16 to one word and
-// blue | count << 16 to the other, two atomics instead of four. Sums that would take the count
-// past 255 are taken back and added to the pixel's overflow words instead (add and subtract
-// commute, so the packed sums end exact). raster-hqs-finish then writes the plain layout (sums,
-// count) that the later passes read.
+// A thread sums the points it finds in a row on one pixel (a run: at overview distances hundreds
+// of a batch's points share a pixel, and consecutive points of a sorted batch mostly do), reads
+// the pixel's depth limit once for them, and adds the run's sums with one set of four atomics
+// (3.5x faster HQS than atomics a point on the H200: bench/RESULTS.md, run A).
 #include "compute_raster_batch.wgsl"
 #include "compute_raster_shading.wgsl"
 #include "compute_raster_filter.wgsl"
-#include "compute_raster_tile.wgsl"
-
-override PACKED: bool = false;
-// A measurement only (wrong images): the sums are computed but not added (kept alive behind a
-// condition that never holds), which tells the atomics' share of the pass.
-override ABLATE_SUMS: bool = false;
 
 @group(0) @binding(5) var<storage, read> colors: array<u32>;
 @group(0) @binding(6) var<storage, read> depth_buffer: array<u32>;
-// Plain: four words a pixel (r, g, b, count); packed: eight (rg, b|count, then r, g, b, count
-// of the overflow).
+// Four words a pixel: r, g, b, count.
 @group(0) @binding(7) var<storage, read_write> accum: array<atomic<u32>>;
 
 // The geometry passes count batches; accumulation does not.
 fn count_batch(b: GpuBatch, bits: u32, skipped: bool) {}
-
-// MERGE: a thread sums the points it finds in a row on one pixel (the pixel's nearest depth is
-// read once for them) and adds the sums with one set of atomics.
-override MERGE: bool = true;
-// RAW_RGB: in the RGB mode a point's sums are its colour's bytes, which is what shading it and
-// taking its 8-bit channels gives (round(x / 255 * 255) = x), without the float round trip.
-override RAW_RGB: bool = true;
 
 const NO_PIXEL: u32 = 0xffffffffu;
 var<private> run_pixel: u32 = NO_PIXEL;
@@ -42,50 +28,95 @@ var<private> run_limit: f32;        // the pixel's nearest depth, widened by the
 var<private> run_sum: vec4<u32>;    // r, g, b, count
 var<private> run_entry: u32;        // its tile entry (TILE_PIXELS: none)
 
-// TILE: the tile's depth limits (tile_depth, as bits) and sums, added to the screen once per
-// pixel when the batch is done.
-var<workgroup> tile_sums: array<array<atomic<u32>, 4>, TILE_PIXELS>;
+// TILE: a batch that covers at most TILE_PIXELS pixels on screen sums into workgroup memory
+// first (each tile pixel's depth limit, then its sums), and the tile is added to the screen once
+// per covered pixel when the batch is done: at overview distances the screen-wide atomics of
+// hundreds of runs a pixel are what bound HQS (1.8x faster there on the H200, 4 % slower close
+// up: bench/RESULTS.md, runs G-H). Points that round outside the tile take the screen's sums.
+override TILE: bool = false;
 
-fn tile_clear_extra(i: u32) {
-  atomicStore(&tile_depth[i], bitcast<u32>(limit_of(tile_pixel(i))));
-  for (var c = 0u; c < 4u; c++) {
-    atomicStore(&tile_sums[i][c], 0u);
+const TILE_PIXELS: u32 = 512u;
+var<workgroup> tile_depth: array<atomic<u32>, TILE_PIXELS>;  // depth limits, as bits
+var<workgroup> tile_sums: array<array<atomic<u32>, 4>, TILE_PIXELS>;
+var<workgroup> tile_rect: vec4<u32>;  // x0, y0, width, height; width 0: the batch is too large
+var<private> tile_phase: u32 = 0u;    // 1 while the batch sums into the tile
+var<private> tile_origin: vec2<u32>;
+var<private> tile_size: vec2<u32>;
+
+// The batch's box corners on screen (as classify() projects them) widened by a pixel for
+// rounding, clamped to the viewport; width 0 where it is behind the camera or too large.
+fn tile_rect_of(b: GpuBatch) -> vec4<u32> {
+  var lo = vec2<f32>(1e30);
+  var hi = vec2<f32>(-1e30);
+  let viewport = vec2<f32>(f32(params.width), f32(params.height));
+  for (var i = 0u; i < 8u; i++) {
+    let corner = b.offset + b.size * vec3<f32>(f32(i & 1u), f32((i >> 1u) & 1u), f32((i >> 2u) & 1u));
+    let c = params.view_proj * vec4<f32>(corner, 1.0);
+    if (c.w <= 0.0) {
+      return vec4<u32>(0u);
+    }
+    let s = vec2<f32>(c.x / c.w * 0.5 + 0.5, 0.5 - c.y / c.w * 0.5) * viewport;
+    lo = min(lo, s);
+    hi = max(hi, s);
   }
+  lo = clamp(floor(lo) - 1.0, vec2<f32>(0.0), viewport - 1.0);
+  hi = clamp(floor(hi) + 1.0, vec2<f32>(0.0), viewport - 1.0);
+  let size = vec2<u32>(hi - lo) + 1u;
+  if (size.x * size.y > TILE_PIXELS || hi.x < lo.x || hi.y < lo.y) {
+    return vec4<u32>(0u);
+  }
+  return vec4<u32>(vec2<u32>(lo), size);
+}
+
+// Whether the workgroup sums batch `b` through the tile; fills the tile's depth limits from the
+// screen's and clears its sums. Uniform control flow.
+fn tile_begin(b: GpuBatch, lid: u32) -> bool {
+  if (lid == 0u) {
+    tile_rect = tile_rect_of(b);
+  }
+  let r = workgroupUniformLoad(&tile_rect);
+  if (r.z == 0u) {
+    return false;
+  }
+  tile_origin = r.xy;
+  tile_size = r.zw;
+  for (var i = lid; i < r.z * r.w; i += WORKGROUP) {
+    atomicStore(&tile_depth[i], bitcast<u32>(limit_of(tile_pixel(i))));
+    for (var c = 0u; c < 4u; c++) {
+      atomicStore(&tile_sums[i][c], 0u);
+    }
+  }
+  workgroupBarrier();
+  return true;
+}
+
+// The tile entry of the pixel at column and row `xy`, or TILE_PIXELS outside the tile.
+fn tile_entry_xy(xy: vec2<u32>) -> u32 {
+  let d = xy - tile_origin;  // wraps past the size when left of or above the tile
+  if (d.x >= tile_size.x || d.y >= tile_size.y) {
+    return TILE_PIXELS;
+  }
+  return d.y * tile_size.x + d.x;
+}
+
+// Screen pixel of tile entry `i`.
+fn tile_pixel(i: u32) -> u32 {
+  let y = i / tile_size.x;
+  return (tile_origin.y + y) * params.width + tile_origin.x + (i - y * tile_size.x);
 }
 
 fn add_sums(pixel: u32, sum: vec4<u32>) {
-  if (!PACKED) {
-    let o = pixel * 4u;
-    atomicAdd(&accum[o], sum.x);
-    atomicAdd(&accum[o + 1u], sum.y);
-    atomicAdd(&accum[o + 2u], sum.z);
-    atomicAdd(&accum[o + 3u], sum.w);
-    return;
-  }
-  // At most 255 points in the packed words: then every 16-bit sum holds.
-  let o = pixel * 8u;
-  if (sum.w > 255u) {
-    atomicAdd(&accum[o + 2u], sum.x);
-    atomicAdd(&accum[o + 3u], sum.y);
-    atomicAdd(&accum[o + 4u], sum.z);
-    atomicAdd(&accum[o + 5u], sum.w);
-    return;
-  }
-  let blue_count = sum.z | (sum.w << 16u);
-  let before = atomicAdd(&accum[o + 1u], blue_count);
-  if ((before >> 16u) + sum.w <= 255u) {
-    atomicAdd(&accum[o], sum.x | (sum.y << 16u));
-    return;
-  }
-  atomicSub(&accum[o + 1u], blue_count);
-  atomicAdd(&accum[o + 2u], sum.x);
-  atomicAdd(&accum[o + 3u], sum.y);
-  atomicAdd(&accum[o + 4u], sum.z);
-  atomicAdd(&accum[o + 5u], sum.w);
+  let o = pixel * 4u;
+  atomicAdd(&accum[o], sum.x);
+  atomicAdd(&accum[o + 1u], sum.y);
+  atomicAdd(&accum[o + 2u], sum.z);
+  atomicAdd(&accum[o + 3u], sum.w);
 }
 
 fn end_run() {
-  if (ABLATE_SUMS && run_sum.x != 0xfffffff0u) {
+  // ABLATE_SUMS: the sums are made but not added (kept alive behind a condition that never
+  // holds).
+  if (ablated(ABLATE_SUMS) && run_sum.x != 0xfffffff0u) {
     run_pixel = NO_PIXEL;
     return;
   }
@@ -133,7 +164,7 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   if (state == 0u) {
     return;
   }
-  if (!MERGE || pr.pixel != run_pixel) {
+  if (pr.pixel != run_pixel) {
     end_run();
     run_pixel = pr.pixel;
     run_entry = drawing_entry(pr.xy);
@@ -143,8 +174,10 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   if (pr.depth > run_limit) {
     return;
   }
-  if (RAW_RGB && shading.mode == 1u && state == 1u) {
-    // The source colour's bytes are its channels: no conversion to and from floats.
+  if (shading.mode == 1u && state == 1u) {
+    // In the RGB mode the source colour's bytes are what shading it and taking its 8-bit
+    // channels gives (round(x / 255 * 255) = x), without the float round trip (HQS 1.13x
+    // faster on the H200: bench/RESULTS.md, run Q).
     let c = colors[index];
     run_sum += vec4<u32>(c & 0xffu, (c >> 8u) & 0xffu, (c >> 16u) & 0xffu, 1u);
   } else {
@@ -154,21 +187,19 @@ fn draw_point(cells: vec3<f32>, index: u32) {
     }
     run_sum += vec4<u32>(channels(color), 1u);
   }
-  if (!MERGE) {
-    end_run();
-  }
 }
 
 // LEAN (compute_raster_batch.wgsl): the accumulation's lean loop, for 10-bit batches in the RGB
-// mode with sums from the colour's bytes and no filters, as the depth passes' (see lean_batch in
-// compute_raster_write.wgsl): no precision, filter or shading branches, no range test for words
-// wholly inside the batch, no clipping tests in batches inside the view. A word's four points
-// are projected, then their depth limits read together, then their colours (a point that does
-// not pass reads point 0's, which stays in cache, so that no read waits behind a branch), then
-// they join the thread's runs.
+// mode without filters, as the depth passes' (see lean_batch in compute_raster_write.wgsl): no
+// precision, filter or shading branches, no range test for words wholly inside the batch, no
+// clipping tests in batches inside the view. A word's four points are projected, then their
+// depth limits read together, then their colours (a point that does not pass reads point 0's,
+// which stays in cache, so that no read waits behind a branch), then they join the thread's
+// runs. The fallback's colour pass 1.79x faster with it on the H200; HQS's sums 1.17x slower at
+// the overview (bench/RESULTS.md, run AA), so HQS keeps the general loop.
 fn lean_sums_batch(bits: u32) -> bool {
-  return LEAN && bits == 10u && PREFETCH && !CONTIGUOUS && !ABLATE_LOAD && !ABLATE_SUMS && MERGE &&
-         RAW_RGB && shading.mode == 1u && filters.flags == 0u;
+  return LEAN && bits == 10u && !ablated(ABLATE_LOAD) && !ablated(ABLATE_SUMS) &&
+         shading.mode == 1u && filters.flags == 0u;
 }
 
 // A lean point (tile entry `entry`: drawing_entry) that passes (`passes`) with colour `c`: into

@@ -27,8 +27,23 @@ struct GpuBatch {
   first: u32,  // within the segment
 }
 
-// Threads per batch workgroup (seed 001: 128); a pipeline may override it (bench raster sweeps).
+// Threads per batch workgroup: the depth passes take the seed's 128, the accumulation pass 256
+// (compute_raster.cpp).
 override WORKGROUP: u32 = 128u;
+
+// Measurements only (`stipple bench raster`'s no-* variants; wrong images or counters): parts
+// of the batch passes left out to see what they cost. 0 in every frame that is shown.
+override ABLATE: u32 = 0u;
+const ABLATE_ATOMIC: u32 = 1u;  // the 64-bit depth pass without its atomicMin
+const ABLATE_WRITE: u32 = 2u;   // the 64-bit depth pass without its early test and atomicMin
+const ABLATE_EARLY: u32 = 4u;   // the depth passes without the early test: every point's atomic
+const ABLATE_LOAD: u32 = 8u;    // the coarse words made from their index, not loaded
+const ABLATE_SUMS: u32 = 16u;   // the accumulation's sums made but not added
+const ABLATE_COUNT: u32 = 32u;  // the batch counters' atomics left out
+
+fn ablated(part: u32) -> bool {
+  return (ABLATE & part) != 0u;
+}
 
 const C_PROCESSED: u32 = 0u;
 const C_RENDERED: u32 = 1u;
@@ -91,21 +106,7 @@ fn classify(p: Params, b: GpuBatch, skipped: ptr<function, bool>) -> u32 {
   return 30u;
 }
 
-// FAST_CONVERT: no conversion instructions per point (they issue at a fraction of the float
-// rate): the 10-bit fields become floats through the mantissa, and the batch passes take the
-// pixel out of a float's bits (compute_raster_batch.wgsl); the image is the same but for points
-// within rounding of a pixel edge.
-override FAST_CONVERT: bool = false;
-
 fn unpack10(v: u32) -> vec3<f32> {
-  if (FAST_CONVERT) {
-    // A 10-bit field n in the top mantissa bits of 1.0 is 1 + n/1024, exactly; one
-    // multiply-add makes it n.
-    let one = vec3<u32>(0x3f800000u);
-    let top = vec3<u32>(0x7fe000u);  // mantissa bits 13-22
-    let f = bitcast<vec3<f32>>((vec3<u32>(v << 13u, v << 3u, v >> 7u) & top) | one);
-    return f * 1024.0 - 1024.0;
-  }
   return vec3<f32>(f32(v & 1023u), f32((v >> 10u) & 1023u), f32((v >> 20u) & 1023u));
 }
 

@@ -3,12 +3,9 @@
 
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
 
-// A measurement only (wrong counters): COUNT off leaves the batch counters' atomics out.
-override COUNT: bool = true;
-
-// Called by batch_prologue() on thread 0 (on every thread's behalf with PARALLEL_PROLOGUE).
+// Called by batch_prologue() on thread 0.
 fn count_batch(b: GpuBatch, bits: u32, skipped: bool) {
-  if (!COUNT) {
+  if (ablated(ABLATE_COUNT)) {
     return;
   }
   atomicAdd(&counters[C_PROCESSED], 1u);

@@ -1,5 +1,5 @@
 // The 32-bit fallback's depth pass with winner events (RasterKernel::fallback_events): as
-// compute_raster_depth32.wgsl, the nearest depth per pixel by a 32-bit atomicMin, and every
+// compute_raster_depth32_pass.wgsl, the nearest depth per pixel by a 32-bit atomicMin, and every
 // point that the atomic found no nearer than itself (it lowered the pixel's depth, or tied it)
 // also appends an event (pixel, depth, point index) to the event list. The pixel's nearest point
 // is among them: raster-events (compute_raster_events.wgsl) picks it out, as the 64-bit key would
@@ -13,12 +13,8 @@
 // region's counter still counts, which is how raster-events tells an overflow (and then falls
 // back to the colour pass). The including shader (compute_raster_depth32_events or
 // _depth32_events_plain.wgsl) defines depth_word(pixel), the early test's load.
-#include "compute_raster_reduce_none.wgsl"
 #include "compute_raster_batch.wgsl"
 #include "compute_raster_counted.wgsl"
-#include "compute_raster_tile.wgsl"
-
-fn tile_clear_extra(i: u32) {}
 
 @group(0) @binding(5) var<storage, read_write> depth_buffer: array<atomic<u32>>;
 @group(0) @binding(6) var<storage, read_write> events: array<atomic<u32>>;
@@ -29,10 +25,6 @@ alias Key = vec2<u32>;  // depth bits, point index (segment_base + index)
 
 fn point_key(depth: u32, index: u32) -> vec2<u32> {
   return vec2<u32>(depth, params.segment_base + index);
-}
-
-fn key_less(a: vec2<u32>, b: vec2<u32>) -> bool {
-  return a.x < b.x || (a.x == b.x && a.y < b.y);
 }
 
 fn append_event(pixel: u32, key: vec2<u32>) {
@@ -47,14 +39,11 @@ fn append_event(pixel: u32, key: vec2<u32>) {
   }
 }
 
-// EVENT_ON_WIN off: every point that passed the early test appends, so that the atomicMin
-// returns nothing and no thread waits for it (more events; the nearest point is among them).
-override EVENT_ON_WIN: bool = true;
-
-fn nearest_write(pixel: u32, key: vec2<u32>) {
-  if (!EVENT_ON_WIN) {
-    atomicMin(&depth_buffer[pixel], key.x);
-    append_event(pixel, key);
+// Only a point that lowered or tied the pixel's depth can be its nearest: it waits for the
+// atomic's answer and appends. (Every point past the early test appending, with no wait, listed
+// 4x as many events and overflowed at the overview: bench/RESULTS.md, run AA.)
+fn write_key(pixel: u32, key: vec2<u32>) {
+  if (!ablated(ABLATE_EARLY) && key.x > depth_word(pixel)) {
     return;
   }
   let before = atomicMin(&depth_buffer[pixel], key.x);
@@ -63,42 +52,4 @@ fn nearest_write(pixel: u32, key: vec2<u32>) {
   }
 }
 
-fn write_key(pixel: u32, key: vec2<u32>) {
-  if (EARLY_TEST && key.x > depth_word(pixel)) {
-    return;
-  }
-  nearest_write(pixel, key);
-}
-
-alias Early = u32;
-
-fn early_value(pixel: u32) -> u32 {
-  return depth_word(pixel);
-}
-
-// write_key with the early test's depth already read (`early`: early_value).
-fn write_key_tested(pixel: u32, key: vec2<u32>, early: u32) {
-  if (key.x > early) {
-    return;
-  }
-  nearest_write(pixel, key);
-}
-
 #include "compute_raster_write.wgsl"
-
-// (No workgroup tile: its flush writes a depth without the point's index. The pipeline is made
-// with TILE off.)
-@compute @workgroup_size(WORKGROUP)
-fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
-        @builtin(local_invocation_index) lid: u32) {
-  if (BATCHES_PER_GROUP > 1u) {
-    draw_batch_group(group, groups, lid);
-    return;
-  }
-  let batch = batch_index(group, groups);
-  let bits = batch_prologue(batch, lid);
-  if (bits == 0u) {
-    return;
-  }
-  draw_batch(batches[batch], bits, lid);
-}

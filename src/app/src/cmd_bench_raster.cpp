@@ -43,7 +43,7 @@ struct RasterArgs {
   std::string order = "morton";
   std::string json;
   uint32_t copy_mb = 2048;
-  std::vector<std::string> variants;  // empty: all
+  std::vector<std::string> variants;  // empty: all but the measurements (ablations)
   bool billboard = true;
   uint32_t seed = 1;
 };
@@ -119,9 +119,11 @@ void run_raster_bench(const RasterArgs& args) {
   std::printf("%s on %s (%s): %s\n", ctx->description.backend.c_str(),
               ctx->description.device.c_str(), ctx->description.graphics_api.c_str(),
               has64 ? "64-bit visibility buffer" : "no 64-bit atomics: 32-bit two-pass fallback");
-  // Kernel variants (issue: the rasterizer at the bandwidth bound), each its own pipeline;
-  // "compute-precision" is the default kernel, the others change one choice of it. Parsed
-  // before any scene is generated, so that a wrong name fails at once.
+  // The variants: what the rasterizer draws (the seed's basic and adaptive-precision kernels,
+  // HQS, the 32-bit fallback, larger points) and the billboard path, each its own pipeline;
+  // "compute-precision" is the default. The variants that measured slower are retired
+  // (bench/RESULTS.md, "Retired rasterizer variants"). Parsed before any scene is generated, so
+  // that a wrong name fails at once.
   struct Variant {
     std::string name;
     pc::RasterKernel kernel;
@@ -129,115 +131,29 @@ void run_raster_bench(const RasterArgs& args) {
     pc::ComputeRasterOptions options;
     bool billboard = false;
   };
-  // Each name changes one choice of the default; "a+b" applies both (e.g. prefetch+wg256).
+  // Each name changes one thing of the default; "a+b" applies both (e.g. compute-hqs+no-sums).
   std::vector<std::pair<std::string, std::function<void(Variant&)>>> changes;
   auto add = [&](std::string name, std::function<void(Variant&)> change) {
     changes.emplace_back(std::move(name), std::move(change));
   };
   add("compute-basic", [](Variant& v) { v.options.force_bits = 30; });
   add("compute-precision", [](Variant&) {});
-  add("scalar", [](Variant& v) { v.kernel.prefetch = false; });  // one point a thread
-  // The accumulation pass's (HQS, fallback32) choices, without turning HQS on.
-  add("sums-scalar", [](Variant& v) { v.kernel.hqs_prefetch = false; });
-  add("sums-strided", [](Variant& v) { v.kernel.hqs_contiguous = false; });
-  add("sums-contiguous", [](Variant& v) { v.kernel.hqs_contiguous = true; });
-  add("sums-wg128", [](Variant& v) { v.kernel.hqs_workgroup = 128; });
-  add("sums-wg256", [](Variant& v) { v.kernel.hqs_workgroup = 256; });
-  add("sums-wg64", [](Variant& v) { v.kernel.hqs_workgroup = 64; });
-  add("sums-wg512", [](Variant& v) { v.kernel.hqs_workgroup = 512; });
-  add("sums-wg1024", [](Variant& v) { v.kernel.hqs_workgroup = 1024; });
-  add("merge", [](Variant& v) { v.kernel.merge = true; });
-  add("contiguous", [](Variant& v) { v.kernel.prefetch = v.kernel.contiguous = true; });
-  add("prefetch", [](Variant& v) { v.kernel.prefetch = true; });
-  add("prefetch2", [](Variant& v) {
-    v.kernel.prefetch = true;
-    v.kernel.prefetch_words = 2;
-  });
-  add("atomic-early", [](Variant& v) { v.kernel.plain_early = false; });
-  add("wg64", [](Variant& v) { v.kernel.workgroup = 64; });
-  add("wg256", [](Variant& v) { v.kernel.workgroup = 256; });
-  add("tile", [](Variant& v) { v.kernel.tile = true; });
-  add("fast", [](Variant& v) { v.kernel.fast_convert = true; });  // no conversion instructions
-  add("unclipped", [](Variant& v) { v.kernel.unclipped = true; });
-  add("no-lean", [](Variant& v) { v.kernel.lean = false; });
-  add("checked", [](Variant& v) { v.kernel.trusted = false; });
-  add("group-early", [](Variant& v) { v.kernel.group_early = true; });
-  add("no-early", [](Variant& v) { v.kernel.early_test = false; });
-  add("early-key", [](Variant& v) { v.kernel.early_key = true; });
-  add("lean-sums", [](Variant& v) { v.kernel.lean_sums = true; });
-  add("parallel", [](Variant& v) { v.kernel.parallel_prologue = true; });
-  for (uint32_t k : {2u, 4u, 8u, 16u})
-    add("group" + std::to_string(k), [k](Variant& v) {
-      v.kernel.parallel_prologue = true;
-      v.kernel.batches_per_group = k;
-    });
-  add("no-count", [](Variant& v) { v.kernel.ablate_count = true; });
-  add("shaded-sums", [](Variant& v) { v.kernel.hqs_raw_rgb = false; });  // RGB sums via floats
-  // Subgroup reduction of the points on one pixel (devices with subgroups, else the default).
-  add("subgroup", [](Variant& v) { v.kernel.subgroup_reduce = true; });
-  // Measurements of where the depth pass's time goes (wrong images): without its atomics,
-  // and without its early depth tests too (projection and loads only).
-  add("no-atomic", [](Variant& v) { v.kernel.ablate = 1; });
-  add("no-write", [](Variant& v) { v.kernel.ablate = 2; });
-  add("no-load", [](Variant& v) { v.kernel.ablate_load = true; });
-  add("no-sums", [](Variant& v) { v.kernel.ablate_sums = true; });
   add("compute-hqs", [](Variant& v) { v.options.hqs = true; });
-  add("hqs-no-tile", [](Variant& v) {
-    v.options.hqs = true;
-    v.kernel.hqs_tile = false;
-  });
-  add("hqs-geometry-tile", [](Variant& v) {
-    v.options.hqs = true;
-    v.kernel.tile = true;
-  });
-  add("hqs-strided", [](Variant& v) {
-    v.options.hqs = true;
-    v.kernel.hqs_prefetch = true;
-    v.kernel.hqs_contiguous = false;
-  });
-  add("hqs-contiguous", [](Variant& v) {
-    v.options.hqs = true;
-    v.kernel.hqs_prefetch = true;
-  });
-  add("hqs-packed", [](Variant& v) {
-    v.options.hqs = true;
-    v.kernel.packed_hqs = true;
-  });
-  add("hqs-no-merge", [](Variant& v) {
-    v.options.hqs = true;
-    v.kernel.hqs_merge = false;
-  });
   add("compute-fallback32", [](Variant& v) { v.fallback = true; });
-  add("fallback32-contiguous", [](Variant& v) {
-    v.fallback = true;
-    v.kernel.hqs_prefetch = true;
-  });
-  add("fallback32-tile", [](Variant& v) {
-    v.fallback = true;
-    v.kernel.tile = true;
-  });
-  add("fallback32-merge", [](Variant& v) {
-    v.fallback = true;
-    v.kernel.merge = true;
-  });
-  // The fallback's winner events instead of its colour pass (with compute-fallback32, or on
-  // adapters without 64-bit atomics), with 4, 8 or 16 event slots a pixel.
-  for (uint32_t k : {4u, 8u, 16u})
-    add(k == 4 ? std::string("events") : "events" + std::to_string(k), [k](Variant& v) {
-      v.kernel.fallback_events = pc::AutoSwitch::On;
-      v.kernel.events_per_pixel = k;
-    });
-  add("no-events", [](Variant& v) { v.kernel.fallback_events = pc::AutoSwitch::Off; });
-  add("no-lean-colours", [](Variant& v) { v.kernel.lean_colours = false; });
-  add("events-tested", [](Variant& v) {
-    v.kernel.fallback_events = pc::AutoSwitch::On;
-    v.kernel.events_on_win = false;
-  });
   add("dilate-3px", [](Variant& v) { v.options.point_size = 3.0f; });
   if (args.billboard) add("billboard-1px", [](Variant& v) { v.billboard = true; });
+  const size_t drawn = changes.size();  // run by default; the ablations below only when named
+  // Where the time goes (RasterKernel::ablate; wrong images): parts of the batch passes left
+  // out, combined with a variant (e.g. compute-precision+no-write).
+  const std::pair<const char*, uint32_t> ablations[] = {
+      {"no-atomic", pc::kAblateAtomic}, {"no-write", pc::kAblateWrite},
+      {"no-early", pc::kAblateEarly},   {"no-load", pc::kAblateLoad},
+      {"no-sums", pc::kAblateSums},     {"no-count", pc::kAblateCount}};
+  for (const auto& [name, bit] : ablations)
+    add(name, [bit](Variant& v) { v.kernel.ablate |= bit; });
   std::vector<std::string> specs = args.variants;
   if (specs.empty())
-    for (const auto& [name, change] : changes) specs.push_back(name);
+    for (size_t i = 0; i < drawn; ++i) specs.push_back(changes[i].first);
   std::vector<Variant> variants;
   for (const std::string& spec : specs) {
     Variant v;
@@ -469,19 +385,12 @@ void add_bench_raster_command(CLI::App& bench) {
   cmd->add_option("--copy-mb", args->copy_mb,
                   "Size of the bandwidth measurements (read kernel, copy) in MiB")
       ->capture_default_str();
-  cmd->add_option(
-         "--variants", args->variants,
-         "Only these variants (compute-basic, compute-precision, merge, contiguous, "
-         "prefetch, prefetch2, scalar, sums-scalar, sums-strided, sums-contiguous, sums-wg64, "
-         "sums-wg128, sums-wg256, sums-wg512, sums-wg1024, atomic-early, wg64, wg256, tile, "
-         "subgroup, fast, unclipped, no-lean, checked, group-early, no-early, early-key, "
-         "lean-sums, parallel, group2, group4, group8, group16, "
-         "shaded-sums, compute-hqs, "
-         "hqs-no-tile, hqs-geometry-tile, hqs-contiguous, hqs-strided, hqs-packed, hqs-no-merge, "
-         "compute-fallback32, fallback32-contiguous, fallback32-tile, fallback32-merge, events, "
-         "events8, events16, events-tested, no-events, no-lean-colours, "
-         "dilate-3px, billboard-1px; measurements with wrong images: no-atomic, "
-         "no-write, no-load, no-sums, no-count); a+b combines them, e.g. prefetch2+wg256")
+  cmd->add_option("--variants", args->variants,
+                  "Only these variants (default: all but the measurements): compute-basic, "
+                  "compute-precision, compute-hqs, compute-fallback32, dilate-3px, "
+                  "billboard-1px; measurements with wrong images, to combine with one: "
+                  "no-atomic, no-write, no-early, no-load, no-sums, no-count; a+b combines "
+                  "them, e.g. compute-hqs+no-sums")
       ->delimiter(',');
   cmd->add_flag("!--no-billboard", args->billboard, "Skip the billboard variant (saves 16 B/pt)");
   cmd->add_option("--seed", args->seed, "Scene seed")->capture_default_str();

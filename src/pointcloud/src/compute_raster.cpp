@@ -114,42 +114,24 @@ gpu::ComputePipeline make_compute(gpu::Context& ctx, const char* file,
   return pipeline;
 }
 
-// The pipeline constants of the batch passes for `kernel` (the geometry passes also take the
-// early test's load; the accumulation pass the packing).
-std::vector<gpu::PipelineConstant> kernel_constants(const RasterKernel& kernel, bool geometry) {
-  if (kernel.prefetch_words != 1 && kernel.prefetch_words != 2)
-    fail("compute rasterizer: prefetch_words is 1 or 2, not {}", kernel.prefetch_words);
-  std::vector<gpu::PipelineConstant> c = {
-      {"WORKGROUP",
-       double(!geometry && kernel.hqs_workgroup ? kernel.hqs_workgroup : kernel.workgroup)},
-      {"PREFETCH", (geometry ? kernel.prefetch : kernel.hqs_prefetch) ? 1.0 : 0.0},
-      {"PREFETCH_WORDS", double(kernel.prefetch_words)},
-      {"ABLATE_LOAD", kernel.ablate_load ? 1.0 : 0.0},
-      {"CONTIGUOUS", (geometry ? kernel.contiguous : kernel.hqs_contiguous) ? 1.0 : 0.0},
-      {"MERGE", (geometry ? kernel.merge : kernel.hqs_merge) ? 1.0 : 0.0}};
-  c.push_back({"TILE", (geometry ? kernel.tile : kernel.hqs_tile) ? 1.0 : 0.0});
-  // Both passes of a frame project the same way, so that a point's pixel and depth agree.
-  c.push_back({"FAST_CONVERT", kernel.fast_convert ? 1.0 : 0.0});
-  c.push_back({"UNCLIPPED", kernel.unclipped ? 1.0 : 0.0});
-  const bool grouped = geometry && kernel.batches_per_group > 1;
-  if (grouped && (kernel.tile || !kernel.parallel_prologue))
-    fail("compute rasterizer: batches_per_group needs parallel_prologue and no tile");
-  c.push_back({"PARALLEL_PROLOGUE", kernel.parallel_prologue ? 1.0 : 0.0});
-  c.push_back({"LEAN", (geometry ? kernel.lean : kernel.lean_sums) ? 1.0 : 0.0});
-  c.push_back({"BATCHES_PER_GROUP", grouped ? double(kernel.batches_per_group) : 1.0});
-  if (geometry) {
-    c.push_back({"COUNT", kernel.ablate_count ? 0.0 : 1.0});
-    c.push_back({"PLAIN_EARLY", kernel.plain_early ? 1.0 : 0.0});
-    c.push_back({"SUBGROUP_REDUCE", kernel.subgroup_reduce ? 1.0 : 0.0});
-    c.push_back({"ABLATE", double(kernel.ablate)});
-    c.push_back({"EARLY_TEST", kernel.early_test ? 1.0 : 0.0});
-    c.push_back({"GROUP_EARLY", kernel.group_early ? 1.0 : 0.0});
-  } else {
-    c.push_back({"PACKED", kernel.packed_hqs ? 1.0 : 0.0});
-    c.push_back({"ABLATE_SUMS", kernel.ablate_sums ? 1.0 : 0.0});
-    c.push_back({"RAW_RGB", kernel.hqs_raw_rgb ? 1.0 : 0.0});
-  }
-  return c;
+// Threads a workgroup: the seed's 128 in the depth passes; 256 in the accumulation, where HQS
+// was 1.35x and the fallback's colours 1.23x faster than with 128 on the H200, and 64 2x slower
+// (bench/RESULTS.md, runs L-N).
+constexpr uint32_t kDepthWorkgroup = 128;
+constexpr uint32_t kAccumulateWorkgroup = 256;
+
+// The pipeline constants of the depth passes.
+std::vector<gpu::PipelineConstant> depth_constants(const RasterKernel& kernel) {
+  return {{"WORKGROUP", double(kDepthWorkgroup)}, {"ABLATE", double(kernel.ablate)}};
+}
+
+// The accumulation pass's: HQS's sums go through the workgroup tile and the general loop; the
+// fallback's colours (the nearest points only, few atomics) the screen's sums and the lean loop.
+std::vector<gpu::PipelineConstant> accumulate_constants(const RasterKernel& kernel, bool hqs) {
+  return {{"WORKGROUP", double(kAccumulateWorkgroup)},
+          {"ABLATE", double(kernel.ablate)},
+          {"TILE", hqs ? 1.0 : 0.0},
+          {"LEAN", hqs ? 0.0 : 1.0}};
 }
 
 }  // namespace
@@ -216,15 +198,7 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
 
 std::vector<WGPUFeatureName> compute_raster_features() {
   return {WGPUFeatureName(WGPUNativeFeature_ShaderInt64),
-          WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax),
-          WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicAllOps), WGPUFeatureName_Subgroups,
-          WGPUFeatureName(WGPUNativeFeature_Subgroup)};
-}
-
-// Dawn reports the standard feature, wgpu-native (27) its own.
-bool has_subgroups(const gpu::Context& ctx) {
-  return ctx.has_feature(WGPUFeatureName_Subgroups) ||
-         ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_Subgroup));
+          WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax)};
 }
 
 GpuBatchedCloud create_batched_storage(gpu::Context& ctx, uint64_t points, uint64_t batches,
@@ -275,28 +249,27 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   p.clear = make_compute(ctx, "compute_raster_clear.wgsl");
   const gpu::PipelineConstant depth_only[] = {{"CLEAR_ACCUM", 0.0}};
   p.clear_depth = make_compute(ctx, "compute_raster_clear.wgsl", depth_only);
-  RasterKernel geometry_kernel = kernel;
-  geometry_kernel.subgroup_reduce =
-      kernel.subgroup_reduce && p.visibility64 && !kernel.merge && has_subgroups(ctx);
-  p.kernel.subgroup_reduce = geometry_kernel.subgroup_reduce;
-  p.kernel.early_key = kernel.early_key && !geometry_kernel.subgroup_reduce &&
-                       ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicAllOps));
-  const auto geometry = kernel_constants(geometry_kernel, true);
+  // The batch passes are compiled without naga's bounds checks (`trusted`, wgpu-native): their
+  // indices are in range by construction (batch ranges checked on upload, pixels clipped to the
+  // viewport, tile entries bounded). The depth pass 1.06x, HQS 1.19x faster on the H200
+  // (bench/RESULTS.md, runs W-Y); STIPPLE_SHADER_CHECKS=on keeps the checks.
+  constexpr bool trusted = true;
+  const auto depth = depth_constants(kernel);
   if (p.visibility64) {
-    p.raster64 = make_compute(ctx,
-                              geometry_kernel.subgroup_reduce ? "compute_raster64_subgroups.wgsl"
-                              : p.kernel.early_key            ? "compute_raster64_key.wgsl"
-                                                              : "compute_raster64.wgsl",
-                              geometry, kernel.trusted);
+    p.raster64 = make_compute(ctx, "compute_raster64.wgsl", depth, trusted);
     p.resolve = make_compute(ctx, "compute_raster_resolve.wgsl");
   } else {
     // wgpu-native lets the early test read the depth buffer through a second, plain binding
     // (as the 64-bit pass does); Dawn refuses the aliasing, so there it is an atomic load.
-    p.depth32_plain_early = kernel.plain_early && ctx.description.backend == "wgpu";
+    p.depth32_plain_early = ctx.description.backend == "wgpu";
     p.depth32 = make_compute(
         ctx,
         p.depth32_plain_early ? "compute_raster_depth32_plain.wgsl" : "compute_raster_depth32.wgsl",
-        geometry, kernel.trusted);
+        depth, trusted);
+    // The fallback's colours: the nearest points' (the colour pass), where events are off or
+    // overflowed.
+    p.accumulate_colours = make_compute(ctx, "compute_raster_accumulate.wgsl",
+                                        accumulate_constants(kernel, false), trusted);
     const bool events_wanted =
         kernel.fallback_events == AutoSwitch::On ||
         (kernel.fallback_events == AutoSwitch::Auto && ctx.description.adapter_type != "CPU");
@@ -305,15 +278,11 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
                                    ? AutoSwitch::On
                                    : AutoSwitch::Off;
     if (p.kernel.fallback_events == AutoSwitch::On) {
-      RasterKernel untiled = geometry_kernel;  // the tile's flush has no point index
-      untiled.tile = false;
-      auto constants = kernel_constants(untiled, true);
-      constants.push_back({"EVENT_ON_WIN", kernel.events_on_win ? 1.0 : 0.0});
       p.depth32_events =
           make_compute(ctx,
                        p.depth32_plain_early ? "compute_raster_depth32_events_plain.wgsl"
                                              : "compute_raster_depth32_events.wgsl",
-                       constants, kernel.trusted);
+                       depth, trusted);
       // One layout for the three entry points, which use different subsets of it.
       using B = gpu::BufferBinding;
       p.events_layout = gpu::create_compute_layout(
@@ -329,26 +298,11 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
       p.events_scan = gpu::create_compute_pipeline(ctx, events.get(), "events_main", layout,
                                                    "raster-events-scan");
       p.resolve = make_compute(ctx, "compute_raster_resolve.wgsl");
-      RasterKernel plain = kernel;
-      plain.hqs_tile = false;
-      plain.lean_sums = kernel.lean_sums || kernel.lean_colours;
-      p.accumulate_overflow = make_compute(ctx, "compute_raster_accumulate.wgsl",
-                                           kernel_constants(plain, false), kernel.trusted);
       ctx.check("creating raster-events");
     }
   }
   p.accumulate = make_compute(ctx, "compute_raster_accumulate.wgsl",
-                              kernel_constants(kernel, false), kernel.trusted);
-  // The fallback's plain colour pass (the nearest points only) without the tile, which made it
-  // 7 % slower on the H200 while it made HQS 1.8x faster (bench/RESULTS.md).
-  if (!p.visibility64 && (kernel.hqs_tile || kernel.lean_colours != kernel.lean_sums)) {
-    RasterKernel plain = kernel;
-    plain.hqs_tile = false;
-    plain.lean_sums = kernel.lean_sums || kernel.lean_colours;
-    p.accumulate_plain = make_compute(ctx, "compute_raster_accumulate.wgsl",
-                                      kernel_constants(plain, false), kernel.trusted);
-  }
-  p.hqs_finish = make_compute(ctx, "compute_raster_hqs_finish.wgsl");
+                              accumulate_constants(kernel, true), trusted);
 
   gpu::ShaderModule display_module =
       gpu::create_shader_from_file(ctx, "compute_raster_display.wgsl");
@@ -414,7 +368,6 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   const bool events = !use64 && !options.hqs && p.kernel.fallback_events == AutoSwitch::On;
   const bool accumulate = options.hqs || (!use64 && !events);
   const bool large = options.point_size >= 2.0f;  // dilated after the geometry pass
-  const bool packed = accumulate && p.kernel.packed_hqs;
   const uint64_t pixels = uint64_t(width) * height;
   const std::string depth_name = "raster-depth-buffer", accum_name = "raster-accum";
   const std::string events_name = "raster-events", visibility_name = "raster-visibility";
@@ -523,8 +476,8 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
         std::vector<gpu::BindGroup> groups;
         WGPUBuffer depth = pc.buffer(depth_name);
         for (auto& seg : cloud.segments) {
-          // 64-bit: the visibility buffer again as 32-bit words, atomic (binding 6) and
-          // plain (binding 8), for the early depth test (wgpu-native allows the
+          // The early depth test reads the depth through a plain binding of the same buffer
+          // (binding 8: the 64-bit pass, the fallback's on wgpu-native, which allows the
           // aliasing).
           std::vector<gpu::Binding> bindings = {gpu::bind_buffer(0, seg.params.get()),
                                                 gpu::bind_buffer(1, seg.batches.get()),
@@ -536,75 +489,40 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                                                 gpu::bind_buffer(9, seg.attributes.get()),
                                                 gpu::bind_buffer(11, p.filter_uniforms.get()),
                                                 gpu::bind_buffer(12, p.polygon_vertices.get())};
-          // (The early test on the whole key reads binding 5 itself.)
-          if (use64 && !p.kernel.early_key) {
-            bindings.push_back(gpu::bind_buffer(6, depth));
-            bindings.push_back(gpu::bind_buffer(8, depth));
-          }
-          if (!use64 && p.depth32_plain_early) bindings.push_back(gpu::bind_buffer(8, depth));
+          if (use64 || p.depth32_plain_early) bindings.push_back(gpu::bind_buffer(8, depth));
           if (events) bindings.push_back(gpu::bind_buffer(6, pc.buffer(events_name)));
           groups.push_back(gpu::create_bind_group(ctx, layout.get(), bindings));
         }
         auto pass = pc.begin_compute_pass();
-        const uint32_t per_group = std::max(1u, p.kernel.batches_per_group);
         for (size_t s = 0; s < cloud.segments.size(); ++s)
           dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
-                           (cloud.segments[s].batch_count + per_group - 1) / per_group);
+                           cloud.segments[s].batch_count);
         wgpuComputePassEncoderEnd(pass.get());
       });
   depth_pass.write(depth_name);
   if (events) depth_pass.write(events_name);
 
   if (accumulate) {
-    // Packed HQS sums into eight words a pixel, then raster-hqs-finish writes the plain layout.
-    const std::string sums = packed ? "raster-hqs-packed" : accum_name;
-    gpu::PassBuilder accumulate_pass =
-        graph
-            .add_pass(
-                "raster-accumulate", gpu::PassKind::Compute,
-                [&p, &cloud, depth_name, sums, packed, hqs = options.hqs](gpu::PassContext& pc) {
-                  gpu::Context& ctx = pc.gpu();
-                  if (packed)
-                    wgpuCommandEncoderClearBuffer(pc.encoder(), pc.buffer(sums), 0,
-                                                  WGPU_WHOLE_SIZE);
-                  const gpu::ComputePipeline& pipeline =
-                      !hqs && p.accumulate_plain ? p.accumulate_plain : p.accumulate;
-                  auto layout = gpu::bind_group_layout_of(pipeline);
-                  std::vector<gpu::BindGroup> groups;
-                  for (auto& seg : cloud.segments)
-                    groups.push_back(accumulate_bind_group(ctx, layout.get(), seg, cloud, p,
-                                                           pc.buffer(depth_name), pc.buffer(sums)));
-                  auto pass = pc.begin_compute_pass();
-                  for (size_t s = 0; s < cloud.segments.size(); ++s)
-                    dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
-                                     cloud.segments[s].batch_count);
-                  wgpuComputePassEncoderEnd(pass.get());
-                })
-            .read(depth_name);
-    if (packed) {
-      accumulate_pass.create_buffer(
-          sums, {pixels * 32, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst});
-      graph
-          .add_pass(
-              "raster-hqs-finish", gpu::PassKind::Compute,
-              [&p, &cloud, sums, accum_name, groups_x, groups_y](gpu::PassContext& pc) {
-                gpu::Context& ctx = pc.gpu();
-                if (cloud.segments.empty()) return;
-                auto layout = gpu::bind_group_layout_of(p.hqs_finish);
-                auto group =
-                    gpu::create_bind_group(ctx, layout.get(),
-                                           {gpu::bind_buffer(0, cloud.segments[0].params.get()),
-                                            gpu::bind_buffer(1, pc.buffer(sums)),
-                                            gpu::bind_buffer(2, pc.buffer(accum_name))});
-                auto pass = pc.begin_compute_pass();
-                gpu::dispatch(pass.get(), p.hqs_finish.get(), {group.get()}, groups_x, groups_y);
-                wgpuComputePassEncoderEnd(pass.get());
-              })
-          .read(sums)
-          .write(accum_name);
-    } else {
-      accumulate_pass.write(accum_name);
-    }
+    graph
+        .add_pass("raster-accumulate", gpu::PassKind::Compute,
+                  [&p, &cloud, depth_name, accum_name, hqs = options.hqs](gpu::PassContext& pc) {
+                    gpu::Context& ctx = pc.gpu();
+                    const gpu::ComputePipeline& pipeline =
+                        hqs ? p.accumulate : p.accumulate_colours;
+                    auto layout = gpu::bind_group_layout_of(pipeline);
+                    std::vector<gpu::BindGroup> groups;
+                    for (auto& seg : cloud.segments)
+                      groups.push_back(accumulate_bind_group(ctx, layout.get(), seg, cloud, p,
+                                                             pc.buffer(depth_name),
+                                                             pc.buffer(accum_name)));
+                    auto pass = pc.begin_compute_pass();
+                    for (size_t s = 0; s < cloud.segments.size(); ++s)
+                      dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
+                                       cloud.segments[s].batch_count);
+                    wgpuComputePassEncoderEnd(pass.get());
+                  })
+        .read(depth_name)
+        .write(accum_name);
   } else {
     if (events) {
       graph
@@ -684,14 +602,14 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                     [&p, &cloud, depth_name, accum_name](gpu::PassContext& pc) {
                       gpu::Context& ctx = pc.gpu();
                       if (cloud.segments.empty()) return;
-                      auto layout = gpu::bind_group_layout_of(p.accumulate_overflow);
+                      auto layout = gpu::bind_group_layout_of(p.accumulate_colours);
                       std::vector<gpu::BindGroup> groups;
                       for (auto& seg : cloud.segments)
                         groups.push_back(accumulate_bind_group(ctx, layout.get(), seg, cloud, p,
                                                                pc.buffer(depth_name),
                                                                pc.buffer(accum_name)));
                       auto pass = pc.begin_compute_pass();
-                      wgpuComputePassEncoderSetPipeline(pass.get(), p.accumulate_overflow.get());
+                      wgpuComputePassEncoderSetPipeline(pass.get(), p.accumulate_colours.get());
                       for (size_t s = 0; s < cloud.segments.size(); ++s) {
                         wgpuComputePassEncoderSetBindGroup(pass.get(), 0, groups[s].get(), 0,
                                                            nullptr);
