@@ -136,7 +136,7 @@ void add_view_command(CLI::App& cli) {
       ->capture_default_str();
   cmd->add_option("--script", args->script,
                   "Replay scripted input (JSON: at frame N move the cursor, press or release "
-                  "buttons and keys, scroll; see README)")
+                  "buttons and keys, scroll; see docs/viewer-and-tools.md)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--measurements", args->measurements,
                   "Load measurements and annotations from GeoJSON (source CRS)")
