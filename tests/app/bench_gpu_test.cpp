@@ -74,15 +74,15 @@ TEST(BenchArgs, BadArgumentsFail) {
   EXPECT_NE(r.output.find("--min-kb"), std::string::npos) << r.output;
 }
 
-// `bench raster --variants` takes names joined by '+' (each changes one choice of the default
-// kernel): a combined variant draws the same points as the default (counters from the GPU), and
+// `bench raster --variants` takes names joined by '+' (a variant and the measurements combined
+// with it): a combined variant draws the same points as the default (counters from the GPU), and
 // an unknown name fails naming it, before anything is generated.
 TEST(BenchRaster, CombinedVariantsRunAndUnknownOnesFail) {
   const fs::path json_path =
       fs::temp_directory_path() / ("stipple_bench_raster_" + std::to_string(::getpid()) + ".json");
   auto r = test::run_stipple(
       "bench raster --points 200000 --width 160 --height 90 --frames 1 --warmup 0 --no-billboard "
-      "--backend wgpu --variants compute-precision,prefetch2+wg64 --json " +
+      "--backend wgpu --variants compute-precision,compute-hqs+no-sums --json " +
       json_path.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::ifstream in(json_path);
@@ -92,7 +92,7 @@ TEST(BenchRaster, CombinedVariantsRunAndUnknownOnesFail) {
     const auto& plain = j["runs"][i];
     const auto& combined = j["runs"][i + 1];
     EXPECT_EQ(plain["variant"], "compute-precision");
-    EXPECT_EQ(combined["variant"], "prefetch2+wg64");
+    EXPECT_EQ(combined["variant"], "compute-hqs+no-sums");
     EXPECT_EQ(plain["view"], combined["view"]);
     EXPECT_GT(plain["points_rendered"].get<uint64_t>(), 0u);
     EXPECT_EQ(combined["points_rendered"], plain["points_rendered"]);
@@ -101,7 +101,7 @@ TEST(BenchRaster, CombinedVariantsRunAndUnknownOnesFail) {
     EXPECT_EQ(plain["pass_gpu_ms"]["raster-depth"], plain["geometry_gpu_ms"]);
   }
   fs::remove(json_path);
-  r = test::run_stipple("bench raster --points 1000 --no-billboard --variants prefetch+wg65");
+  r = test::run_stipple("bench raster --points 1000 --no-billboard --variants compute-hqs+wg65");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("unknown variant 'wg65'"), std::string::npos) << r.output;
 }
