@@ -149,8 +149,8 @@ void run_raster_bench(const RasterArgs& args) {
       {"no-atomic", pc::kAblateAtomic}, {"no-write", pc::kAblateWrite},
       {"no-early", pc::kAblateEarly},   {"no-load", pc::kAblateLoad},
       {"no-sums", pc::kAblateSums},     {"no-count", pc::kAblateCount}};
-  for (const auto& [name, bit] : ablations)
-    add(name, [bit](Variant& v) { v.kernel.ablate |= bit; });
+  for (const auto& ablation : ablations)
+    add(ablation.first, [bit = ablation.second](Variant& v) { v.kernel.ablate |= bit; });
   std::vector<std::string> specs = args.variants;
   if (specs.empty())
     for (size_t i = 0; i < drawn; ++i) specs.push_back(changes[i].first);
