@@ -4,7 +4,11 @@
 // hierarchy files of 5-byte records breadth first down to `step` levels, .bin nodes of records
 // with uint32 positions relative to the node's corner, or .las/.laz nodes): the reader is
 // checked against independently built files. Format 1.7 names its attributes by strings, 1.8 by
-// objects (with a type each); both carry a normal, oct16 (1.7) or three floats (1.8).
+// objects (with a type each); both carry a normal, oct16 (1.7) or three floats (1.8). Formats 1.3
+// and 1.4 (PotreeConverter before 1.5) list the octree in cloud.js ("hierarchy": [name, points]
+// a node, breadth first) with every node's file directly in data/: 1.4 as <name>.bin with uint32
+// positions, 1.3 as <name> with float32 positions in the cloud's coordinates; their binary nodes
+// hold POSITION_CARTESIAN and COLOR_PACKED, as those converters wrote them.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -24,7 +28,7 @@
 namespace stipple::test {
 
 struct Potree1Options {
-  std::string version = "1.8";    // 1.7: attribute names; 1.8: attribute objects
+  std::string version = "1.8";    // 1.7: attribute names; 1.8: attribute objects; 1.3, 1.4: listed
   std::string format = "BINARY";  // or LAS, LAZ
   size_t node_cap = 500;
   int step = 2;  // hierarchyStepSize
@@ -69,7 +73,7 @@ inline Potree1WriteResult write_potree1(const std::filesystem::path& dir,
                                         const std::vector<PotreePoint>& points,
                                         const Potree1Options& o = {}) {
   namespace fs = std::filesystem;
-  fs::create_directories(dir / "data" / "r");
+  fs::create_directories(dir / "data");
   const double scale = 0.001, size = 0.001 * (1 << 17);
   double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
   for (const auto& p : points) {
@@ -78,12 +82,16 @@ inline Potree1WriteResult write_potree1(const std::filesystem::path& dir,
   }
   std::vector<PotreeTestNode> nodes = potree_octree(points, o.node_cap, lo, size);
   const bool names = o.version == "1.7";
-  const std::string ext = o.format == "LAS" ? ".las" : o.format == "LAZ" ? ".laz" : ".bin";
+  const bool listed = o.version == "1.3" || o.version == "1.4";  // the octree in cloud.js
+  const std::string ext = o.format == "LAS"    ? ".las"
+                          : o.format == "LAZ"  ? ".laz"
+                          : o.version == "1.3" ? ""
+                                               : ".bin";
   Potree1WriteResult result;
   result.nodes = nodes.size();
   for (const auto& n : nodes) {
     result.depth = std::max(result.depth, n.level);
-    const fs::path folder = dir / "data" / potree1_folder(n.name, o.step);
+    const fs::path folder = listed ? dir / "data" : dir / "data" / potree1_folder(n.name, o.step);
     fs::create_directories(folder);
     if (o.format != "BINARY") {
       io::LasWriteOptions w;
@@ -116,6 +124,16 @@ inline Potree1WriteResult write_potree1(const std::filesystem::path& dir,
     for (uint32_t i : n.points) {
       const PotreePoint& p = points[i];
       const double c[3] = {p.x, p.y, p.z};
+      if (listed) {
+        for (int k = 0; k < 3; ++k)
+          if (o.version == "1.3")
+            put(float(c[k]));
+          else
+            put(uint32_t(std::lround((c[k] - n.min[k]) / scale)));
+        put(uint8_t(p.r / 256)), put(uint8_t(p.g / 256)), put(uint8_t(p.b / 256)),
+            put(uint8_t(255));
+        continue;
+      }
       for (int k = 0; k < 3; ++k) put(uint32_t(std::lround((c[k] - n.min[k]) / scale)));
       put(uint8_t(p.r / 256)), put(uint8_t(p.g / 256)), put(uint8_t(p.b / 256)), put(uint8_t(255));
       put(p.intensity), put(p.classification), put(p.return_number), put(p.number_of_returns);
@@ -135,7 +153,7 @@ inline Potree1WriteResult write_potree1(const std::filesystem::path& dir,
   }
   // .hrc: for the root and every node at a level multiple of `step` with children, its subtree
   // breadth first down to `step` levels below it.
-  for (size_t r = 0; r < nodes.size(); ++r) {
+  for (size_t r = 0; r < nodes.size() && !listed; ++r) {
     const PotreeTestNode& root = nodes[r];
     const bool has_children =
         std::any_of(root.children.begin(), root.children.end(), [](int c) { return c >= 0; });
@@ -164,6 +182,8 @@ inline Potree1WriteResult write_potree1(const std::filesystem::path& dir,
   json attributes;
   if (o.format != "BINARY") {
     attributes = o.format;
+  } else if (listed) {
+    attributes = {"POSITION_CARTESIAN", "COLOR_PACKED"};
   } else if (names) {
     attributes = {"POSITION_CARTESIAN", "COLOR_PACKED",  "INTENSITY",
                   "CLASSIFICATION",     "RETURN_NUMBER", "NUMBER_OF_RETURNS",
@@ -198,8 +218,14 @@ inline Potree1WriteResult write_potree1(const std::filesystem::path& dir,
                 {"tightBoundingBox", bbox(lo, hi)},
                 {"pointAttributes", attributes},
                 {"spacing", size / 128},
-                {"scale", scale},
-                {"hierarchyStepSize", o.step}};
+                {"scale", scale}};
+  if (listed) {
+    json hierarchy = json::array();
+    for (const auto& n : nodes) hierarchy.push_back({n.name, n.points.size()});
+    cloud["hierarchy"] = hierarchy;
+  } else {
+    cloud["hierarchyStepSize"] = o.step;
+  }
   std::ofstream(dir / "cloud.js") << cloud.dump(1);
   return result;
 }

@@ -1,9 +1,9 @@
 // libFuzzer target: arbitrary bytes as Potree 2.0 metadata.json and Potree 1.x cloud.js (input
-// starting with '{'), else as a hierarchy.bin chunk (record types, child masks, proxies, sizes)
-// and as a 1.x .hrc file, each read into tiles with every pending chunk or file read again from
-// the same bytes a few levels deep, and as a node: of octree.bin in DEFAULT and BROTLI encoding,
-// and a 1.x binary node. Any error must come back as stipple::Error or as an error of the
-// expansion.
+// starting with '{'; a 1.0-1.4 cloud.js's hierarchy list made into tiles), else as a hierarchy.bin
+// chunk (record types, child masks, proxies, sizes) and as a 1.x .hrc file, each read into tiles
+// with every pending chunk or file read again from the same bytes a few levels deep, and as a node:
+// of octree.bin in DEFAULT and BROTLI encoding, and a 1.x binary node (uint32 positions, and 1.3's
+// float32 ones). Any error must come back as stipple::Error or as an error of the expansion.
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -67,6 +67,17 @@ std::shared_ptr<const stipple::io::PotreeCloud> cloud1() {
   return cloud;
 }
 
+// A Potree 1.3 cloud: float positions in the cloud's coordinates, its octree listed in cloud.js.
+std::shared_ptr<const stipple::io::PotreeCloud> cloud13() {
+  static const std::string js = R"({"version":"1.3","octreeDir":"data",
+    "boundingBox":{"lx":0,"ly":0,"lz":0,"ux":100,"uy":100,"uz":100},"spacing":1,
+    "pointAttributes":["POSITION_CARTESIAN","COLOR_PACKED","INTENSITY"],
+    "hierarchy":[["r",10],["r0",5]]})";
+  static const auto cloud = stipple::io::parse_potree1_cloud(
+      std::span(reinterpret_cast<const uint8_t*>(js.data()), js.size()), "fuzz/cloud.js");
+  return cloud;
+}
+
 // Reads `first` and what it leaves pending, a few levels deep, everything from the same bytes.
 void expand(const stipple::io::PendingChildren& first, const stipple::io::Fetcher& fetcher) {
   using namespace stipple::io;
@@ -97,7 +108,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     } catch (const stipple::Error&) {
     }
     try {
-      (void)parse_potree1_cloud(bytes, "fuzz/cloud.js");
+      // The whole tileset: 1.0-1.4 make their tiles from the list (a 1.5-1.8 root .hrc is these
+      // bytes again, and fails).
+      TilesetOptions options;
+      options.max_tiles = 100'000;
+      const Tileset ts = load_potree_tileset(
+          "fuzz/cloud.js", [&](const std::string&) { return bytes; }, options);
+      for (size_t i = 0; i < ts.tiles.size(); ++i)
+        if (ts.tiles[i].parent >= int32_t(i)) __builtin_trap();  // parents before children
     } catch (const stipple::Error&) {
     }
     return 0;
@@ -128,5 +146,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     decode(*brotli_cloud(), node + std::to_string(n));
   const size_t points1 = size / cloud1()->record_size;
   decode(*cloud1(), "fuzz/data/r/r01.bin#points=" + std::to_string(points1) + "&key=r01");
+  const size_t points13 = size / cloud13()->record_size;
+  decode(*cloud13(), "fuzz/data/r0#points=" + std::to_string(points13) + "&key=r0");
   return 0;
 }

@@ -39,7 +39,8 @@ TEST_P(EptData, ReadsEveryNodeAndPoint) {
   ASSERT_GE(w.depth, 3);
   ASSERT_GT(w.hierarchy_files, 2u);
   if (const char* out = std::getenv("STIPPLE_WRITE_EPT_SEEDS"); out && type == "binary") {
-    fs::copy_file(dir / "ept.json", fs::path(out) / "ept.json", fs::copy_options::overwrite_existing);
+    fs::copy_file(dir / "ept.json", fs::path(out) / "ept.json",
+                  fs::copy_options::overwrite_existing);
     fs::copy_file(dir / "ept-hierarchy/0-0-0-0.json", fs::path(out) / "0-0-0-0.json",
                   fs::copy_options::overwrite_existing);
   }
@@ -56,10 +57,10 @@ TEST_P(EptData, ReadsEveryNodeAndPoint) {
   using Row = std::tuple<int64_t, int64_t, int64_t, uint32_t, double, double, double, double>;
   std::vector<Row> want, got;
   for (const auto& p : points)
-    want.emplace_back(std::llround(p.x * 100), std::llround(p.y * 100), std::llround(p.z * 100),
-                      uint32_t(p.red >> 8) | uint32_t(p.green >> 8) << 8 |
-                          uint32_t(p.blue >> 8) << 16,
-                      p.intensity, p.classification, p.return_number, p.gps_time);
+    want.emplace_back(
+        std::llround(p.x * 100), std::llround(p.y * 100), std::llround(p.z * 100),
+        uint32_t(p.red >> 8) | uint32_t(p.green >> 8) << 8 | uint32_t(p.blue >> 8) << 16,
+        p.intensity, p.classification, p.return_number, p.gps_time);
   std::vector<double> extras_want, extras_got;
   if (type != "laszip")
     for (const auto& p : points)
@@ -77,8 +78,8 @@ TEST_P(EptData, ReadsEveryNodeAndPoint) {
                          c.rgba[i] & 0xffffff, v("intensity", i), v("classification", i),
                          v("return_number", i), v("gps_time", i));
         if (type != "laszip")
-          for (const char* k : {"Int8", "Int16", "Int64", "UInt32", "UInt64", "Float",
-                                "number_of_returns"})
+          for (const char* k :
+               {"Int8", "Int16", "Int64", "UInt32", "UInt64", "Float", "number_of_returns"})
             extras_got.push_back(v(k, i));
       }
     }
@@ -130,7 +131,8 @@ TEST(Ept, BrokenFilesAreClearErrors) {
   expect_error("[]", "not a JSON object");
   std::ofstream(dir / "ept.json") << original;
   // A hierarchy file naming a node outside its subtree, and one that is not JSON.
-  std::ofstream(dir / "ept-hierarchy/0-0-0-0.json") << R"({"0-0-0-0": 5, "1-0-0-0": 3, "2-3-3-3": 1})";
+  std::ofstream(dir / "ept-hierarchy/0-0-0-0.json")
+      << R"({"0-0-0-0": 5, "1-0-0-0": 3, "2-3-3-3": 1})";
   EXPECT_THROW(io::load_tileset(meta, files()), Error);
   std::ofstream(dir / "ept-hierarchy/0-0-0-0.json") << "{";
   EXPECT_THROW(io::load_tileset(meta, files()), Error);
@@ -146,5 +148,56 @@ TEST(Ept, BrokenFilesAreClearErrors) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("ept-data"), std::string::npos) << e.what();
   }
+  fs::remove_all(dir);
+}
+
+// Early Entwine builds wrote "version": "0.0.0" over the 1.0 layout: read, with one warning that
+// names the version; a 0.x whose layout differs (here its count under another name, as no 1.0
+// dataset has it) is a clear error naming the version and what is not 1.0's.
+TEST(Ept, Version000InThe10LayoutIsReadWithAWarning) {
+  const fs::path dir = fresh_temp_dir("ept-000");
+  const auto points = ept_points(3000);
+  write_ept(dir, points, "binary", 300, 2);
+  const std::string meta = (dir / "ept.json").string();
+  std::string text;
+  {
+    std::ifstream in(dir / "ept.json");
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const size_t at = text.find("\"1.0.0\"");
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, 7, "\"0.0.0\"");
+  std::ofstream(dir / "ept.json") << text;
+  io::TilesetOptions options;
+  io::Tileset ts = io::load_tileset(meta, files(), options);
+  ASSERT_TRUE(ts.ept);
+  EXPECT_EQ(ts.ept->version, "0.0.0");
+  ASSERT_EQ(ts.warnings.size(), 1u);
+  EXPECT_NE(ts.warnings[0].find("'0.0.0'"), std::string::npos) << ts.warnings[0];
+  EXPECT_NE(ts.warnings[0].find("ept.json"), std::string::npos) << ts.warnings[0];
+  tiles3d::RenderLoadOptions o;
+  o.streamer.traversal.max_sse = 0.01;
+  auto r = tiles3d::load_tileset_for_render(meta, o);
+  EXPECT_TRUE(r.errors.empty()) << r.errors.front().message;
+  EXPECT_EQ(r.cloud.point_count, points.size());
+  // Another layout under 0.0.0.
+  const size_t count = text.find("\"points\"");
+  ASSERT_NE(count, std::string::npos);
+  text.replace(count, 8, "\"numPoints\"");
+  std::ofstream(dir / "ept.json") << text;
+  try {
+    io::load_tileset(meta, files());
+    ADD_FAILURE() << "a 0.0.0 dataset in another layout was read";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("ept.json"), std::string::npos) << what;
+    EXPECT_NE(what.find("'0.0.0'"), std::string::npos) << what;
+    EXPECT_NE(what.find("points is missing"), std::string::npos) << what;
+  }
+  // Any other version that is not 1.x stays refused.
+  const size_t version = text.find("\"0.0.0\"");
+  text.replace(version, 7, "\"2.0.0\"");
+  std::ofstream(dir / "ept.json") << text;
+  EXPECT_THROW(io::load_tileset(meta, files()), Error);
   fs::remove_all(dir);
 }

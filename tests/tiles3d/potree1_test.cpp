@@ -190,7 +190,8 @@ TEST(Potree1, BrokenFilesAreClearErrors) {
     EXPECT_NE(at, std::string::npos) << from;
     return s.replace(at, std::strlen(from), to);
   };
-  expect_error(edit("\"version\": \"1.8\"", "\"version\": \"1.4\""), "before 1.5", "cloud.js");
+  // 1.4 lists its octree in cloud.js: without the list there is none.
+  expect_error(edit("\"version\": \"1.8\"", "\"version\": \"1.4\""), "\"hierarchy\"", "cloud.js");
   expect_error(edit("\"version\": \"1.8\"", "\"version\": \"2.0\""), "version", "cloud.js");
   expect_error(edit("\"hierarchyStepSize\": 1", "\"hierarchyStepSize\": 0"), "hierarchyStepSize",
                "cloud.js");
@@ -223,6 +224,112 @@ TEST(Potree1, BrokenFilesAreClearErrors) {
     ADD_FAILURE() << "a cut node decoded";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("r.bin"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
+}
+
+// Formats 1.3 and 1.4 (PotreeConverter before 1.5) list the whole octree in cloud.js and keep
+// every node's file in octreeDir itself: 1.4's binary nodes are <name>.bin of uint32 positions
+// from the node's corner, 1.3's are <name> of float32 positions in the cloud's coordinates. Every
+// node is a tile from the start (nothing pending), and every point comes back.
+TEST(Potree1, Formats13And14ListTheirOctreeInCloudJs) {
+  for (const char* version : {"1.4", "1.3"}) {
+    SCOPED_TRACE(version);
+    const bool floats = std::string(version) == "1.3";
+    const fs::path dir = fresh_temp_dir(std::string("potree1-") + version);
+    // 1.3's floats hold millimetres only near the origin (at UTM northings they step by 0.25 m).
+    const auto points = floats ? potree_points(6000, 500, 400) : potree_points(6000);
+    const Potree1WriteResult w = write_potree1(dir, points, {version, "BINARY", 300, 1});
+    ASSERT_GE(w.depth, 2);
+    EXPECT_EQ(w.hrc_files, 0u);
+    ASSERT_TRUE(fs::exists(dir / "data" / (floats ? "r0" : "r0.bin")) ||
+                fs::exists(dir / "data" / (floats ? "r1" : "r1.bin")));
+    const std::string cloud = (dir / "cloud.js").string();
+    io::Tileset ts = io::load_tileset(cloud, files());
+    ASSERT_TRUE(ts.potree);
+    EXPECT_EQ(ts.potree->minor, floats ? 3 : 4);
+    EXPECT_TRUE(ts.errors.empty()) << ts.errors.front();
+    EXPECT_EQ(ts.pending, 0u);
+    EXPECT_EQ(ts.tiles.size(), w.nodes);
+    std::vector<std::tuple<int64_t, int64_t, int64_t, uint32_t>> got, want;
+    for (const auto& p : points)
+      want.emplace_back(std::llround(p.x * 1000), std::llround(p.y * 1000),
+                        std::llround(p.z * 1000),
+                        uint32_t(p.r / 256) | uint32_t(p.g / 256) << 8 | uint32_t(p.b / 256) << 16);
+    uint64_t declared = 0;
+    for (size_t t = 0; t < ts.tiles.size(); ++t) {
+      const io::Tile& tile = ts.tiles[t];
+      EXPECT_LT(tile.parent, int32_t(t));  // parents before children
+      EXPECT_NEAR(tile.geometric_error, ts.potree->spacing / double(1u << tile.depth), 1e-12);
+      declared += tile.content_points;
+      for (const auto& uri : tile.contents) {
+        io::PointContent c = io::decode_potree_node(*ts.potree, io::fetch(uri), uri);
+        EXPECT_EQ(c.point_count, tile.content_points);
+        for (size_t i = 0; i < c.point_count; ++i) {
+          const glm::dvec3 p = c.center + glm::dvec3(c.positions[i]);
+          EXPECT_LE(tile.box.distance(p), 1e-3);
+          got.emplace_back(std::llround(p.x * 1000), std::llround(p.y * 1000),
+                           std::llround(p.z * 1000), c.rgba[i] & 0xffffff);
+        }
+      }
+    }
+    EXPECT_EQ(declared, points.size());
+    std::sort(got.begin(), got.end());
+    std::sort(want.begin(), want.end());
+    EXPECT_TRUE(got == want);
+    // The streamer draws them all.
+    tiles3d::RenderLoadOptions o;
+    o.streamer.traversal.max_sse = 0.01;
+    auto r = tiles3d::load_tileset_for_render(cloud, o);
+    EXPECT_TRUE(r.errors.empty()) << r.errors.front().message;
+    EXPECT_EQ(r.cloud.point_count, points.size());
+    fs::remove_all(dir);
+  }
+}
+
+// A 1.4 hierarchy with bad entries: each is an error of its own naming it (and its place), its
+// subtree is left out, the rest is read; without a root the cloud is an error.
+TEST(Potree1, BadHierarchyEntriesAreErrorsOfTheirOwn) {
+  const fs::path dir = fresh_temp_dir("potree1-14-bad");
+  write_potree1(dir, potree_points(3000), {"1.4", "BINARY", 200, 1});
+  const std::string cloud = (dir / "cloud.js").string();
+  nlohmann::json j;
+  {
+    std::ifstream in(dir / "cloud.js");
+    in >> j;
+  }
+  nlohmann::json& h = j["hierarchy"];
+  const size_t nodes = h.size();
+  ASSERT_GT(nodes, 3u);
+  const std::string second = h[1][0];
+  h.push_back({"r9", 5});     // not an octant
+  h.push_back({second, 7});   // listed twice
+  h.push_back({"r7777", 5});  // its parent r777 is not listed
+  h.push_back({"r0", -4});    // not a count
+  std::ofstream(dir / "cloud.js") << j.dump();
+  io::Tileset ts = io::load_tileset(cloud, files());
+  EXPECT_EQ(ts.tiles.size(), nodes);
+  ASSERT_EQ(ts.errors.size(), 4u);
+  auto has = [&](const std::string& a, const std::string& b) {
+    return std::any_of(ts.errors.begin(), ts.errors.end(), [&](const std::string& e) {
+      return e.find("cloud.js") != std::string::npos && e.find(a) != std::string::npos &&
+             e.find(b) != std::string::npos;
+    });
+  };
+  EXPECT_TRUE(has("(r9)", "not [a node name"));
+  EXPECT_TRUE(has("(" + second + ")", "second time"));
+  EXPECT_TRUE(has("(r7777)", "parent r777 is not listed"));
+  EXPECT_TRUE(has("[\"r0\",-4]", "not [a node name"));
+  // No root.
+  nlohmann::json no_root = j;
+  no_root["hierarchy"].erase(0);
+  std::ofstream(dir / "cloud.js") << no_root.dump();
+  try {
+    io::load_tileset(cloud, files());
+    ADD_FAILURE() << "a hierarchy without its root was read";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cloud.js"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("no root node r"), std::string::npos) << e.what();
   }
   fs::remove_all(dir);
 }

@@ -101,6 +101,9 @@ double read_dimension(const uint8_t* p, const EptDimension& d) {
   return d.scaled ? v * d.scale + d.offset : v;
 }
 
+// ept.json's fields in the 1.0 layout into `c` (after the version).
+void parse_ept_layout(const json& j, EptCloud& c);
+
 }  // namespace
 
 bool is_ept_input(const std::string& uri) {
@@ -115,9 +118,37 @@ std::shared_ptr<const EptCloud> parse_ept_metadata(std::span<const uint8_t> byte
   auto cloud = std::make_shared<EptCloud>();
   EptCloud& c = *cloud;
   c.uri = uri;
+  // Early Entwine builds wrote "0.0.0" over the 1.0 layout: read where the layout is 1.0's (the
+  // loader warns once), a clear error where it is not.
+  std::string version;
   try {
-    const std::string version = j.value("version", "1.0.0");
-    if (version.rfind("1.", 0) != 0) fail("{}: EPT version '{}' is not 1.x", uri, version);
+    version = j.value("version", "1.0.0");
+  } catch (const nlohmann::json::exception& e) {
+    fail("{}: malformed ept.json: {}", uri, e.what());
+  }
+  const bool before_1 = version.rfind("0.", 0) == 0;
+  if (!before_1 && version.rfind("1.", 0) != 0)
+    fail("{}: EPT version '{}' is not 1.x (nor a 0.x in the 1.0 layout)", uri, version);
+  c.version = version;
+  try {
+    parse_ept_layout(j, c);
+  } catch (const Error& e) {
+    if (!before_1) throw;
+    std::string why = e.what();
+    if (why.rfind(uri + ": ", 0) == 0) why = why.substr(uri.size() + 2);
+    fail(
+        "{}: EPT version '{}' is from before 1.0 and is read only in the 1.0 layout, which this "
+        "is not: {}",
+        uri, version, why);
+  }
+  return cloud;
+}
+
+namespace {
+
+void parse_ept_layout(const json& j, EptCloud& c) {
+  const std::string& uri = c.uri;
+  try {
     c.data_type = j.value("dataType", "");
     if (c.data_type != "laszip" && c.data_type != "binary" && c.data_type != "zstandard")
       fail("{}: dataType '{}' is not laszip, binary or zstandard", uri, c.data_type);
@@ -168,8 +199,9 @@ std::shared_ptr<const EptCloud> parse_ept_metadata(std::span<const uint8_t> byte
   } catch (const nlohmann::json::exception& e) {
     fail("{}: malformed ept.json: {}", uri, e.what());
   }
-  return cloud;
 }
+
+}  // namespace
 
 Expansion read_ept_hierarchy(uint32_t tile, const PendingChildren& pending, size_t tiles_now,
                              const Fetcher& fetcher, const TilesetOptions& options) {
@@ -260,9 +292,13 @@ Tileset load_ept_tileset(const std::string& uri, const Fetcher& fetcher,
   std::shared_ptr<const EptCloud> cloud = parse_ept_metadata(bytes, uri);
   Tileset ts;
   ts.uri = uri;
-  ts.version = "EPT";
+  ts.version = "EPT " + cloud->version;
   ts.geometric_error = 2.0 * cloud->spacing;
   ts.ept = cloud;
+  if (cloud->version.rfind("0.", 0) == 0)
+    ts.warnings.push_back(
+        fmt::format("{}: EPT version '{}' is from before 1.0: read as 1.0, whose layout it has",
+                    uri, cloud->version));
   ts.tiles.push_back(node_tile(*cloud, {}));
   auto pending = hierarchy_pending(cloud, {});
   // The root hierarchy file is read now: a dataset whose hierarchy cannot start is an error.

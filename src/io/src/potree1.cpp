@@ -1,5 +1,5 @@
-// Potree 1.x clouds (cloud.js, .hrc hierarchy files, .bin/.las/.laz nodes) as a streamed octree;
-// the format is described in potree.hpp.
+// Potree 1.x clouds (cloud.js with its hierarchy in 1.0-1.4, .hrc hierarchy files from 1.5,
+// .bin/.las/.laz nodes) as a streamed octree; the formats are described in potree.hpp.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -97,8 +97,10 @@ void box(const json& j, const char* key, const std::string& uri, glm::dvec3* lo,
   *hi = {number(b, "ux", uri), number(b, "uy", uri), number(b, "uz", uri)};
 }
 
-// The folder of node `name` below octreeDir: r, then one folder per whole group of `step` digits.
+// The folder of node `name` below octreeDir: r, then one folder per whole group of `step` digits
+// (1.5 on); octreeDir itself before 1.5.
 std::string node_folder(const PotreeCloud& c, const std::string& name) {
+  if (c.minor < 5) return c.octree_dir;
   std::string path = c.octree_dir + "/r";
   const std::string digits = name.substr(1);
   for (size_t i = 0; i + size_t(c.step_size) <= digits.size(); i += size_t(c.step_size))
@@ -106,8 +108,9 @@ std::string node_folder(const PotreeCloud& c, const std::string& name) {
   return path;
 }
 
+// Binary nodes are .bin from format 1.4; before, a node's file is its name alone.
 std::string data_extension(const PotreeCloud& c) {
-  return c.encoding == "LAS" ? ".las" : c.encoding == "LAZ" ? ".laz" : ".bin";
+  return c.encoding == "LAS" ? ".las" : c.encoding == "LAZ" ? ".laz" : c.minor < 4 ? "" : ".bin";
 }
 
 std::shared_ptr<PendingChildren> hrc_pending(std::shared_ptr<const PotreeCloud> cloud,
@@ -163,10 +166,9 @@ std::shared_ptr<const PotreeCloud> parse_potree1_cloud(std::span<const uint8_t> 
     char tail = 0;
     if (std::sscanf(c.version.c_str(), "%d.%d%c", &major, &minor, &tail) != 2 || major != 1)
       fail("{}: version '{}' is not a Potree 1.x format", uri, c.version);
-    if (minor < 5)
-      fail("{}: format {} keeps its hierarchy in cloud.js (before 1.5), which is not supported",
-           uri, c.version);
+    if (minor < 0) fail("{}: version '{}' is not a Potree 1.x format", uri, c.version);
     if (minor > 8) fail("{}: format {} is newer than 1.8, the last of Potree 1", uri, c.version);
+    c.minor = minor;
     c.projection = j.value("projection", "");
     if (!j.contains("octreeDir") || !j["octreeDir"].is_string() ||
         j["octreeDir"].get<std::string>().empty())
@@ -185,19 +187,37 @@ std::shared_ptr<const PotreeCloud> parse_potree1_cloud(std::span<const uint8_t> 
     c.data_min = c.cube_min, c.data_max = c.cube_max;
     if (j.contains("tightBoundingBox")) box(j, "tightBoundingBox", uri, &c.data_min, &c.data_max);
     c.offset = c.cube_min;
+    // Binary positions are integers with a scale from format 1.4; floats before (scale unused).
     const json& scale = j.contains("scale") ? j["scale"] : json();
     if (scale.is_number())
       c.scale = glm::dvec3(scale.get<double>());
-    else
+    else if (minor >= 4)
       fail("{}: scale is missing or not a number", uri);
     if (!(std::isfinite(c.scale.x) && c.scale.x > 0)) fail("{}: scale must be positive", uri);
     c.spacing = number(j, "spacing", uri);
     if (!(c.spacing > 0)) fail("{}: spacing must be positive", uri);
-    if (!j.contains("hierarchyStepSize") || !j["hierarchyStepSize"].is_number_integer())
-      fail("{}: hierarchyStepSize is missing", uri);
-    c.step_size = j["hierarchyStepSize"].get<int>();
-    if (c.step_size < 1 || c.step_size > kMaxPotreeDepth)
-      fail("{}: hierarchyStepSize {} is outside 1-{}", uri, c.step_size, kMaxPotreeDepth);
+    if (minor >= 5) {
+      if (!j.contains("hierarchyStepSize") || !j["hierarchyStepSize"].is_number_integer())
+        fail("{}: hierarchyStepSize is missing", uri);
+      c.step_size = j["hierarchyStepSize"].get<int>();
+      if (c.step_size < 1 || c.step_size > kMaxPotreeDepth)
+        fail("{}: hierarchyStepSize {} is outside 1-{}", uri, c.step_size, kMaxPotreeDepth);
+    } else {
+      // The whole octree, [name, points] a node. Entries are checked as the tiles are made
+      // (load_potree1): one bad node is an error of its own, not of the cloud.
+      const json& h = j.contains("hierarchy") ? j["hierarchy"] : json();
+      if (!h.is_array() || h.empty())
+        fail("{}: format {} keeps its octree in \"hierarchy\", which is missing or empty", uri,
+             c.version);
+      c.hierarchy.reserve(h.size());
+      for (size_t i = 0; i < h.size(); ++i) {
+        const json& e = h[i];
+        if (e.is_array() && e.size() == 2 && e[0].is_string() && e[1].is_number_unsigned())
+          c.hierarchy.emplace_back(e[0].get<std::string>(), e[1].get<uint64_t>());
+        else  // kept as written, so that its error shows it (it is no node name)
+          c.hierarchy.emplace_back(e.dump(), 0);
+      }
+    }
     const json& attrs = j.contains("pointAttributes") ? j["pointAttributes"] : json();
     if (attrs.is_string()) {
       c.encoding = attrs.get<std::string>();
@@ -314,6 +334,73 @@ Expansion read_hrc(uint32_t tile, const PendingChildren& pending, size_t tiles_n
   return e;
 }
 
+namespace {
+
+// Formats 1.0-1.4: the tiles of the octree cloud.js lists, all at once. An entry that is not a
+// node name and a count, names a node twice, or whose parent is not listed (or was refused) is
+// an error of its own, naming it; its subtree is left out and the rest is drawn. Without the
+// root the cloud has nothing to start from: an error of the cloud.
+void octree_from_list(Tileset& ts, const PotreeCloud& c, const TilesetOptions& options) {
+  const std::string& uri = c.uri;
+  // Parents before children whatever the file's order: by depth, then as listed.
+  std::vector<size_t> order(c.hierarchy.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return c.hierarchy[a].first.size() < c.hierarchy[b].first.size();
+  });
+  std::map<std::string, uint32_t> tile_of;
+  for (size_t i : order) {
+    const auto& [name, points] = c.hierarchy[i];
+    const std::string entry = fmt::format("{}: hierarchy entry {} ({})", uri, i, name);
+    Key key;
+    if (!parse_node_name(name, &key)) {
+      ts.errors.push_back(entry + " is not [a node name r0123..., a point count]");
+      continue;
+    }
+    if (tile_of.count(name)) {
+      ts.errors.push_back(entry + " lists the node a second time");
+      continue;
+    }
+    int32_t parent = -1;
+    if (key.level > 0) {
+      auto p = tile_of.find(name.substr(0, name.size() - 1));
+      if (p == tile_of.end()) {
+        ts.errors.push_back(fmt::format("{}: its parent {} is not listed (or was refused)", entry,
+                                        name.substr(0, name.size() - 1)));
+        continue;
+      }
+      parent = int32_t(p->second);
+    } else if (!ts.tiles.empty()) {
+      ts.errors.push_back(entry + " lists the node a second time");
+      continue;
+    }
+    if (ts.tiles.size() >= options.max_tiles) {
+      ts.errors.push_back(
+          fmt::format("{}: more than {} nodes: the rest are left out", uri, options.max_tiles));
+      break;
+    }
+    Tile t = node_tile(c, key);
+    t.parent = parent;
+    t.depth = key.level;
+    if (points > UINT32_MAX) {
+      ts.errors.push_back(
+          fmt::format("{} declares {} points, more than a node can hold", entry, points));
+      continue;
+    }
+    if (points > 0) {
+      t.contents.push_back(content_uri(c, key, uint32_t(points)));
+      t.content_points = points;
+    }
+    tile_of[name] = uint32_t(ts.tiles.size());
+    if (parent >= 0) ts.tiles[size_t(parent)].children.push_back(uint32_t(ts.tiles.size()));
+    ts.tiles.push_back(std::move(t));
+  }
+  if (!tile_of.count("r"))
+    fail("{}: the hierarchy lists no root node r, which every other node hangs from", uri);
+}
+
+}  // namespace
+
 Tileset load_potree1(const std::string& uri, const Fetcher& fetcher,
                      const TilesetOptions& options) {
   const std::vector<uint8_t> bytes = fetcher(uri);
@@ -325,6 +412,10 @@ Tileset load_potree1(const std::string& uri, const Fetcher& fetcher,
   ts.version = "Potree " + cloud->version;
   ts.geometric_error = 2.0 * cloud->spacing;
   ts.potree = cloud;
+  if (cloud->minor < 5) {
+    octree_from_list(ts, *cloud, options);
+    return ts;
+  }
   ts.tiles.push_back(node_tile(*cloud, {}));
   auto pending = hrc_pending(cloud, {});
   // The root's file is read now: a cloud whose hierarchy cannot even start is an error.
@@ -373,9 +464,17 @@ PointContent decode_node1(const PotreeCloud& c, std::span<const uint8_t> bytes,
         std::vector<glm::dvec3> pos(n);
         for (size_t i = 0; i < n; ++i) {
           const uint8_t* p = at(i, a);
-          pos[i] =
-              corner +
-              glm::dvec3(load<uint32_t>(p), load<uint32_t>(p + 4), load<uint32_t>(p + 8)) * c.scale;
+          // Formats 1.0-1.3: float32 in the cloud's coordinates; then uint32 steps of the scale
+          // from the node's corner.
+          if (c.minor < 4) {
+            pos[i] = glm::dvec3(load<float>(p), load<float>(p + 4), load<float>(p + 8));
+            if (!std::isfinite(pos[i].x) || !std::isfinite(pos[i].y) || !std::isfinite(pos[i].z))
+              fail("{}: point {}'s position is not a finite number", uri, i);
+          } else {
+            pos[i] = corner +
+                     glm::dvec3(load<uint32_t>(p), load<uint32_t>(p + 4), load<uint32_t>(p + 8)) *
+                         c.scale;
+          }
         }
         set_positions(out, pos);
         break;

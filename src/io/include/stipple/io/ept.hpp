@@ -32,7 +32,8 @@ struct EptDimension {
 };
 
 struct EptCloud {
-  std::string uri;  // ept.json
+  std::string uri;        // ept.json
+  std::string version;    // as ept.json gives it: 1.x, or 0.x in the 1.0 layout (early Entwine)
   std::string data_type;  // laszip, binary, zstandard
   uint64_t points = 0;
   glm::dvec3 cube_min{0.0}, cube_max{0.0};  // bounds: the octree's root cube

@@ -15,7 +15,13 @@
 // as a 128-bit Morton code of its three int32 (upper 64 bits first), rgb as a 64-bit Morton code
 // of its three uint16; the other attributes as in DEFAULT.
 //
-// Potree 1.x (PotreeConverter 1.x, formats 1.5 to 1.8: cloud.js, and beside it the octreeDir of
+// Potree 1.0-1.4 (PotreeConverter up to 1.0RC): cloud.js lists the whole octree in "hierarchy", an
+// array of [node name, points] (the root "r" first; Potree's viewer reads it in that order); every
+// node's file sits directly in octreeDir: <name>.bin for format 1.4 binary (positions as in 1.5),
+// <name> without extension for 1.0-1.3 binary (positions float32 x 3 in the cloud's coordinates),
+// <name>.las or .laz. The nodes decode as 1.5-1.8's.
+//
+// Potree 1.5-1.8 (PotreeConverter 1.x, formats 1.5 to 1.8: cloud.js, and beside it the octreeDir of
 // nodes). A node's files are under octreeDir/r/, one folder deeper per whole group of
 // hierarchyStepSize digits in its name (step 5: r0123 at r/r0123.bin, r012345 at
 // r/01234/r012345.bin). A node whose level is a multiple of the step has a .hrc file beside its
@@ -27,6 +33,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -46,6 +53,7 @@ struct PotreeAttribute {
 
 struct PotreeCloud {
   int major = 2;                           // 2: metadata.json; 1: cloud.js
+  int minor = 0;                           // 1.x: the format's minor version
   std::string version;                     // as the file gives it
   std::string uri;                         // metadata.json or cloud.js
   std::string hierarchy_uri, octree_uri;   // 2.0: beside it
@@ -57,7 +65,9 @@ struct PotreeCloud {
   glm::dvec3 data_min{0.0}, data_max{0.0};  // the points' bounds (position min/max)
   double spacing = 0;
   uint64_t first_chunk_size = 0;
-  int step_size = 0, depth = 0;  // 1.x: hierarchyStepSize
+  int step_size = 0, depth = 0;  // 1.x: hierarchyStepSize (0 for 1.0-1.4)
+  // 1.0-1.4: the octree as cloud.js lists it, [node name, points] in the file's order.
+  std::vector<std::pair<std::string, uint64_t>> hierarchy;
   std::vector<PotreeAttribute> attributes;
   size_t record_size = 0;
 };
@@ -72,7 +82,8 @@ bool is_potree_input(const std::string& uri);
 // Parses metadata.json. Throws stipple::Error naming the file and the problem.
 std::shared_ptr<const PotreeCloud> parse_potree_metadata(std::span<const uint8_t> json,
                                                          const std::string& uri);
-// Parses a Potree 1.x cloud.js (formats 1.5 to 1.8). Throws stipple::Error naming the file.
+// Parses a Potree 1.x cloud.js (formats 1.0 to 1.8; 1.0-1.4 with their hierarchy). Throws
+// stipple::Error naming the file.
 std::shared_ptr<const PotreeCloud> parse_potree1_cloud(std::span<const uint8_t> json,
                                                        const std::string& uri);
 
