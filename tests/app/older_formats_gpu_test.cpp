@@ -69,15 +69,7 @@ TEST(OlderFormats, Potree14CloudRendersAndInfoSumsItsPoints) {
 TEST(OlderFormats, Ept000RendersWithAWarning) {
   const fs::path dir = test::fresh_temp_dir("older-ept000");
   test::write_ept(dir, test::ept_points(6000), "binary", 400, 2);
-  std::string text;
-  {
-    std::ifstream in(dir / "ept.json");
-    text.assign(std::istreambuf_iterator<char>(in), {});
-  }
-  const size_t at = text.find("\"1.0.0\"");
-  ASSERT_NE(at, std::string::npos);
-  text.replace(at, 7, "\"0.0.0\"");
-  std::ofstream(dir / "ept.json") << text;
+  ASSERT_NE(test::set_ept_version(dir, "0.0.0").find("\"0.0.0\""), std::string::npos);
   const fs::path png = dir / "ept000.png";
   auto r = test::run_stipple(fmt::format("render {} -o {} --width 160 --height 120",
                                          (dir / "ept.json").string(), png.string()));

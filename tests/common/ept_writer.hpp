@@ -13,6 +13,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <string>
 #include <tuple>
@@ -65,8 +66,7 @@ struct EptWriteResult {
 // `data_type`: laszip, binary or zstandard. A node keeps every k-th of its points up to
 // `node_cap`; hierarchy files are split every `step` levels.
 inline EptWriteResult write_ept(const std::filesystem::path& dir, const std::vector<EptPoint>& pts,
-                               const std::string& data_type, size_t node_cap = 400,
-                               int step = 2) {
+                                const std::string& data_type, size_t node_cap = 400, int step = 2) {
   namespace fs = std::filesystem;
   using nlohmann::json;
   fs::create_directories(dir / "ept-hierarchy");
@@ -105,8 +105,8 @@ inline EptWriteResult write_ept(const std::filesystem::path& dir, const std::vec
     nodes[key] = std::move(keep);
     r.depth = std::max(r.depth, d);
     for (auto& [c, list] : rest)
-      work.push_back({{d + 1, 2 * x + (c & 1), 2 * y + (c >> 1 & 1), 2 * z + (c >> 2 & 1)},
-                      std::move(list)});
+      work.push_back(
+          {{d + 1, 2 * x + (c & 1), 2 * y + (c >> 1 & 1), 2 * z + (c >> 2 & 1)}, std::move(list)});
   }
   r.nodes = nodes.size();
   // Data files.
@@ -188,10 +188,11 @@ inline EptWriteResult write_ept(const std::filesystem::path& dir, const std::vec
       d["scale"] = scale, d["offset"] = offset[k];
       schema.push_back(d);
     }
-    for (const auto& d : {dim("Intensity", "unsigned", 2), dim("ReturnNumber", "unsigned", 1),
-                          dim("NumberOfReturns", "unsigned", 1), dim("Classification", "unsigned", 1),
-                          dim("GpsTime", "float", 8), dim("Red", "unsigned", 2),
-                          dim("Green", "unsigned", 2), dim("Blue", "unsigned", 2)})
+    for (const auto& d :
+         {dim("Intensity", "unsigned", 2), dim("ReturnNumber", "unsigned", 1),
+          dim("NumberOfReturns", "unsigned", 1), dim("Classification", "unsigned", 1),
+          dim("GpsTime", "float", 8), dim("Red", "unsigned", 2), dim("Green", "unsigned", 2),
+          dim("Blue", "unsigned", 2)})
       schema.push_back(d);
   } else {
     for (int k = 0; k < 3; ++k) {
@@ -219,6 +220,20 @@ inline EptWriteResult write_ept(const std::filesystem::path& dir, const std::vec
               {"srs", json::object()}};
   std::ofstream(dir / "ept.json") << ept.dump(1);
   return r;
+}
+
+// Rewrites the "version" of the ept.json in `dir` (early Entwine wrote "0.0.0" over the 1.0
+// layout); returns the new text.
+inline std::string set_ept_version(const std::filesystem::path& dir, const std::string& version) {
+  std::string text;
+  {
+    std::ifstream in(dir / "ept.json");
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const size_t at = text.find("\"1.0.0\"");
+  if (at != std::string::npos) text.replace(at, 7, "\"" + version + "\"");
+  std::ofstream(dir / "ept.json") << text;
+  return text;
 }
 
 }  // namespace stipple::test

@@ -159,15 +159,8 @@ TEST(Ept, Version000InThe10LayoutIsReadWithAWarning) {
   const auto points = ept_points(3000);
   write_ept(dir, points, "binary", 300, 2);
   const std::string meta = (dir / "ept.json").string();
-  std::string text;
-  {
-    std::ifstream in(dir / "ept.json");
-    text.assign(std::istreambuf_iterator<char>(in), {});
-  }
-  const size_t at = text.find("\"1.0.0\"");
-  ASSERT_NE(at, std::string::npos);
-  text.replace(at, 7, "\"0.0.0\"");
-  std::ofstream(dir / "ept.json") << text;
+  std::string text = set_ept_version(dir, "0.0.0");
+  ASSERT_NE(text.find("\"0.0.0\""), std::string::npos);
   io::TilesetOptions options;
   io::Tileset ts = io::load_tileset(meta, files(), options);
   ASSERT_TRUE(ts.ept);

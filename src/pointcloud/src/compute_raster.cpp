@@ -103,6 +103,19 @@ gpu::BindGroup accumulate_bind_group(gpu::Context& ctx, WGPUBindGroupLayout layo
        gpu::bind_buffer(12, p.polygon_vertices.get())});
 }
 
+// The accumulation pass's bind groups, one a segment, for `pipeline`'s layout.
+std::vector<gpu::BindGroup> accumulate_bind_groups(gpu::Context& ctx,
+                                                   const gpu::ComputePipeline& pipeline,
+                                                   const GpuBatchedCloud& cloud,
+                                                   const ComputeRasterPipeline& p, WGPUBuffer depth,
+                                                   WGPUBuffer sums) {
+  auto layout = gpu::bind_group_layout_of(pipeline);
+  std::vector<gpu::BindGroup> groups;
+  for (const auto& seg : cloud.segments)
+    groups.push_back(accumulate_bind_group(ctx, layout.get(), seg, cloud, p, depth, sums));
+  return groups;
+}
+
 gpu::ComputePipeline make_compute(gpu::Context& ctx, const char* file,
                                   std::span<const gpu::PipelineConstant> constants = {},
                                   bool trusted = false) {
@@ -509,12 +522,8 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                     gpu::Context& ctx = pc.gpu();
                     const gpu::ComputePipeline& pipeline =
                         hqs ? p.accumulate : p.accumulate_colours;
-                    auto layout = gpu::bind_group_layout_of(pipeline);
-                    std::vector<gpu::BindGroup> groups;
-                    for (auto& seg : cloud.segments)
-                      groups.push_back(accumulate_bind_group(ctx, layout.get(), seg, cloud, p,
-                                                             pc.buffer(depth_name),
-                                                             pc.buffer(accum_name)));
+                    const auto groups = accumulate_bind_groups(
+                        ctx, pipeline, cloud, p, pc.buffer(depth_name), pc.buffer(accum_name));
                     auto pass = pc.begin_compute_pass();
                     for (size_t s = 0; s < cloud.segments.size(); ++s)
                       dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
@@ -602,12 +611,9 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                     [&p, &cloud, depth_name, accum_name](gpu::PassContext& pc) {
                       gpu::Context& ctx = pc.gpu();
                       if (cloud.segments.empty()) return;
-                      auto layout = gpu::bind_group_layout_of(p.accumulate_colours);
-                      std::vector<gpu::BindGroup> groups;
-                      for (auto& seg : cloud.segments)
-                        groups.push_back(accumulate_bind_group(ctx, layout.get(), seg, cloud, p,
-                                                               pc.buffer(depth_name),
-                                                               pc.buffer(accum_name)));
+                      const auto groups =
+                          accumulate_bind_groups(ctx, p.accumulate_colours, cloud, p,
+                                                 pc.buffer(depth_name), pc.buffer(accum_name));
                       auto pass = pc.begin_compute_pass();
                       wgpuComputePassEncoderSetPipeline(pass.get(), p.accumulate_colours.get());
                       for (size_t s = 0; s < cloud.segments.size(); ++s) {
