@@ -374,6 +374,7 @@ void queue_tileset(Registry& render) {
     // The billboard path's colours: ramps over the root volume and the drawn tiles' intensities.
     options.shading = pc::point_shading(settings.render, list->attributes);
     options.shading.mode = pc::resolve_color_mode(list->attributes, options.shading.mode);
+    options.translucent = pc::translucent_frame(list->attributes, options.shading);
     options.filter = settings.render.filter;
     options.clip = settings.render.clip;
     options.highlight = settings.render.highlight;
