@@ -235,10 +235,10 @@ fn lean_sums_word(c: vec4<u32>, v: u32, lo: u32, end: u32, inside: bool, full: b
   let l1 = entry_limit(e1, p1.pixel);
   let l2 = entry_limit(e2, p2.pixel);
   let l3 = entry_limit(e3, p3.pixel);
-  var a0 = p0.valid && p0.depth <= l0;
-  var a1 = p1.valid && p1.depth <= l1;
-  var a2 = p2.valid && p2.depth <= l2;
-  var a3 = p3.valid && p3.depth <= l3;
+  var a0 = p0.valid && p0.depth <= l0 && selected(c.x);
+  var a1 = p1.valid && p1.depth <= l1 && selected(c.y);
+  var a2 = p2.valid && p2.depth <= l2 && selected(c.z);
+  var a3 = p3.valid && p3.depth <= l3 && selected(c.w);
   if (!full) {
     a0 = a0 && first >= lo && first < end;
     a1 = a1 && first + 1u >= lo && first + 1u < end;

@@ -24,6 +24,21 @@
 // prologue also finds whether the batch lies inside the view.
 override LEAN: bool = true;
 
+// SPLIT: which points the pass draws by the coarse word's translucent bit (bit 30, set only in
+// clouds that have translucent points: BatchingOptions::mark_translucent). 0: every point (the
+// default pipelines: the test folds away), 1: the opaque ones (the batch passes of a frame that
+// blends the translucent points), 2: the translucent ones (raster-translucent).
+override SPLIT: u32 = 0u;
+const TRANSLUCENT_BIT: u32 = 0x40000000u;
+
+// Whether the pass draws the point of coarse word `c`.
+fn selected(c: u32) -> bool {
+  if (SPLIT == 0u) {
+    return true;
+  }
+  return ((c & TRANSLUCENT_BIT) != 0u) == (SPLIT == 2u);
+}
+
 fn coarse_word(v: u32) -> vec4<u32> {
   if (ablated(ABLATE_LOAD)) {
     let h = v * 2654435761u;
@@ -148,20 +163,21 @@ fn point_position(q: vec3<f32>) -> vec3<f32> {
   return cells_origin + q * cell_size;
 }
 
-// The four points of one 16-byte word (points first..first+3) that lie in [lo, end): written
+// The four points of one 16-byte word (points first..first+3) that lie in [lo, end) and that the
+// pass draws (SPLIT): written
 // out, not a loop over an array of the four positions, which the compiler may keep in local
 // memory (2-3.6x slower on the H200: bench/RESULTS.md, runs C-F and K).
 fn draw_word(bits: u32, c: vec4<u32>, m: vec4<u32>, f: vec4<u32>, first: u32, lo: u32, end: u32) {
-  if (first >= lo && first < end) {
+  if (first >= lo && first < end && selected(c.x)) {
     draw_point(cell_position(bits, c.x, m.x, f.x), first);
   }
-  if (first + 1u >= lo && first + 1u < end) {
+  if (first + 1u >= lo && first + 1u < end && selected(c.y)) {
     draw_point(cell_position(bits, c.y, m.y, f.y), first + 1u);
   }
-  if (first + 2u >= lo && first + 2u < end) {
+  if (first + 2u >= lo && first + 2u < end && selected(c.z)) {
     draw_point(cell_position(bits, c.z, m.z, f.z), first + 2u);
   }
-  if (first + 3u < end) {
+  if (first + 3u < end && selected(c.w)) {
     draw_point(cell_position(bits, c.w, m.w, f.w), first + 3u);
   }
 }

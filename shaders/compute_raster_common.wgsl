@@ -19,6 +19,10 @@ struct Params {
   background: vec4<f32>,
 }
 
+// The translucent points' coverage sums (compute_raster_translucent.wgsl): -ln(1 - alpha) in
+// units of 1 / REVEAL_SCALE.
+const REVEAL_SCALE: f32 = 4096.0;
+
 // Per frame: offset = batch min - camera position (double on the CPU, then float).
 struct GpuBatch {
   offset: vec3<f32>,

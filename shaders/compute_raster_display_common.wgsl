@@ -1,9 +1,11 @@
-// The display pass's shading, shared by its fragment form (compute_raster_display.wgsl) and
-// its compute form (compute_raster_display_cs.wgsl): each pixel's colour sums divided by its
+// The display pass's shading, shared by its fragment form (compute_raster_display_fs.wgsl) and
+// its compute form (compute_raster_display_cs_pass.wgsl): each pixel's colour sums divided by its
 // count, the background where nothing was drawn, and with edl_strength > 0 eye-dome lighting
 // (seed 000, eqs. 10-12) from the nearest depths of the pixel and of eight neighbours at
 // edl_radius; pixels without a depth of their own (filled holes) and empty neighbours give no
-// response.
+// response. The including shader defines over_translucent(pixel, colour): the colour itself
+// (compute_raster_display_opaque.wgsl), or the translucent points laid over it
+// (compute_raster_display_oit.wgsl).
 #include "compute_raster_common.wgsl"
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -18,9 +20,14 @@ fn depth_word_of(pixel: u32) -> u32 {
 
 fn display_color(xy: vec2<i32>) -> vec4<f32> {
   let pixel = u32(xy.y) * params.width + u32(xy.x);
+  return vec4<f32>(over_translucent(pixel, opaque_color(xy, pixel)), 1.0);
+}
+
+// The opaque points' colour at the pixel (EDL included), or the background.
+fn opaque_color(xy: vec2<i32>, pixel: u32) -> vec3<f32> {
   let a = accum[pixel];
   if (a.w == 0u) {
-    return vec4<f32>(params.background.rgb, 1.0);
+    return params.background.rgb;
   }
   var color = vec3<f32>(a.xyz) / (f32(a.w) * 255.0);
   let own = depth_word_of(pixel);
@@ -39,5 +46,5 @@ fn display_color(xy: vec2<i32>) -> vec4<f32> {
     }
     color *= exp(-(response / 8.0) * params.edl_strength);  // eqs. 11-12
   }
-  return vec4<f32>(color, 1.0);
+  return color;
 }

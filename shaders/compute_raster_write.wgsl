@@ -19,8 +19,12 @@ fn draw_point(cells: vec3<f32>, index: u32) {
   write_key(pr.pixel, point_key(bitcast<u32>(pr.depth), index));
 }
 
-// The lean loop's point: the key draw_point would write.
+// The lean loop's point: the key draw_point would write (translucent points are skipped where the
+// frame blends them: SPLIT).
 fn lean_point(v: u32, index: u32, inside: bool) {
+  if (!selected(v)) {
+    return;
+  }
   let p = lean_project(v, inside);
   if (p.valid) {
     write_key(p.pixel, point_key(bitcast<u32>(p.depth), index));

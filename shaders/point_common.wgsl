@@ -19,7 +19,10 @@ struct Frame {
   edl_radius: f32,
   edl_strength: f32,
   edl_enabled: u32,
-  pad0: u32,
+  // 1: the cloud has translucent points and the mode is RGB: the opaque passes skip the points
+  // whose alpha is under 255, the translucent pass draws them (point_draw.wgsl). 0: every point
+  // is opaque.
+  translucent: u32,
   ranges: vec4<f32>,  // elevation min (unused: per chunk), 1 / elevation span, intensity min, 1 / span
   constant_color: vec4<f32>,
   background: vec4<f32>,

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -590,14 +591,16 @@ test::Bytes rgba_tile(float x0, const std::function<std::array<uint8_t, 4>(int)>
   return test::make_pnts(ft, bin);
 }
 
-// A glb of one POINTS primitive (100 points from (x0, 0, 0)) with COLOR_0 VEC4 `rgba` (floats)
+// A glb of one POINTS primitive (100 points from (x0, 0, 0)) with COLOR_0 VEC4 `rgba(i)` (floats)
 // and a material of the given alphaMode (none: glTF's default, OPAQUE).
-test::Bytes rgba_glb(float x0, std::array<float, 4> rgba, const std::string& alpha_mode) {
+test::Bytes rgba_glb(float x0, const std::function<std::array<float, 4>(int)>& rgba,
+                     const std::string& alpha_mode) {
   std::vector<float> pos, col;
   for (int i = 0; i < 100; ++i) {
     // glTF is Y-up: the grid lies in x/-z (the tile's x/y).
     pos.insert(pos.end(), {x0 + float(i % 10), 0.0f, -float(i / 10)});
-    col.insert(col.end(), rgba.begin(), rgba.end());
+    const auto c = rgba(i);
+    col.insert(col.end(), c.begin(), c.end());
   }
   test::Bytes bin;
   test::append(bin, pos);
@@ -628,62 +631,277 @@ test::Bytes rgba_glb(float x0, std::array<float, 4> rgba, const std::string& alp
   return test::make_glb(j, bin);
 }
 
+test::Bytes rgba_glb(float x0, std::array<float, 4> rgba, const std::string& alpha_mode) {
+  return rgba_glb(
+      x0, [rgba](int) { return rgba; }, alpha_mode);
+}
+
+// A pnts tile of two 20 x 20 layers over 10 x 10 m (0.5 m apart), 3 m apart in height, each
+// point coloured by `rgba(top, x)` (RGBA semantic).
+test::Bytes layered_tile(const std::function<std::array<uint8_t, 4>(bool, float)>& rgba) {
+  std::vector<float> pos;
+  test::Bytes colours;
+  for (int layer = 0; layer < 2; ++layer)
+    for (int i = 0; i < 400; ++i) {
+      const float x = 0.25f + 0.5f * float(i % 20), y = 0.25f + 0.5f * float(i / 20);
+      pos.insert(pos.end(), {x, y, layer == 1 ? 3.0f : 0.0f});
+      const auto c = rgba(layer == 1, x);
+      colours.insert(colours.end(), c.begin(), c.end());
+    }
+  test::Bytes bin;
+  test::append(bin, pos);
+  nlohmann::json ft = {{"POINTS_LENGTH", 800},
+                       {"POSITION", {{"byteOffset", 0}}},
+                       {"RGBA", {{"byteOffset", bin.size()}}}};
+  bin.insert(bin.end(), colours.begin(), colours.end());
+  return test::make_pnts(ft, bin);
+}
+
+struct Rendered {
+  test::CommandResult run;
+  gpu::Image image;
+};
+
+// `stipple render` of dir/tileset.json at 160 x 100 with the renderer and backend given (and
+// `env`, variables to set first).
+Rendered render_tileset(const fs::path& dir, const std::string& name, const std::string& backend,
+                        const std::string& renderer, const std::string& extra = "",
+                        const std::string& env = "") {
+  const fs::path png = dir / (name + ".png");
+  Rendered r;
+  r.run = test::run_command(fmt::format(
+      "{} {} render {} -o {} --width 160 --height 100 --backend {} --renderer {} {}", env,
+      STIPPLE_BINARY, (dir / "tileset.json").string(), png.string(), backend, renderer, extra));
+  if (r.run.exit_code == 0) r.image = gpu::read_png(png);
+  return r;
+}
+
+// Whether channel value v lies between the background's and the colour's (inclusive, with a
+// tolerance of `tol`).
+bool between(int v, int background, int colour, int tol) {
+  return v >= std::min(background, colour) - tol && v <= std::max(background, colour) + tol;
+}
+
+// Covered pixels (differing from the background) whose colour is not between the background
+// and `rgb` in some channel.
+size_t outside(const gpu::Image& image, std::array<uint8_t, 3> rgb, int tol) {
+  size_t n = 0;
+  for (size_t i = 0; i < size_t(image.width) * image.height; ++i) {
+    const uint8_t* p = &image.rgba[i * 4];
+    bool bg = true, in = true;
+    for (int k = 0; k < 3; ++k) {
+      bg = bg && std::abs(p[k] - kBackground[k]) <= 2;
+      in = in && between(p[k], kBackground[k], rgb[k], tol);
+    }
+    n += !bg && !in;
+  }
+  return n;
+}
+
 }  // namespace
 
-// Item 10: pnts RGBA and CONSTANT_RGBA alpha was dropped (every point drawn opaque). Alpha is a
-// threshold at 0.5 now, as glTF's MASK mode: points under it are not drawn, the others are
-// drawn opaque, and the output says so; a glb's COLOR_0 alpha counts only under a BLEND or MASK
-// material (glTF ignores it for OPAQUE).
-TEST(OtherWriters, AlphaIsAThresholdAtHalf) {
+// Issue 44 (item 10 before it): alpha was a threshold at 0.5, so a tile whose points were all
+// under half opacity (Cesium's translucent samples: alpha 0.2) rendered nothing and failed. It
+// is blended now in the RGB mode, on both renderers and both WebGPU implementations: each
+// property's tile renders, covers about what the same tile at full opacity covers, and every
+// covered pixel lies between the background and the points' colour, nearer the background.
+class TranslucentTiles : public ::testing::TestWithParam<std::tuple<std::string, std::string>> {};
+
+TEST_P(TranslucentTiles, EveryAlphaPropertyIsBlended) {
+  const auto& [backend, renderer] = GetParam();
+  const std::array<uint8_t, 3> rgb = {240, 120, 30};
+  struct Case {
+    std::string name;
+    std::function<test::Bytes(uint8_t alpha)> tile;  // the tile at this alpha
+    std::string file;
+  };
+  const std::vector<Case> cases = {
+      {"rgba",
+       [&](uint8_t a) {
+         return rgba_tile(
+             0.0f,
+             [&](int) {
+               return std::array<uint8_t, 4>{rgb[0], rgb[1], rgb[2], a};
+             },
+             false);
+       },
+       "t.pnts"},
+      {"constant",
+       [&](uint8_t a) {
+         return rgba_tile(
+             0.0f,
+             [&](int) {
+               return std::array<uint8_t, 4>{rgb[0], rgb[1], rgb[2], a};
+             },
+             true);
+       },
+       "t.pnts"},
+      // glb colours are linear: these floats are the sRGB bytes above.
+      {"glb-blend",
+       [&](uint8_t a) {
+         return rgba_glb(0.0f, {0.8714f, 0.1878f, 0.0130f, float(a) / 255.0f}, "BLEND");
+       },
+       "t.glb"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const fs::path dir = temp_dir() / c.name;
+    const fs::path opaque_dir = dir / "opaque", translucent_dir = dir / "translucent";
+    write_flat_tileset(opaque_dir, {{c.file, c.tile(255)}});
+    write_flat_tileset(translucent_dir, {{c.file, c.tile(51)}});  // alpha 0.2
+    const Rendered opaque = render_tileset(opaque_dir, "o", backend, renderer);
+    const Rendered translucent = render_tileset(translucent_dir, "t", backend, renderer);
+    ASSERT_EQ(opaque.run.exit_code, 0) << opaque.run.output;
+    ASSERT_EQ(translucent.run.exit_code, 0) << translucent.run.output;
+    EXPECT_NE(translucent.run.output.find("rendered 100 points"), std::string::npos)
+        << translucent.run.output;
+    const auto o = test::coverage_stats(opaque.image, kBackground);
+    const auto t = test::coverage_stats(translucent.image, kBackground);
+    ASSERT_GT(o.covered, 200u);
+    // The same discs: coverage within 15% of the opaque render's.
+    EXPECT_NEAR(t.coverage, o.coverage, 0.15 * o.coverage);
+    // Colours between the background and the points' (4 levels of rounding), and nearer the
+    // background: one layer at 0.2 is a fifth of the way, overlapping discs a little more.
+    EXPECT_EQ(outside(translucent.image, rgb, 4), 0u);
+    EXPECT_GT(t.mean[0], kBackground[0] + 0.1 * (rgb[0] - kBackground[0]));
+    EXPECT_LT(t.mean[0], kBackground[0] + 0.7 * (rgb[0] - kBackground[0]));
+    EXPECT_GT(o.mean[0], kBackground[0] + 0.7 * (rgb[0] - kBackground[0]));
+  }
+}
+
+// Colour modes other than RGB replace the colour and draw every point opaque: the translucent
+// tile's image is the opaque tile's, pixel for pixel.
+TEST_P(TranslucentTiles, OtherColourModesDrawOpaque) {
+  const auto& [backend, renderer] = GetParam();
+  const fs::path dir = temp_dir();
+  auto tile = [](uint8_t a) {
+    return rgba_tile(
+        0.0f,
+        [a](int i) {
+          return std::array<uint8_t, 4>{200, 50, uint8_t(i), a};
+        },
+        false);
+  };
+  write_flat_tileset(dir / "opaque", {{"t.pnts", tile(255)}});
+  write_flat_tileset(dir / "translucent", {{"t.pnts", tile(51)}});
+  const Rendered opaque =
+      render_tileset(dir / "opaque", "o", backend, renderer, "--color elevation");
+  const Rendered translucent =
+      render_tileset(dir / "translucent", "t", backend, renderer, "--color elevation");
+  ASSERT_EQ(opaque.run.exit_code, 0) << opaque.run.output;
+  ASSERT_EQ(translucent.run.exit_code, 0) << translucent.run.output;
+  EXPECT_GT(test::coverage_stats(opaque.image, kBackground).coverage, 0.02);
+  EXPECT_EQ(test::differing_fraction(opaque.image, translucent.image, 0), 0.0);
+}
+
+// Depth: opaque points in front hide translucent ones behind them; translucent points in front
+// tint the opaque ones behind. Seen from above: over the left half the top layer is opaque blue
+// and the bottom one translucent red, over the right half the top layer translucent red and the
+// bottom one opaque blue.
+TEST_P(TranslucentTiles, OpaqueInFrontHidesTranslucentInFrontTints) {
+  const auto& [backend, renderer] = GetParam();
+  const fs::path dir = temp_dir();
+  const std::array<uint8_t, 4> blue = {30, 60, 250, 255}, red = {250, 20, 20, 102};
+  write_flat_tileset(dir, {{"layers.pnts", layered_tile([&](bool top, float x) {
+                              const bool left = x < 5.0f;
+                              return top == left ? blue : red;
+                            })}});
+  // Also the variants: billboards without splat blending (and so without a resolve pass);
+  // the compute rasterizer with HQS and with its display as a compute pass.
+  std::vector<std::pair<std::string, std::string>> variants = {{"", ""}};
+  if (renderer == "billboard") variants.push_back({"--splat naive", ""});
+  if (renderer == "compute") {
+    variants.push_back({"--hqs", ""});
+    variants.push_back({"", "STIPPLE_DISPLAY_PASS=compute"});
+  }
+  for (const auto& [extra, env] : variants) {
+    SCOPED_TRACE(extra + env);
+    const Rendered r =
+        render_tileset(dir, "layers", backend, renderer,
+                       "--no-edl --azimuth 0 --elevation 89 --point-size 6 " + extra, env);
+    ASSERT_EQ(r.run.exit_code, 0) << r.run.output;
+    const Covered c = covered(r.image);
+    ASSERT_GT(c.pixels, 1000u);
+    // Mean colour of the covered pixels in columns [x0, x1).
+    auto mean = [&r, &c](uint32_t x0, uint32_t x1) {
+      std::array<double, 3> sum{0, 0, 0};
+      size_t n = 0;
+      for (uint32_t y = c.y0; y <= c.y1; ++y)
+        for (uint32_t x = x0; x < x1; ++x) {
+          const uint8_t* p = &r.image.rgba[(size_t(y) * r.image.width + x) * 4];
+          bool bg = true;
+          for (int k = 0; k < 3; ++k) bg = bg && std::abs(p[k] - kBackground[k]) <= 2;
+          if (bg) continue;
+          for (int k = 0; k < 3; ++k) sum[k] += p[k];
+          ++n;
+        }
+      for (double& v : sum) v /= double(std::max<size_t>(n, 1));
+      return sum;
+    };
+    // The left and right thirds of the covered box.
+    const uint32_t third = (c.x1 - c.x0) / 3;
+    const auto left = mean(c.x0, c.x0 + third), right = mean(c.x1 - third, c.x1 + 1);
+    // Left: the opaque blue hides the red behind it.
+    EXPECT_LT(left[0], 45.0);
+    EXPECT_GT(left[2], 230.0);
+    // Right: the red (alpha 0.4, overlapping discs a little more) over the blue: both show,
+    // neither fully.
+    EXPECT_GT(right[0], 30.0 + 0.2 * (250 - 30));
+    EXPECT_LT(right[0], 30.0 + 0.75 * (250 - 30));
+    EXPECT_LT(right[2], 250.0 - 0.2 * (250 - 20));
+    EXPECT_GT(right[2], 250.0 - 0.75 * (250 - 20));
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, TranslucentTiles,
+                         ::testing::Combine(::testing::Values("dawn", "wgpu"),
+                                            ::testing::Values("billboard", "compute")),
+                         [](const auto& info) {
+                           return std::get<0>(info.param) + "_" + std::get<1>(info.param);
+                         });
+
+// A glb's COLOR_0 alpha counts only under BLEND (blended) or MASK (its cutoff: drawn opaque or
+// not at all); glTF ignores it under OPAQUE. Fully transparent pnts points are not drawn, and
+// the output says so once.
+TEST(OtherWriters, MaskKeepsItsCutoffOpaqueIgnoresAlpha) {
   const fs::path dir = temp_dir();
   auto halves = [](int i) -> std::array<uint8_t, 4> {
     return i % 10 < 5 ? std::array<uint8_t, 4>{255, 0, 0, 0}     // red, transparent
                       : std::array<uint8_t, 4>{0, 255, 0, 255};  // green, opaque
   };
   write_flat_tileset(dir, {{"halves.pnts", rgba_tile(0.0f, halves, false)},
-                           {"blue.pnts", rgba_tile(
-                                             20.0f,
-                                             [](int) {
-                                               return std::array<uint8_t, 4>{0, 0, 255, 200};
-                                             },
-                                             true)},
-                           {"yellow.pnts", rgba_tile(
-                                               40.0f,
-                                               [](int) {
-                                                 return std::array<uint8_t, 4>{255, 255, 0, 100};
-                                               },
-                                               true)},
-                           {"magenta.glb", rgba_glb(60.0f, {1, 0, 1, 0.2f}, "")},
-                           {"cyan.glb", rgba_glb(80.0f, {0, 1, 1, 0.2f}, "BLEND")}});
+                           // Under MASK (cutoff 0.5): red at 0.2 cut, blue at 0.8 opaque.
+                           {"mask.glb", rgba_glb(
+                                            20.0f,
+                                            [](int i) -> std::array<float, 4> {
+                                              return i % 10 < 5
+                                                         ? std::array<float, 4>{1, 0, 0, 0.2f}
+                                                         : std::array<float, 4>{0, 0, 1, 0.8f};
+                                            },
+                                            "MASK")},
+                           {"magenta.glb", rgba_glb(40.0f, {1, 0, 1, 0.2f}, "")}});
   const fs::path png = dir / "alpha.png";
   auto r = test::run_stipple(fmt::format("render {} -o {} --width 320 --height 120 --no-edl",
                                          (dir / "tileset.json").string(), png.string()));
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  // Drawn: 50 green, 100 blue, 100 magenta (OPAQUE ignores alpha).
-  EXPECT_NE(r.output.find("rendered 250 points"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("RGBA alpha: points under half opacity are not drawn (alpha is a "
-                          "threshold at 0.5, not blended"),
-            std::string::npos)
+  // Drawn: 50 green, 50 blue, 100 magenta (OPAQUE ignores alpha).
+  EXPECT_NE(r.output.find("rendered 200 points"), std::string::npos) << r.output;
+  EXPECT_EQ(occurrences(r.output, "alpha 0: fully transparent points are not drawn"), 1u)
       << r.output;
   const gpu::Image image = gpu::read_png(png);
-  size_t red = 0, green = 0, blue = 0, yellow = 0, magenta = 0, cyan = 0;
+  size_t red = 0, green = 0, blue = 0, magenta = 0;
   for (size_t i = 0; i < size_t(image.width) * image.height; ++i) {
     const int p[3] = {image.rgba[i * 4], image.rgba[i * 4 + 1], image.rgba[i * 4 + 2]};
-    const bool hi[3] = {p[0] > 100, p[1] > 100, p[2] > 100};
-    const bool lo[3] = {p[0] < 60, p[1] < 60, p[2] < 60};
-    red += hi[0] && lo[1] && lo[2];
-    green += lo[0] && hi[1] && lo[2];
-    blue += lo[0] && lo[1] && hi[2];
-    yellow += hi[0] && hi[1] && lo[2];
-    magenta += hi[0] && lo[1] && hi[2];
-    cyan += lo[0] && hi[1] && hi[2];
+    red += p[0] > 60 && p[1] < 60 && p[2] < 60;
+    // Opaque: the full colour, not blended with the background.
+    green += p[0] < 30 && p[1] > 240 && p[2] < 40;
+    blue += p[0] < 30 && p[1] < 30 && p[2] > 240;
+    magenta += p[0] > 240 && p[1] < 30 && p[2] > 240;
   }
   EXPECT_GT(green, 50u);
   EXPECT_GT(blue, 50u);
   EXPECT_GT(magenta, 50u);
   EXPECT_EQ(red, 0u);
-  EXPECT_EQ(yellow, 0u);
-  EXPECT_EQ(cyan, 0u);
 }
 
 namespace {

@@ -531,7 +531,7 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
           },
           any_color);
       // Alpha counts only where the material blends or masks (glTF: OPAQUE ignores it). MASK is
-      // applied here at its cutoff; what remains is a threshold at 0.5 (PointContent::alpha).
+      // applied here at its cutoff (0 or 255); BLEND keeps it for blending (PointContent::alpha).
       if (any_color && rgba.size() == first + n) {
         std::string mode = "OPAQUE";
         double cutoff = 0.5;

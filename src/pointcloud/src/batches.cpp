@@ -460,7 +460,8 @@ void batch_points_into(BatchedCloud& out, const Points& pts, const BatchingOptio
       batch.count = uint32_t(e - b);
       for (size_t i = b; i < e; ++i) {
         const QuantizedPoint q = quantize(positions[i - b], batch.min, batch.size);
-        out.coarse[base + i] = q.coarse;
+        const bool translucent = options.mark_translucent && (out.color[base + i] >> 24) < 255;
+        out.coarse[base + i] = q.coarse | (translucent ? kTranslucentBit : 0u);
         out.medium[base + i] = q.medium;
         out.fine[base + i] = q.fine;
       }
@@ -505,7 +506,9 @@ void append_chunk_batches(BatchedCloud& out, std::span<const PointChunk> chunks,
 
 BatchedCloud build_batches(const PointCloud& cloud, const BatchingOptions& options) {
   BatchedCloud out;
-  append_chunk_batches(out, cloud.chunks, options);
+  BatchingOptions o = options;
+  o.mark_translucent = o.mark_translucent || cloud.attributes.has_translucent;
+  append_chunk_batches(out, cloud.chunks, o);
   return out;
 }
 

@@ -147,6 +147,67 @@ std::vector<gpu::PipelineConstant> accumulate_constants(const RasterKernel& kern
           {"LEAN", hqs ? 0.0 : 1.0}};
 }
 
+// The depth pass's shader for the pipeline's variant (64-bit, or the fallback's with or without
+// events, its early test plain or atomic).
+const char* depth_shader(const ComputeRasterPipeline& p, bool events) {
+  if (p.visibility64) return "compute_raster64.wgsl";
+  if (events)
+    return p.depth32_plain_early ? "compute_raster_depth32_events_plain.wgsl"
+                                 : "compute_raster_depth32_events.wgsl";
+  return p.depth32_plain_early ? "compute_raster_depth32_plain.wgsl"
+                               : "compute_raster_depth32.wgsl";
+}
+
+// The constants with the override SPLIT added (compute_raster_batch.wgsl).
+std::vector<gpu::PipelineConstant> split(std::vector<gpu::PipelineConstant> constants,
+                                         uint32_t which) {
+  constants.push_back({"SPLIT", double(which)});
+  return constants;
+}
+
+// raster-translucent's disc (DiscParams in compute_raster_translucent.wgsl).
+struct DiscParams {
+  uint32_t width, height, radius, depth_stride, depth_word;
+  float pad0, pad1;
+  float radius2;
+};
+static_assert(sizeof(DiscParams) == 32);
+
+// The pipelines of frames with translucent points (ComputeRasterPipeline::split): made the
+// first time a frame needs them, so that other clouds never compile them.
+void ensure_split_pipelines(gpu::Context& ctx, ComputeRasterPipeline& p) {
+  auto& t = p.split;
+  if (t.made) return;
+  constexpr bool trusted = true;
+  t.depth = make_compute(ctx, depth_shader(p, false), split(depth_constants(p.kernel), 1), trusted);
+  if (!p.visibility64 && p.kernel.fallback_events == AutoSwitch::On)
+    t.depth_events =
+        make_compute(ctx, depth_shader(p, true), split(depth_constants(p.kernel), 1), trusted);
+  t.accumulate = make_compute(ctx, "compute_raster_accumulate.wgsl",
+                              split(accumulate_constants(p.kernel, true), 1), trusted);
+  if (!p.visibility64)
+    t.accumulate_colours = make_compute(ctx, "compute_raster_accumulate.wgsl",
+                                        split(accumulate_constants(p.kernel, false), 1), trusted);
+  // The general loop only (LEAN off): translucent points are the exception, not the bulk.
+  const gpu::PipelineConstant translucent[] = {
+      {"WORKGROUP", double(kDepthWorkgroup)}, {"LEAN", 0.0}, {"SPLIT", 2.0}};
+  t.translucent = make_compute(ctx, "compute_raster_translucent.wgsl", translucent, trusted);
+  gpu::ShaderModule display =
+      gpu::create_shader_from_file(ctx, "compute_raster_display_translucent.wgsl");
+  t.display = gpu::create_fullscreen_pipeline(ctx, {.module = display.get(),
+                                                    .vertex_entry = "vs_main",
+                                                    .fragment_entry = "fs_main",
+                                                    .format = p.color_format,
+                                                    .label = "raster-display-translucent"});
+  if (p.display_compute)
+    t.display_compute = make_compute(ctx, "compute_raster_display_cs_translucent.wgsl");
+  t.params =
+      gpu::create_buffer(ctx, sizeof(DiscParams), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst,
+                         "raster-translucent-params");
+  ctx.check("creating the translucent raster pipelines");
+  t.made = true;
+}
+
 }  // namespace
 
 GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& cloud,
@@ -269,16 +330,13 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   constexpr bool trusted = true;
   const auto depth = depth_constants(kernel);
   if (p.visibility64) {
-    p.raster64 = make_compute(ctx, "compute_raster64.wgsl", depth, trusted);
+    p.raster64 = make_compute(ctx, depth_shader(p, false), depth, trusted);
     p.resolve = make_compute(ctx, "compute_raster_resolve.wgsl");
   } else {
     // wgpu-native lets the early test read the depth buffer through a second, plain binding
     // (as the 64-bit pass does); Dawn refuses the aliasing, so there it is an atomic load.
     p.depth32_plain_early = ctx.description.backend == "wgpu";
-    p.depth32 = make_compute(
-        ctx,
-        p.depth32_plain_early ? "compute_raster_depth32_plain.wgsl" : "compute_raster_depth32.wgsl",
-        depth, trusted);
+    p.depth32 = make_compute(ctx, depth_shader(p, false), depth, trusted);
     // The fallback's colours: the nearest points' (the colour pass), where events are off or
     // overflowed.
     p.accumulate_colours = make_compute(ctx, "compute_raster_accumulate.wgsl",
@@ -291,11 +349,7 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
                                    ? AutoSwitch::On
                                    : AutoSwitch::Off;
     if (p.kernel.fallback_events == AutoSwitch::On) {
-      p.depth32_events =
-          make_compute(ctx,
-                       p.depth32_plain_early ? "compute_raster_depth32_events_plain.wgsl"
-                                             : "compute_raster_depth32_events.wgsl",
-                       depth, trusted);
+      p.depth32_events = make_compute(ctx, depth_shader(p, true), depth, trusted);
       // One layout for the three entry points, which use different subsets of it.
       using B = gpu::BufferBinding;
       p.events_layout = gpu::create_compute_layout(
@@ -381,6 +435,9 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   const bool events = !use64 && !options.hqs && p.kernel.fallback_events == AutoSwitch::On;
   const bool accumulate = options.hqs || (!use64 && !events);
   const bool large = options.point_size >= 2.0f;  // dilated after the geometry pass
+  // Translucent points blended over the opaque ones: the split pipelines (made in the first
+  // pass), raster-translucent and its display.
+  const bool translucent = options.translucent;
   const uint64_t pixels = uint64_t(width) * height;
   const std::string depth_name = "raster-depth-buffer", accum_name = "raster-accum";
   const std::string events_name = "raster-events", visibility_name = "raster-visibility";
@@ -450,8 +507,9 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   gpu::PassBuilder clear_pass = graph.add_pass(
       "raster-clear", gpu::PassKind::Compute,
       [&p, &cloud, upload_frame, depth_name, accum_name, groups_x, groups_y, accumulate, events,
-       events_name](gpu::PassContext& pc) {
+       events_name, translucent](gpu::PassContext& pc) {
         gpu::Context& ctx = pc.gpu();
+        if (translucent) ensure_split_pipelines(ctx, p);
         upload_frame(ctx);
         wgpuCommandEncoderClearBuffer(pc.encoder(), p.counters.get(), 0, WGPU_WHOLE_SIZE);
         if (events)  // the regions' counters
@@ -480,9 +538,11 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
 
   gpu::PassBuilder depth_pass = graph.add_pass(
       "raster-depth", gpu::PassKind::Compute,
-      [&p, &cloud, use64, events, depth_name, events_name](gpu::PassContext& pc) {
+      [&p, &cloud, use64, events, translucent, depth_name, events_name](gpu::PassContext& pc) {
         gpu::Context& ctx = pc.gpu();
-        const gpu::ComputePipeline& pipeline = use64    ? p.raster64
+        const gpu::ComputePipeline& pipeline = translucent
+                                                   ? (events ? p.split.depth_events : p.split.depth)
+                                               : use64  ? p.raster64
                                                : events ? p.depth32_events
                                                         : p.depth32;
         auto layout = gpu::bind_group_layout_of(pipeline);
@@ -518,10 +578,13 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   if (accumulate) {
     graph
         .add_pass("raster-accumulate", gpu::PassKind::Compute,
-                  [&p, &cloud, depth_name, accum_name, hqs = options.hqs](gpu::PassContext& pc) {
+                  [&p, &cloud, depth_name, accum_name, hqs = options.hqs,
+                   translucent](gpu::PassContext& pc) {
                     gpu::Context& ctx = pc.gpu();
-                    const gpu::ComputePipeline& pipeline =
-                        hqs ? p.accumulate : p.accumulate_colours;
+                    const auto& pipelines = translucent ? p.split.accumulate : p.accumulate;
+                    const auto& colours =
+                        translucent ? p.split.accumulate_colours : p.accumulate_colours;
+                    const gpu::ComputePipeline& pipeline = hqs ? pipelines : colours;
                     const auto groups = accumulate_bind_groups(
                         ctx, pipeline, cloud, p, pc.buffer(depth_name), pc.buffer(accum_name));
                     auto pass = pc.begin_compute_pass();
@@ -608,14 +671,15 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
       // raster-events made its dispatches empty.
       graph
           .add_pass("raster-accumulate", gpu::PassKind::Compute,
-                    [&p, &cloud, depth_name, accum_name](gpu::PassContext& pc) {
+                    [&p, &cloud, depth_name, accum_name, translucent](gpu::PassContext& pc) {
                       gpu::Context& ctx = pc.gpu();
                       if (cloud.segments.empty()) return;
-                      const auto groups =
-                          accumulate_bind_groups(ctx, p.accumulate_colours, cloud, p,
-                                                 pc.buffer(depth_name), pc.buffer(accum_name));
+                      const gpu::ComputePipeline& pipeline =
+                          translucent ? p.split.accumulate_colours : p.accumulate_colours;
+                      const auto groups = accumulate_bind_groups(
+                          ctx, pipeline, cloud, p, pc.buffer(depth_name), pc.buffer(accum_name));
                       auto pass = pc.begin_compute_pass();
-                      wgpuComputePassEncoderSetPipeline(pass.get(), p.accumulate_colours.get());
+                      wgpuComputePassEncoderSetPipeline(pass.get(), pipeline.get());
                       for (size_t s = 0; s < cloud.segments.size(); ++s) {
                         wgpuComputePassEncoderSetBindGroup(pass.get(), 0, groups[s].get(), 0,
                                                            nullptr);
@@ -699,48 +763,89 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   if (options.fill_radius > 0)
     add_post_pass("raster-fill", p.fill, p.fill_params, options.fill_radius, "raster-filled");
 
+  // The translucent points over the opaque depth the display shows (dilated where points are
+  // larger than a pixel): their sums, cleared here, for the display.
+  const std::string translucent_name = "raster-translucent";
+  if (translucent) {
+    const float r = large ? options.point_size * 0.5f : 0.0f;
+    const DiscParams disc{
+        width, height, uint32_t(std::ceil(r)), use64 ? 2u : 1u, use64 ? 1u : 0u, 0.0f, 0.0f, r * r};
+    graph
+        .add_pass(
+            "raster-translucent", gpu::PassKind::Compute,
+            [&p, &cloud, disc, depth_name = depth_shown, translucent_name](gpu::PassContext& pc) {
+              gpu::Context& ctx = pc.gpu();
+              WGPUBuffer sums = pc.buffer(translucent_name);
+              wgpuCommandEncoderClearBuffer(pc.encoder(), sums, 0, WGPU_WHOLE_SIZE);
+              gpu::write_buffer(ctx, p.split.params.get(), 0, disc);
+              const gpu::ComputePipeline& pipeline = p.split.translucent;
+              auto layout = gpu::bind_group_layout_of(pipeline);
+              std::vector<gpu::BindGroup> groups;
+              for (auto& seg : cloud.segments)
+                groups.push_back(gpu::create_bind_group(
+                    ctx, layout.get(),
+                    {gpu::bind_buffer(0, seg.params.get()), gpu::bind_buffer(1, seg.batches.get()),
+                     gpu::bind_buffer(2, seg.coarse.get()), gpu::bind_buffer(3, seg.medium.get()),
+                     gpu::bind_buffer(4, seg.fine.get()), gpu::bind_buffer(5, seg.color.get()),
+                     gpu::bind_buffer(6, pc.buffer(depth_name)), gpu::bind_buffer(7, sums),
+                     gpu::bind_buffer(8, p.split.params.get()),
+                     gpu::bind_buffer(9, seg.attributes.get()),
+                     gpu::bind_buffer(11, p.filter_uniforms.get()),
+                     gpu::bind_buffer(12, p.polygon_vertices.get())}));
+              auto pass = pc.begin_compute_pass();
+              for (size_t s = 0; s < cloud.segments.size(); ++s)
+                dispatch_batches(pass.get(), pipeline.get(), groups[s].get(),
+                                 cloud.segments[s].batch_count);
+              wgpuComputePassEncoderEnd(pass.get());
+            })
+        .read(depth_shown)
+        .create_buffer(translucent_name,
+                       {pixels * 20, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst});
+  }
+
   if (options.storage_target && p.display_compute) {
     const uint32_t gx = (width + 15) / 16, gy = (height + 15) / 16;
-    graph
-        .add_pass("raster-display", gpu::PassKind::Compute,
-                  [&p, &cloud, accum_name = shown, color_target, depth_name = depth_shown, gx,
-                   gy](gpu::PassContext& pc) {
-                    gpu::Context& ctx = pc.gpu();
-                    if (cloud.segments.empty()) return;
-                    auto layout = gpu::bind_group_layout_of(p.display_compute);
-                    auto group =
-                        gpu::create_bind_group(ctx, layout.get(),
-                                               {gpu::bind_buffer(0, cloud.segments[0].params.get()),
+    auto display = graph.add_pass(
+        "raster-display", gpu::PassKind::Compute,
+        [&p, &cloud, accum_name = shown, color_target, depth_name = depth_shown, gx, gy,
+         translucent, translucent_name](gpu::PassContext& pc) {
+          gpu::Context& ctx = pc.gpu();
+          if (cloud.segments.empty()) return;
+          const gpu::ComputePipeline& pipeline =
+              translucent ? p.split.display_compute : p.display_compute;
+          auto layout = gpu::bind_group_layout_of(pipeline);
+          std::vector<gpu::Binding> bindings = {gpu::bind_buffer(0, cloud.segments[0].params.get()),
                                                 gpu::bind_buffer(1, pc.buffer(accum_name)),
                                                 gpu::bind_buffer(2, pc.buffer(depth_name)),
-                                                gpu::bind_texture(3, pc.view(color_target))});
-                    auto pass = pc.begin_compute_pass();
-                    gpu::dispatch(pass.get(), p.display_compute.get(), {group.get()}, gx, gy);
-                    wgpuComputePassEncoderEnd(pass.get());
-                  })
-        .read(shown)
-        .read(depth_shown)
-        .write(color_target);
+                                                gpu::bind_texture(3, pc.view(color_target))};
+          if (translucent) bindings.push_back(gpu::bind_buffer(4, pc.buffer(translucent_name)));
+          auto group = gpu::create_bind_group(ctx, layout.get(), bindings);
+          auto pass = pc.begin_compute_pass();
+          gpu::dispatch(pass.get(), pipeline.get(), {group.get()}, gx, gy);
+          wgpuComputePassEncoderEnd(pass.get());
+        });
+    display.read(shown).read(depth_shown).write(color_target);
+    if (translucent) display.read(translucent_name);
     return;
   }
-  graph
-      .add_pass("raster-display", gpu::PassKind::Render,
-                [&p, &cloud, accum_name = shown, color_target,
-                 depth_name = depth_shown](gpu::PassContext& pc) {
-                  gpu::Context& ctx = pc.gpu();
-                  auto layout = gpu::bind_group_layout_of(p.display);
-                  if (cloud.segments.empty()) return;
-                  auto group =
-                      gpu::create_bind_group(ctx, layout.get(),
-                                             {gpu::bind_buffer(0, cloud.segments[0].params.get()),
+  auto display = graph.add_pass(
+      "raster-display", gpu::PassKind::Render,
+      [&p, &cloud, accum_name = shown, color_target, depth_name = depth_shown, translucent,
+       translucent_name](gpu::PassContext& pc) {
+        gpu::Context& ctx = pc.gpu();
+        const gpu::RenderPipeline& pipeline = translucent ? p.split.display : p.display;
+        auto layout = gpu::bind_group_layout_of(pipeline);
+        if (cloud.segments.empty()) return;
+        std::vector<gpu::Binding> bindings = {gpu::bind_buffer(0, cloud.segments[0].params.get()),
                                               gpu::bind_buffer(1, pc.buffer(accum_name)),
-                                              gpu::bind_buffer(2, pc.buffer(depth_name))});
-                  gpu::draw_fullscreen(pc, pc.view(color_target), p.display.get(), {group.get()},
-                                       WGPUColor{0, 0, 0, 1});
-                })
-      .read(shown)
-      .read(depth_shown)
-      .write(color_target);
+                                              gpu::bind_buffer(2, pc.buffer(depth_name))};
+        if (translucent) bindings.push_back(gpu::bind_buffer(4, pc.buffer(translucent_name)));
+        auto group = gpu::create_bind_group(ctx, layout.get(), bindings);
+        gpu::draw_fullscreen(pc, pc.view(color_target), pipeline.get(), {group.get()},
+                             WGPUColor{0, 0, 0, 1});
+      });
+  display.read(shown).read(depth_shown).write(color_target);
+  if (translucent) display.read(translucent_name);
 }
 
 RasterCounters read_raster_counters(gpu::Context& ctx, const ComputeRasterPipeline& p) {

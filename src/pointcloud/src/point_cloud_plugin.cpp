@@ -163,6 +163,7 @@ void queue_point_clouds(Registry& render) {
       options.storage_target = (target.usage & WGPUTextureUsage_StorageBinding) != 0;
       options.shading = pc::point_shading(settings.render, r.cloud->attributes);
       options.shading.mode = pc::resolve_color_mode(r.cloud->attributes, options.shading.mode);
+      options.translucent = pc::translucent_frame(r.cloud->attributes, options.shading);
       options.filter = settings.render.filter;
       options.clip = settings.render.clip;
       options.highlight = settings.render.highlight;

@@ -28,6 +28,9 @@ PointSizeMode parse_point_size_mode(const std::string& name) {
 namespace {
 
 constexpr WGPUTextureFormat kAccumFormat = WGPUTextureFormat_RGBA16Float;
+// The translucent pass's target (weighted blended OIT, point_draw.wgsl): weighted colour and
+// weight sums. Half floats blend on every WebGPU device.
+constexpr WGPUTextureFormat kOitAccumFormat = WGPUTextureFormat_RGBA16Float;
 constexpr uint32_t kClodWorkgroup = 256;
 // One CLOD dispatch covers a chunk: at most 65535 workgroups of 256 threads.
 constexpr uint32_t kMaxChunkPoints = 8u << 20;
@@ -49,7 +52,7 @@ struct FrameUniforms {
   float edl_radius;
   float edl_strength;
   uint32_t edl_enabled;
-  uint32_t pad0;
+  uint32_t translucent;
   float ranges[4];
   float constant_color[4];
   float background[4];
@@ -95,7 +98,7 @@ WGPUPipelineLayout make_pipeline_layout(gpu::Context& ctx,
   return wgpuDeviceCreatePipelineLayout(ctx.device.get(), &desc);
 }
 
-enum class DrawKind { Naive, SplatDepth, SplatAccum };
+enum class DrawKind { Naive, SplatDepth, SplatAccum, Translucent };
 
 gpu::RenderPipeline make_draw_pipeline(gpu::Context& ctx, const PointPipelines& p,
                                        WGPUShaderModule shader, bool indexed, DrawKind kind,
@@ -106,31 +109,35 @@ gpu::RenderPipeline make_draw_pipeline(gpu::Context& ctx, const PointPipelines& 
   WGPUColorTargetState color_target = WGPU_COLOR_TARGET_STATE_INIT;
   color_target.format = gpu::native(color_format);
   color_target.writeMask = WGPUColorWriteMask_All;
-  if (kind == DrawKind::SplatAccum) color_target.blend = &additive;
+  if (kind == DrawKind::SplatAccum || kind == DrawKind::Translucent) color_target.blend = &additive;
   WGPUFragmentState fragment = WGPU_FRAGMENT_STATE_INIT;
   fragment.module = shader;
   fragment.entryPoint = gpu::to_view(kind == DrawKind::Naive        ? "fs_naive"
                                      : kind == DrawKind::SplatDepth ? "fs_depth"
-                                                                    : "fs_accum");
+                                     : kind == DrawKind::SplatAccum ? "fs_accum"
+                                                                    : "fs_translucent");
   fragment.targetCount = kind == DrawKind::SplatDepth ? 0 : 1;
   fragment.targets = &color_target;
   WGPUDepthStencilState depth = WGPU_DEPTH_STENCIL_STATE_INIT;
   depth.format = gpu::native(p.depth_format);
   // Reverse Z: nearer is greater. The accumulation pass tests against the pushed-back pre-pass
-  // depth without writing, so every fragment within the tolerance adds up.
-  depth.depthWriteEnabled =
-      kind == DrawKind::SplatAccum ? WGPUOptionalBool_False : WGPUOptionalBool_True;
+  // depth without writing, so every fragment within the tolerance adds up; the translucent pass
+  // keeps what lies in front of the opaque points, without writing either.
+  const bool read_only = kind == DrawKind::SplatAccum || kind == DrawKind::Translucent;
+  depth.depthWriteEnabled = read_only ? WGPUOptionalBool_False : WGPUOptionalBool_True;
   depth.depthCompare =
       kind == DrawKind::SplatAccum ? WGPUCompareFunction_GreaterEqual : WGPUCompareFunction_Greater;
 
   WGPURenderPipelineDescriptor desc = WGPU_RENDER_PIPELINE_DESCRIPTOR_INIT;
   desc.label = gpu::to_view(kind == DrawKind::Naive        ? "points-naive"
                             : kind == DrawKind::SplatDepth ? "splat-depth"
-                                                           : "splat-accumulate");
+                            : kind == DrawKind::SplatAccum ? "splat-accumulate"
+                                                           : "points-translucent");
   desc.layout = extras ? (indexed ? p.indexed_extras_layout.get() : p.direct_extras_layout.get())
                        : (indexed ? p.indexed_layout.get() : p.direct_layout.get());
   desc.vertex.module = shader;
-  desc.vertex.entryPoint = gpu::to_view("vs_main");
+  desc.vertex.entryPoint =
+      gpu::to_view(kind == DrawKind::Translucent ? "vs_translucent" : "vs_main");
   desc.primitive.topology = WGPUPrimitiveTopology_TriangleList;
   desc.primitive.cullMode = WGPUCullMode_None;
   desc.depthStencil = &depth;
@@ -331,6 +338,49 @@ void ensure_extras_pipelines(gpu::Context& ctx, PointPipelines& p) {
   ctx.check("creating the filter pipelines");
 }
 
+// The translucent pass and its composite: only clouds with translucent points in the RGB mode
+// need them (with `extras`, also the pass that binds the extras: GPS-time and point-source
+// filters).
+void ensure_translucent_pipelines(gpu::Context& ctx, PointPipelines& p, bool extras) {
+  if (!p.translucent_pipelines) {
+    gpu::ShaderModule shaders[2] = {gpu::create_shader_from_file(ctx, "points.wgsl"),
+                                    gpu::create_shader_from_file(ctx, "points_clod.wgsl")};
+    for (int indexed = 0; indexed < 2; ++indexed)
+      p.translucent[indexed] = make_draw_pipeline(ctx, p, shaders[indexed].get(), indexed,
+                                                  DrawKind::Translucent, kOitAccumFormat);
+    WGPUBindGroupLayoutEntry accumulated = WGPU_BIND_GROUP_LAYOUT_ENTRY_INIT;
+    accumulated.binding = 0;
+    accumulated.visibility = WGPUShaderStage_Fragment;
+    accumulated.texture.sampleType = WGPUTextureSampleType_UnfilterableFloat;
+    accumulated.texture.viewDimension = WGPUTextureViewDimension_2D;
+    p.composite_layout = gpu::BindGroupLayout(make_layout(ctx, {accumulated}));
+    gpu::PipelineLayout layout(make_pipeline_layout(ctx, {p.composite_layout.get()}));
+    // The average colour over the image by its coverage; the image's alpha stays.
+    WGPUBlendState over = WGPU_BLEND_STATE_INIT;
+    over.color = {WGPUBlendOperation_Add, WGPUBlendFactor_SrcAlpha,
+                  WGPUBlendFactor_OneMinusSrcAlpha};
+    over.alpha = {WGPUBlendOperation_Add, WGPUBlendFactor_Zero, WGPUBlendFactor_One};
+    gpu::ShaderModule composite = gpu::create_shader_from_file(ctx, "oit_composite.wgsl");
+    p.composite = gpu::create_fullscreen_pipeline(ctx, {.module = composite.get(),
+                                                        .vertex_entry = "vs_fullscreen",
+                                                        .fragment_entry = "fs_composite",
+                                                        .layout = layout.get(),
+                                                        .format = p.color_format,
+                                                        .blend = &over,
+                                                        .label = "points-composite"});
+    p.translucent_pipelines = true;
+  }
+  if (extras && !p.translucent_extras_pipelines) {
+    gpu::ShaderModule shaders[2] = {gpu::create_shader_from_file(ctx, "points_extras.wgsl"),
+                                    gpu::create_shader_from_file(ctx, "points_clod_extras.wgsl")};
+    for (int indexed = 0; indexed < 2; ++indexed)
+      p.translucent_x[indexed] = make_draw_pipeline(ctx, p, shaders[indexed].get(), indexed,
+                                                    DrawKind::Translucent, kOitAccumFormat, true);
+    p.translucent_extras_pipelines = true;
+  }
+  ctx.check("creating the translucent point pipelines");
+}
+
 gpu::BindGroup buffer_group(
     gpu::Context& ctx, WGPUBindGroupLayout layout,
     std::initializer_list<std::pair<WGPUBuffer, std::pair<uint64_t, uint64_t>>> buffers) {
@@ -373,7 +423,8 @@ struct FrameSetup {
   std::vector<float> polygon_vertices;  // x, y pairs
   glm::dvec2 elevation_range;
   bool clod = false;
-  bool extras = false;  // GPS-time or point-source filters: the extras pipelines
+  bool extras = false;       // GPS-time or point-source filters: the extras pipelines
+  bool translucent = false;  // FrameUniforms::translucent: the translucent pass and composite
 };
 
 FrameSetup make_frame(const GpuPointCloud& cloud, const Camera& camera,
@@ -401,6 +452,10 @@ FrameSetup make_frame(const GpuPointCloud& cloud, const Camera& camera,
   u.edl_radius = settings.edl_radius;
   u.edl_strength = settings.edl_strength;
   u.edl_enabled = settings.edl ? 1u : 0u;
+  // Alpha counts in the RGB mode of clouds that have translucent points; other modes replace
+  // the colour and draw every point opaque.
+  f.translucent = cloud.attributes.has_translucent && ColorMode(u.color_mode) == ColorMode::Rgb;
+  u.translucent = f.translucent ? 1u : 0u;
   glm::dvec2 e = settings.elevation_range.y > settings.elevation_range.x
                      ? settings.elevation_range
                      : cloud.attributes.elevation_percentiles;
@@ -505,7 +560,7 @@ void draw_chunks(WGPURenderPassEncoder pass, const PointPipelines& p, const GpuP
 
 }  // namespace
 
-std::vector<std::string> point_pass_names(const PointRenderSettings& s) {
+std::vector<std::string> point_pass_names(const PointRenderSettings& s, bool translucent) {
   std::vector<std::string> names;
   if (s.clod_k > 0) names.push_back("clod");
   if (s.splat == SplatMode::Naive) {
@@ -515,6 +570,10 @@ std::vector<std::string> point_pass_names(const PointRenderSettings& s) {
     names.push_back("splat-accumulate");
   }
   if (s.splat == SplatMode::Blend || s.edl) names.push_back("resolve");
+  if (translucent) {
+    names.push_back("points-translucent");
+    names.push_back("points-composite");
+  }
   return names;
 }
 
@@ -528,9 +587,11 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
   const glm::vec3 bg = settings.background;
   PointPipelines* pp = &p;
   GpuPointCloud* cp = &cloud;
+  const bool translucent = setup->translucent;
   // The first pass that runs uploads the uniforms and makes the cloud's bind groups.
   auto prepare = [pp, cp, camera, setup](gpu::Context& ctx) {
     if (setup->extras) ensure_extras_pipelines(ctx, *pp);
+    if (setup->translucent) ensure_translucent_pipelines(ctx, *pp, setup->extras);
     ensure_cloud_groups(ctx, *pp, *cp);
     write_uniforms(ctx, *pp, *cp, camera, *setup);
   };
@@ -577,7 +638,7 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
       width, height, kAccumFormat,
       WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_TextureBinding};
   // A transient depth buffer is dropped after its last pass; an imported one is kept.
-  const bool keep_depth = resolve || !targets.create_depth;
+  const bool keep_depth = resolve || translucent || !targets.create_depth;
 
   if (!blend) {
     // Naive: straight into the output, or into the accumulation texture for the EDL resolve.
@@ -656,6 +717,44 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
     graph.add_pass("resolve", gpu::PassKind::Render, std::move(execute))
         .read(accum)
         .read(targets.depth)
+        .write(targets.color);
+  }
+
+  if (translucent) {
+    // Weighted blended OIT (point_draw.wgsl): the translucent points in front of the opaque
+    // depth, then their average laid over the image by their coverage.
+    const std::string oit_accum = "oit-accumulation";
+    auto translucent_pass = [pp, cp, targets, clod, extras, oit_accum](gpu::PassContext& pc) {
+      WGPURenderPassColorAttachment color =
+          color_attachment(pc.view(oit_accum), WGPULoadOp_Clear, glm::vec4(0.0f));
+      WGPURenderPassDepthStencilAttachment depth =
+          depth_attachment(pc.view(targets.depth), false, true);
+      depth.depthReadOnly = true;
+      depth.depthLoadOp = WGPULoadOp_Undefined;
+      depth.depthStoreOp = WGPUStoreOp_Undefined;
+      WGPURenderPassDescriptor desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
+      desc.colorAttachmentCount = 1;
+      desc.colorAttachments = &color;
+      desc.depthStencilAttachment = &depth;
+      gpu::RenderPassEncoder pass = pc.begin_render_pass(desc);
+      draw_chunks(pass.get(), *pp, *cp, pp->translucent, clod,
+                  extras ? &pp->translucent_x : nullptr);
+      wgpuRenderPassEncoderEnd(pass.get());
+    };
+    auto oit =
+        graph.add_pass("points-translucent", gpu::PassKind::Render, std::move(translucent_pass));
+    if (clod) oit.read("clod-args");
+    const WGPUTextureUsage usage =
+        WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_TextureBinding;
+    oit.read(targets.depth).create_texture(oit_accum, {width, height, kOitAccumFormat, usage});
+
+    auto composite = [pp, targets, oit_accum](gpu::PassContext& pc) {
+      gpu::BindGroup group = gpu::create_bind_group(pc.gpu(), pp->composite_layout.get(),
+                                                    {gpu::bind_texture(0, pc.view(oit_accum))});
+      gpu::draw_fullscreen(pc, pc.view(targets.color), pp->composite.get(), {group.get()});
+    };
+    graph.add_pass("points-composite", gpu::PassKind::Render, std::move(composite))
+        .read(oit_accum)
         .write(targets.color);
   }
 }

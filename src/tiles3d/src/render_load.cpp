@@ -149,20 +149,25 @@ uint64_t append_content(pc::PointCloud& cloud, const io::PointContent& content,
   glm::dmat3 linear(m);  // offsets from the centre only need the linear part
   chunk.vertices.reserve(content.point_count);
   uint64_t transparent = 0;
+  bool translucent = false;
   for (size_t i = 0; i < content.point_count; ++i) {
     uint32_t rgba = content.rgba.empty() ? pc::pack_rgba(220, 220, 220) : content.rgba[i];
-    // Alpha is a threshold at 0.5, not blended (PointContent::alpha).
-    if (content.alpha && (rgba >> 24) < 128) {
+    // The file's alpha where it gives one (PointContent::alpha), else opaque. Fully transparent
+    // points (and those a MASK material cut) show in no mode: left out.
+    if (!content.alpha)
+      rgba |= 0xff000000u;
+    else if ((rgba >> 24) == 0) {
       ++transparent;
       continue;
     }
+    translucent = translucent || (rgba >> 24) < 255;
     glm::dvec3 p = linear * glm::dvec3(content.positions[i]);
     const uint32_t attributes =
         pc::pack_attributes(uint16_t(intensity ? clamp_to((*intensity)[i], 65535) : 0),
                             uint8_t(classification ? clamp_to((*classification)[i], 255) : 0),
                             uint8_t(returns ? clamp_to((*returns)[i], 15) : 0),
                             uint8_t(return_count ? clamp_to((*return_count)[i], 15) : 0));
-    chunk.vertices.push_back({float(p.x), float(p.y), float(p.z), rgba | 0xff000000u, attributes});
+    chunk.vertices.push_back({float(p.x), float(p.y), float(p.z), rgba, attributes});
     glm::dvec3 world = chunk.origin + p;
     chunk.bounds.extend(world);
     cloud.world_bounds.extend(world);
@@ -175,6 +180,7 @@ uint64_t append_content(pc::PointCloud& cloud, const io::PointContent& content,
   a.has_intensity = a.has_intensity || intensity;
   a.has_classification = a.has_classification || classification;
   a.has_returns = a.has_returns || returns;
+  a.has_translucent = a.has_translucent || translucent;
   if (!chunk.vertices.empty()) cloud.chunks.push_back(std::move(chunk));
   return transparent;
 }

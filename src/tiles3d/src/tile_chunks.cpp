@@ -43,6 +43,7 @@ std::shared_ptr<const TileChunks> make_tile_chunks(uint32_t tile, const glm::dma
     auto b = std::make_shared<pc::BatchedCloud>();
     pc::BatchingOptions options;
     options.parallel = false;
+    options.mark_translucent = cloud.attributes.has_translucent;
     pc::append_chunk_batches(*b, out->chunks, options);
     out->batches = std::move(b);
   }

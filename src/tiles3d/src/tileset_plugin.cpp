@@ -143,9 +143,9 @@ void update_tileset(Registry& main) {
       if (prepared->chunks->transparent_points > 0) {
         const auto& contents = s.tileset->tiles[t].contents;
         report_tile_problem(
-            s, {uint32_t(t), fmt::format("{}: RGBA alpha: points under half opacity are not drawn "
-                                         "(alpha is a threshold at 0.5, not blended; the others "
-                                         "are drawn opaque)",
+            s, {uint32_t(t), fmt::format("{}: alpha 0: fully transparent points are not "
+                                         "drawn (the others are blended by their alpha in the "
+                                         "RGB colour mode)",
                                          contents.empty() ? std::string("?") : contents[0])});
       }
     }
@@ -181,6 +181,7 @@ void update_tileset(Registry& main) {
     scene.has_intensity = scene.has_intensity || a.has_intensity;
     scene.has_classification = scene.has_classification || a.has_classification;
     scene.has_returns = scene.has_returns || a.has_returns;
+    scene.has_translucent = scene.has_translucent || a.has_translucent;
     if (a.has_intensity) signature = signature * 1000003u + t + 1;
   }
   // Intensity ramp: 2nd and 98th percentiles of the drawn tiles' samples, each weighted by the
@@ -373,6 +374,7 @@ void queue_tileset(Registry& render) {
     // The billboard path's colours: ramps over the root volume and the drawn tiles' intensities.
     options.shading = pc::point_shading(settings.render, list->attributes);
     options.shading.mode = pc::resolve_color_mode(list->attributes, options.shading.mode);
+    options.translucent = pc::translucent_frame(list->attributes, options.shading);
     options.filter = settings.render.filter;
     options.clip = settings.render.clip;
     options.highlight = settings.render.highlight;

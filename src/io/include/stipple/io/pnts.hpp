@@ -28,8 +28,9 @@ struct PointContent {
   std::vector<glm::vec3> normals;    // empty when absent
   std::vector<uint32_t> batch_ids;   // empty when absent
   // rgba's alpha means something (pnts RGBA and CONSTANT_RGBA; glb COLOR_0 under a BLEND or MASK
-  // material, MASK already applied at its cutoff). Points are not blended: those under 0.5
-  // (alpha < 128) are not drawn, the others are drawn opaque.
+  // material, MASK already applied at its cutoff: 0 or 255). Points under full opacity are drawn
+  // translucent (alpha blended) in the RGB colour mode; fully transparent ones (alpha 0) are
+  // not drawn. Without it, alpha is 255 whatever the file holds.
   bool alpha = false;
   uint32_t batch_length = 0;
   std::map<std::string, PointAttribute> attributes;

@@ -69,6 +69,11 @@ struct BatchedCloud {
 struct QuantizedPoint {
   uint32_t coarse, medium, fine;
 };
+// The coarse word's bits 30-31 are free (three 10-bit axes). Bit 30 marks a translucent point
+// (alpha under 255) in clouds batched with BatchingOptions::mark_translucent: the rasterizer's
+// opaque passes skip it and its translucent pass draws it without reading its colour first
+// (compute_raster.hpp). Every reader of the positions masks the axes.
+constexpr uint32_t kTranslucentBit = 1u << 30;
 QuantizedPoint quantize(const glm::dvec3& p, const glm::dvec3& min, const glm::dvec3& size);
 // The position the renderer reconstructs from `bits` (10, 20 or 30) bits per axis: the centre of
 // the quantization cell (exact for 30 bits up to half a 2^-30 cell).
@@ -96,6 +101,10 @@ struct BatchingOptions {
   // keeps everything on the calling thread (streaming workers, tests).
   bool parallel = true;
   BatchBuildStats* stats = nullptr;
+  // Sets kTranslucentBit on points whose alpha is under 255: only for clouds whose alpha means
+  // something (CloudAttributes::has_translucent; build_batches sets it from the cloud), since
+  // points without RGB have alpha 0.
+  bool mark_translucent = false;
 };
 
 // Sorts points (world space) along the curve and appends batches of at most `batch_points`
@@ -117,7 +126,8 @@ void append_batches(BatchedCloud& out, std::span<const glm::dvec3> positions,
 void append_chunk_batches(BatchedCloud& out, std::span<const PointChunk> chunks,
                           const BatchingOptions& options = {});
 
-// A loaded cloud, sorted and batched as a whole.
+// A loaded cloud, sorted and batched as a whole (its translucent points marked where the cloud
+// has some).
 BatchedCloud build_batches(const PointCloud& cloud, const BatchingOptions& options = {});
 
 // The built-in scene of params.point_count points, generated in parallel pieces of consecutive

@@ -24,6 +24,12 @@
 //  - raster-dilate, raster-occlusion and raster-fill where asked, then raster-display into the
 //    imported colour target: a compute pass through a storage binding where the target allows
 //    it (RGBA8Unorm with storage usage), else a full-screen render pass (any colour format).
+//  - Clouds with translucent points in the RGB mode (ComputeRasterOptions::translucent): the
+//    batch passes above skip the points whose coarse word carries kTranslucentBit (pipelines
+//    made with the override SPLIT, so the default ones are unchanged), raster-translucent
+//    (before the display) adds each translucent point in front of the opaque depth to
+//    fixed-point sums (weighted blended order-independent transparency), and the display lays
+//    their average colour over the opaque image by their coverage; EDL shades the opaque points.
 // bench/RESULTS.md holds the measurements behind each choice (issue 15), and the variants that
 // measured slower, retired from the code.
 #include <algorithm>
@@ -165,6 +171,16 @@ struct ComputeRasterPipeline {
   gpu::Buffer dilate_params;
   // Filters and clip region (point_filter.wgsl), rewritten each frame.
   gpu::Buffer filter_uniforms, polygon_vertices;
+  // Frames with translucent points (ComputeRasterOptions::translucent), made on first use: the
+  // batch passes without the translucent points (SPLIT 1), raster-translucent, and the display
+  // that composites it.
+  struct Translucent {
+    bool made = false;
+    gpu::ComputePipeline depth, depth_events, accumulate, accumulate_colours, translucent,
+        display_compute;
+    gpu::RenderPipeline display;
+    gpu::Buffer params;  // raster-translucent's disc
+  } split;
 };
 
 struct ComputeRasterOptions {
@@ -200,7 +216,17 @@ struct ComputeRasterOptions {
   PointFilter filter;
   ClipRegion clip;
   glm::vec4 highlight{1.0f, 0.85f, 0.1f, 0.65f};
+  // The cloud's batches mark translucent points (BatchingOptions::mark_translucent) and the
+  // mode is RGB: they are blended over the opaque ones (translucent_frame() decides). Off, every
+  // point is drawn opaque, whatever its alpha.
+  bool translucent = false;
 };
+
+// Whether a frame of a cloud with `attributes` in the shading's mode blends translucent points.
+inline bool translucent_frame(const CloudAttributes& attributes, const PointShading& shading) {
+  return attributes.has_translucent &&
+         (shading.mode == ColorMode::Rgb || shading.mode == ColorMode::Auto);
+}
 
 // Which form the display pass takes. Auto: the compute form for RGBA8Unorm targets except on
 // CPU adapters, where a storage-texture write costs more than a fragment (lavapipe: 153 ms

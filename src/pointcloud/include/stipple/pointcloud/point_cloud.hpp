@@ -32,7 +32,9 @@ struct PointChunk {
   // 20 bytes, read by the shaders as `Point` (vertex pulling from a storage buffer).
   struct Vertex {
     float x, y, z;  // relative to origin
-    uint32_t rgba;  // 8-bit RGB from the source (R in the low byte); 0 when it has none
+    // 8-bit RGB from the source (R in the low byte); 0 when it has none. Alpha counts only in
+    // clouds with CloudAttributes::has_translucent.
+    uint32_t rgba;
     // intensity (bits 0-15), classification (16-23), return number (24-27), number of
     // returns (28-31).
     uint32_t attributes;
@@ -72,6 +74,11 @@ struct CloudAttributes {
   // Every source's RGB is one colour (io::LasHeader::rgb_uniform: all 0, as some writers fill
   // the fields): Auto does not take it for colour; an explicit RGB mode still shows it.
   bool rgb_uniform = false;
+  // Some point's RGBA alpha is under 255 (3D Tiles content whose file gives alpha: pnts RGBA,
+  // CONSTANT_RGBA, glb COLOR_0 under BLEND). Only such clouds read the vertices' alpha: in the
+  // RGB mode their translucent points are drawn alpha blended after the opaque ones; other
+  // clouds (LAS: alpha 0 where there is no RGB) never look at it and run the opaque passes only.
+  bool has_translucent = false;
   // 2nd and 98th percentiles over a sample of the points (finish_cloud): default ramp ranges
   // that ignore outliers (a stray bird or a pit would otherwise flatten the ramp).
   glm::dvec2 elevation_percentiles{0.0, 1.0};  // source Z (= world Y)

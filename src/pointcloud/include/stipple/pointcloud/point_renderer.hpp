@@ -9,6 +9,15 @@
 //                                  into a transient RGBA16Float texture
 //   resolve                        normalisation (sum / weight) merged with eye-dome lighting
 //                                  (eqs. 10-12); skipped for naive without EDL
+//   points-translucent + points-composite  clouds with translucent points in the RGB mode
+//                                  (CloudAttributes::has_translucent): the passes above skip
+//                                  them, then weighted blended order-independent transparency
+//                                  (McGuire and Bavoil 2013) adds the translucent points in front
+//                                  of the opaque depth into a transient RGBA16Float texture
+//                                  (colour times w and w, w = -ln(1 - alpha)), and a full-screen
+//                                  pass lays their average colour over the image by the coverage
+//                                  1 - exp(-sum w) (1 minus the product of their 1 - alpha), after
+//                                  the resolve: EDL shades the opaque points only
 //
 // Points are pulled from storage buffers (no vertex buffers, no instancing): 6 vertices per point,
 // vertex_index / 6 is the point (or its survivor slot), vertex_index % 6 the quad corner.
@@ -163,6 +172,11 @@ struct PointPipelines {
   gpu::PipelineLayout direct_extras_layout, indexed_extras_layout;
   std::array<gpu::RenderPipeline, 2> naive_out_x, naive_hdr_x, splat_depth_x, splat_accum_x;
   bool extras_pipelines = false;
+  // Translucent points (points-translucent, points-composite), made on first use.
+  std::array<gpu::RenderPipeline, 2> translucent, translucent_x;
+  bool translucent_pipelines = false, translucent_extras_pipelines = false;
+  gpu::BindGroupLayout composite_layout;
+  gpu::RenderPipeline composite;
   gpu::ComputePipeline clod;
   gpu::RenderPipeline resolve;
   gpu::Buffer frame_uniforms;
@@ -203,8 +217,10 @@ void draw_points(gpu::Context& ctx, PointPipelines& pipelines, GpuPointCloud& cl
                  const Camera& camera, const PointRenderSettings& settings, WGPUTexture color,
                  WGPUTextureView color_view, uint32_t width, uint32_t height);
 
-// Names of the passes a frame with these settings adds, in order.
-std::vector<std::string> point_pass_names(const PointRenderSettings& settings);
+// Names of the passes a frame with these settings adds, in order (`translucent`: for a cloud
+// with translucent points, CloudAttributes::has_translucent).
+std::vector<std::string> point_pass_names(const PointRenderSettings& settings,
+                                          bool translucent = false);
 
 // A point size in pixels that closes the gaps between neighbours for a surface scan seen from
 // this camera: the mean spacing over the horizontal extent, projected at the target distance.

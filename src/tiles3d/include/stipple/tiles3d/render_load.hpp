@@ -54,8 +54,9 @@ struct RenderLoadResult {
 };
 
 // Appends a tile's decoded points to the cloud as one chunk: double origin (tile centre in the
-// world), float offsets. `tile_transform` maps the tile frame to the tileset frame. Points under
-// half opacity (PointContent::alpha) are left out: returns how many.
+// world), float offsets. `tile_transform` maps the tile frame to the tileset frame. The file's
+// alpha is kept (PointContent::alpha; CloudAttributes::has_translucent says whether any point is
+// under full opacity), except that fully transparent points are left out: returns how many.
 uint64_t append_content(pc::PointCloud& cloud, const io::PointContent& content,
                         const glm::dmat4& tile_transform, const glm::dmat4& world_from_tileset);
 

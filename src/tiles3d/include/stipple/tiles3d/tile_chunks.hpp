@@ -21,7 +21,7 @@ struct TileChunks {
   uint32_t tile = 0;
   std::vector<pc::PointChunk> chunks;
   uint64_t points = 0;
-  uint64_t transparent_points = 0;  // left out: alpha under 0.5 (io::PointContent::alpha)
+  uint64_t transparent_points = 0;  // left out: alpha 0 (io::PointContent::alpha)
   pc::CloudAttributes attributes;   // which attributes the tile has
   // Up to 128 intensities strided evenly through the tile: the drawn tiles' samples, weighted by
   // their point counts, give the intensity ramp's percentiles.
