@@ -6,6 +6,7 @@
 // tolerance; a drag, a key and the wheel move its camera. A 404 tile is an error on the page
 // while the other tiles are drawn; a missing tileset is an error on the page. `stipple tile
 // --page` writes a folder that opens by link. A LAS file by URL matches `stipple render` of it.
+// Translucent points (pnts RGBA) are blended in the page as natively.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
@@ -153,4 +154,56 @@ test('stipple tile --page writes a folder that opens by link', { skip: skip || f
   assert.notEqual(r.status, 0);
   assert.match(r.stderr, /STIPPLE_WEB_DIR=.*no-viewer does not hold the web viewer/);
   assert.ok(!fs.existsSync(path.join(work, 'nopage')), 'nothing is tiled without the viewer');
+});
+
+// A pnts tile of two 40 x 40 layers over 20 x 20 m, 3 m apart: the bottom one opaque blue, the
+// top one red at alpha 0.4 (RGBA), and its tileset.json, written into `dir`.
+function writeTranslucentTileset(dir) {
+  fs.mkdirSync(dir, { recursive: true });
+  const n = 3200;
+  const bin = Buffer.alloc(n * 16);
+  for (let i = 0; i < n; ++i) {
+    const top = i >= n / 2, k = i % (n / 2);
+    bin.writeFloatLE(0.25 + 0.5 * (k % 40), i * 12);
+    bin.writeFloatLE(0.25 + 0.5 * Math.floor(k / 40), i * 12 + 4);
+    bin.writeFloatLE(top ? 3 : 0, i * 12 + 8);
+    const rgba = top ? [250, 20, 20, 102] : [30, 60, 250, 255];
+    for (let j = 0; j < 4; ++j) bin[n * 12 + i * 4 + j] = rgba[j];
+  }
+  // The feature table's JSON padded so that the binary starts on 8 bytes.
+  let json = JSON.stringify({ POINTS_LENGTH: n, POSITION: { byteOffset: 0 }, RGBA: { byteOffset: n * 12 } });
+  json += ' '.repeat((8 - ((28 + json.length) % 8)) % 8);
+  const header = Buffer.alloc(28);
+  header.write('pnts', 0, 'ascii');
+  header.writeUInt32LE(1, 4);
+  header.writeUInt32LE(28 + json.length + bin.length, 8);
+  header.writeUInt32LE(json.length, 12);
+  header.writeUInt32LE(bin.length, 16);
+  fs.writeFileSync(path.join(dir, 'layers.pnts'), Buffer.concat([header, Buffer.from(json), bin]));
+  const box = [10, 10, 1.5, 10, 0, 0, 0, 10, 0, 0, 0, 1.5];
+  fs.writeFileSync(path.join(dir, 'tileset.json'), JSON.stringify({
+    asset: { version: '1.0' },
+    geometricError: 100,
+    root: { boundingVolume: { box }, geometricError: 0, refine: 'ADD', content: { uri: 'layers.pnts' } },
+  }));
+}
+
+test('translucent points are blended in the page as natively', { skip: skip || false }, async () => {
+  const dir = path.join(work, 'www/translucent');
+  writeTranslucentTileset(dir);
+  const ref = path.join(work, 'translucent.png');
+  const native = h.stipple(['render', path.join(dir, 'tileset.json'), '-o', ref, '--width', '320',
+                            '--height', '240']);
+  const { page, state, log } = await open('viewer/stipple.html?url=/translucent/tileset.json&width=320&height=240');
+  c.assertDone(state, log);
+  assert.equal(state.errors, '0', state.problems);
+  assert.equal(state.points, '3200');
+  c.assertNativeAgrees(native, state);
+  // Drawn opaque, the red layer hides the blue one: natively that image differs from the blended
+  // one by a mean of 40 (of 255), 31 % of the pixels by more than 48.
+  await c.assertCanvasMatches(page, ref, {
+    what: 'translucent layers',
+    describe: (d) => `translucent, web vs native: ${JSON.stringify(d)}; ${state.renderer}`,
+  });
+  await page.close();
 });
