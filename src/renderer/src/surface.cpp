@@ -74,6 +74,10 @@ Surface create_canvas_surface(Context& ctx, const char* selector) {
   // The canvas's preferred format comes first (webgpu_web.cpp): any other costs the browser a
   // conversion when it composites the page.
   take_capabilities(ctx, s, {}, "the canvas");
+  // A canvas texture takes storage writes in a format that has them (RGBA8, not BGRA8 without
+  // a feature): the compute rasterizer's display pass then writes it directly (a compute pass)
+  // instead of through a render pass.
+  if (s.format == WGPUTextureFormat_RGBA8Unorm) s.usage |= WGPUTextureUsage_StorageBinding;
   return s;
 #else
   (void)ctx;
