@@ -6,13 +6,18 @@
 // `stipple render tileset.json --width W --height H --frames F --max-sse S`. Prints a Markdown
 // table: the page's load to done (ms, from the navigation: the wasm fetched and compiled, the
 // adapter, the tiles streamed and the frames drawn meanwhile), its median frame once streamed
-// (`engine.update()`: the frame and its readback to the page's canvas), the native wall and GPU
-// per frame (medians), and logs the canvas against the native image (tileset.test.mjs's measure). bench/RESULTS.md ("A tileset by URL") has the figures.
+// (`engine.update()` until the frame's GPU work is done: drawn into the page's WebGPU canvas; a
+// build of the readback page (--before) copied every frame back into a 2D canvas within it), the
+// native wall and GPU per frame (medians), and logs the canvas against the native image
+// (tileset.test.mjs's measure). bench/RESULTS.md ("A tileset by URL", "The page's WebGPU
+// canvas") has the figures.
 //
 //   node bench/web_frames.mjs --points 10000000            generate, tile (cached in --work), run
 //   node bench/web_frames.mjs --tileset DIR                an existing tileset folder
 //   options: --sizes 320x240,1280x720  --frames 20  --max-sse 1  --work /tmp/stipple-web-frames
 //            --timeout-s 1800 (a page's limit)  --skip-native
+//            --before DIR  another build of the page (a folder like build-web), measured in the
+//                          same run, before this one at each size (a before/after comparison)
 // STIPPLE_BINARY (default build/stipple) and STIPPLE_WEB_DIR (default build-web) as for the tests.
 import fs from 'node:fs';
 import os from 'node:os';
@@ -30,12 +35,14 @@ const { values: o } = parseArgs({
     work: { type: 'string', default: path.join(os.tmpdir(), 'stipple-web-frames') },
     'timeout-s': { type: 'string', default: '1800' },
     'skip-native': { type: 'boolean', default: false },
+    before: { type: 'string' },
   },
 });
 const webDir = process.env.STIPPLE_WEB_DIR || path.join(h.sourceDir, 'build-web');
 const why =
   h.skipReason({ modules: ['puppeteer-core'], browser: true, server: true }) ||
   (fs.existsSync(path.join(webDir, 'stipple.wasm')) ? null : `${webDir} not built (scripts/build-web.sh)`) ||
+  (!o.before || fs.existsSync(path.join(o.before, 'stipple.wasm')) ? null : `--before ${o.before} holds no stipple.wasm`) ||
   (o.points || o.tileset ? null : 'give --points N or --tileset DIR');
 if (why) {
   console.error(`web_frames: ${why}`);
@@ -56,6 +63,12 @@ if (!tileset) {
 }
 const root = fs.mkdtempSync(path.join(o.work, 'www-'));
 fs.symlinkSync(webDir, path.join(root, 'viewer'));
+// The pages measured at each size: the --before build first.
+const pages = [['this', 'viewer']];
+if (o.before) {
+  fs.symlinkSync(path.resolve(o.before), path.join(root, 'before'));
+  pages.unshift(['before', 'before']);
+}
 fs.symlinkSync(tileset, path.join(root, 'tiles'));
 const contents = h.contentFiles(tileset);
 console.log(`${tileset}: ${contents.length} content files; load average ${os.loadavg().map((l) => l.toFixed(1)).join(' ')}, ${os.cpus().length} cores`);
@@ -82,35 +95,37 @@ try {
       native.points = (out.match(/rendered (\d+) points/) || [])[1] || '?';
       native.renderer = (out.match(/renderer: (\S+)/) || [])[1] || '?';
     }
-    const page = await browser.newPage();
-    const log = [];
-    page.on('pageerror', (e) => log.push(`page error: ${e}`));
-    page.on('console', (m) => log.push(`page ${m.type()}: ${m.text()}`));
-    const t0 = Date.now();
-    await page.goto(server.url(`viewer/stipple.html?url=/tiles/tileset.json&width=${width}` +
-                               `&height=${height}&frames=${o.frames}&max-sse=${o['max-sse']}`));
-    await page.waitForFunction(() => window.stipple && (window.stipple.done || window.stipple.error),
-                               { timeout: Number(o['timeout-s']) * 1000, polling: 1000 });
-    const wallMs = Date.now() - t0;
-    const web = await page.evaluate(() => ({ ...window.stipple }));
-    if (web.error) throw new Error(`the page failed at ${size}: ${web.error}\n${log.join('\n')}`);
-    // The same image as the native render (tests/web/tileset.test.mjs's measure)?
-    const d = o['skip-native'] ? {} : await h.compareCanvas(page, fs.readFileSync(ref));
-    await page.close();
-    console.log(`${size}: web ${web.tiles} tiles, ${web.points} points, ${web.renderer}, ` +
-                `errors ${web.errors}, done in ${web.ms} ms (page opened to done ${wallMs} ms), ` +
-                `frame ${web.frameMs} ms; native ${native.renderer}, ${native.points} points: wall ` +
-                `${native.wall} ms, GPU ${native.gpu} ms; web vs native ${JSON.stringify(d)}; ` +
-                `load average ${os.loadavg()[0].toFixed(1)}`);
-    rows.push(`| ${size} | ${web.points} (native ${native.points}) | ${wallMs.toLocaleString('en-US')} | ` +
-              `${web.frameMs} | ${native.wall} | ${native.gpu} |`);
+    for (const [name, dir] of pages) {
+      const page = await browser.newPage();
+      const log = [];
+      page.on('pageerror', (e) => log.push(`page error: ${e}`));
+      page.on('console', (m) => log.push(`page ${m.type()}: ${m.text()}`));
+      const t0 = Date.now();
+      await page.goto(server.url(`${dir}/stipple.html?url=/tiles/tileset.json&width=${width}` +
+                                 `&height=${height}&frames=${o.frames}&max-sse=${o['max-sse']}`));
+      await page.waitForFunction(() => window.stipple && (window.stipple.done || window.stipple.error),
+                                 { timeout: Number(o['timeout-s']) * 1000, polling: 1000 });
+      const wallMs = Date.now() - t0;
+      const web = await page.evaluate(() => ({ ...window.stipple }));
+      if (web.error) throw new Error(`the ${name} page failed at ${size}: ${web.error}\n${log.join('\n')}`);
+      // The same image as the native render (tests/web/tileset.test.mjs's measure)?
+      const d = o['skip-native'] ? {} : await h.compareCanvas(page, fs.readFileSync(ref));
+      await page.close();
+      console.log(`${size} (${name} page): web ${web.tiles} tiles, ${web.points} points, ${web.renderer}, ` +
+                  `errors ${web.errors}, done in ${web.ms} ms (page opened to done ${wallMs} ms), ` +
+                  `frame ${web.frameMs} ms; native ${native.renderer}, ${native.points} points: wall ` +
+                  `${native.wall} ms, GPU ${native.gpu} ms; web vs native ${JSON.stringify(d)}; ` +
+                  `load average ${os.loadavg()[0].toFixed(1)}`);
+      rows.push(`| ${size} | ${name} | ${web.points} (native ${native.points}) | ` +
+                `${wallMs.toLocaleString('en-US')} | ${web.frameMs} | ${native.wall} | ${native.gpu} |`);
+    }
   }
 } finally {
   await browser.close();
   await server.stop();
   fs.rmSync(root, { recursive: true, force: true });
 }
-console.log('\n| size | points drawn | web: page load to done (ms) | web: frame once streamed ' +
+console.log('\n| size | page | points drawn | web: page load to done (ms) | web: frame once streamed ' +
             '(median, ms) | native: wall per frame (median, ms) | native: GPU per frame (ms) |');
-console.log('|---|---:|---:|---:|---:|---:|');
+console.log('|---|---|---:|---:|---:|---:|---:|');
 for (const r of rows) console.log(r);

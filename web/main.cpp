@@ -4,10 +4,14 @@
 // plugins, renderer choice, framing, point size and streaming): the built-in scene, a LAS/LAZ
 // file, or a 3D Tiles tileset, COPC, Potree or EPT source by URL (--url, from the page's ?url=),
 // streamed frame by frame with the camera, one engine frame per animation frame. What is the
-// page's own stays here: it draws the image on the page's canvas and reports on the page
-// (window.stipple: done, error, tile problems, stats, camera); once drawn, the camera follows the
-// page's pointer (mouse and touch), wheel and keys; a LAS/LAZ file dropped on the page (or chosen
-// with its button) is opened next, as a ?url= of it would be. The points' look comes from
+// page's own stays here: it draws straight into the page's WebGPU canvas (CanvasTargetPlugin: no
+// readback), whose drawing buffer follows the size the page asks for (its container and
+// devicePixelRatio), and reports on the page (window.stipple: done, error, tile problems, stats,
+// camera); once drawn, the camera follows the page's pointer (mouse and touch), wheel and keys; a
+// LAS/LAZ file dropped on the page (or chosen with its button) is opened next, as a ?url= of it
+// would be. Once drawn, frames are paced by the page's animation frames and drawn only when
+// something changed (the camera, a control, the canvas's size, a tile arrived): an idle page
+// draws nothing, and the canvas keeps showing the last frame. The points' look comes from
 // `stipple render`'s options of the same names (?color=, ?point-size=, ?no-edl=,
 // ?edl-strength=, ?edl-radius=; ?edl=0 or 1 too), and changes with the page's controls
 // (Module.stippleControls) while the view runs; the stats panel's figures (window.stipple.stats)
@@ -34,6 +38,7 @@
 #include "stipple/engine/engine.hpp"
 #include "stipple/engine/plugins.hpp"
 #include "stipple/engine/render_plugins.hpp"
+#include "stipple/engine/viewport.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
@@ -42,6 +47,8 @@
 #include "stipple/scene/scene.hpp"
 #include "stipple/tiles3d/streamer.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
+
+#include "canvas_target.hpp"
 
 // Resolves at the page's next animation frame (or after 100 ms where the page is hidden and
 // frames are not run): the main thread's stack is suspended meanwhile (JSPI), so the page draws,
@@ -63,13 +70,16 @@ struct Options {
   // Inputs, the built-in scene, the points' look (colour mode, EDL and point size, 0: from the
   // data's density) and the streaming budgets, as `stipple render`'s options of the same names.
   scene::SceneOptions scene;
-  scene::SceneView view;  // the canvas's size; framed from the default azimuth and elevation
+  // The canvas's first size (the page's: its container's in device pixels, or ?width=&height=);
+  // framed from the default azimuth and elevation.
+  scene::SceneView view;
   // A URL to open (the page's ?url=): a LAS/LAZ file is fetched into the page's memory and read
   // whole; anything else (tileset.json, COPC, Potree, EPT) is streamed.
   std::string url;
   uint64_t frames = 1;          // streamed sources: drawn once streamed (frame times)
   uint64_t max_frames = 10000;  // then drawn as is, with a warning
-  bool interactive = true;      // camera controls once drawn (0: stop after the first view)
+  bool interactive =
+      true;  // camera controls once drawn (0: the first view only, kept for captures)
 };
 
 uint64_t number(const std::string& name, const char* value) {
@@ -149,21 +159,37 @@ Options parse(int argc, char** argv) {
   return o;
 }
 
-// Draws RGBA8 pixels on the page's canvas (#canvas, resized to the image).
-void show(const gpu::Image& image) {
-  EM_ASM(
-      {
-        const canvas = document.getElementById('canvas');
-        canvas.width = $0;
-        canvas.height = $1;
-        const pixels = new Uint8ClampedArray(HEAPU8.subarray($2, $2 + $0 * $1 * 4));
-        canvas.getContext('2d').putImageData(new ImageData(pixels, $0, $1), 0, 0);
-      },
-      image.width, image.height, image.rgba.data());
-}
-
 void report(const char* key, const std::string& value) {
   EM_ASM({ Module.stippleReport(UTF8ToString($0), UTF8ToString($1)); }, key, value.c_str());
+}
+
+// Whether the page asked for the canvas's pixels (window.stippleCapture(), for tests): the view
+// is drawn again and that frame read back, the page's only readback (a WebGPU canvas cannot be
+// read through the page everywhere: headless Chromium on SwiftShader reads it blank).
+bool take_capture_request() {
+  return EM_ASM_INT({
+    const c = Module.stippleCapture;
+    if (!c || !c.wanted) return 0;
+    c.wanted = false;
+    return 1;
+  });
+}
+
+// Draws the view again with its frame read back and hands the pixels to the page (RGBA, top row
+// first). Returns false where no frame was drawn (the canvas had no texture): ask again.
+bool draw_capture(Engine& engine) {
+  engine.main().resource<ScreenshotRequests>().capture = true;
+  engine.render().resource<CapturedFrame>().image = {};
+  engine.update();
+  const gpu::Image& image = engine.render().resource<CapturedFrame>().image;
+  if (image.rgba.empty()) return false;
+  EM_ASM(
+      {
+        const pixels = new Uint8ClampedArray(HEAPU8.subarray($2, $2 + $0 * $1 * 4));
+        Module.stippleCapture.deliver({width : $0, height : $1, data : pixels});
+      },
+      image.width, image.height, image.rgba.data());
+  return true;
 }
 
 // The page's controls as the view now draws (window.stipple.controls, JSON): the colour mode
@@ -219,9 +245,10 @@ bool take_controls(Registry& main) {
 
 // The stats panel's figures (window.stipple.stats, JSON), those of native `stipple view`'s panel:
 // frame time and frames per second (over the last half second of drawn frames: 0 while the view
-// is idle), points drawn of the scene's, for a tileset its tiles resident, loading and failed,
-// resident bytes against the memory budget and the tiles' GPU bytes; the renderer and adapter.
-// Reported at most every 250 ms (`force`: now).
+// is idle), frames drawn so far (engine frames whose graph ran, a capture's included: it stops
+// while the page is idle), points drawn of the scene's, for a tileset its tiles resident, loading
+// and failed, resident bytes against the memory budget and the tiles' GPU bytes; the renderer and
+// adapter, the canvas's size and format. Reported at most every 250 ms (`force`: now).
 class StatsPanel {
  public:
   explicit StatsPanel(std::string renderer) : renderer_(std::move(renderer)) {}
@@ -254,12 +281,15 @@ class StatsPanel {
                       stats.drawn_tiles, s.loaded, s.in_flight + s.queued, s.failed,
                       stats.resident_bytes, stats.memory_budget, gpu ? gpu->gpu_bytes : 0);
     }
+    const auto& canvas = engine.render().resource<web::CanvasInfo>();
     report("stats",
            fmt::format(
-               R"({{"frameMs":{:.2f},"fps":{:.1f},"pointsDrawn":{},"points":{},"renderer":"{}",)"
+               R"({{"frameMs":{:.2f},"fps":{:.1f},"frames":{},"pointsDrawn":{},"points":{},)"
+               R"("renderer":"{}","canvas":"{}x{} {}",)"
                R"j("adapter":"{} {} ({})"{}}})j",
-               frame_ms_, fps_, render_stats.points_drawn, main.resource<pc::SceneInfo>().points,
-               renderer_, d.vendor, d.architecture, d.backend, tiles));
+               frame_ms_, fps_, render_stats.frames, render_stats.points_drawn,
+               main.resource<pc::SceneInfo>().points, renderer_, canvas.width, canvas.height,
+               web::canvas_format_name(canvas.format), d.vendor, d.architecture, d.backend, tiles));
   }
 
  private:
@@ -268,8 +298,7 @@ class StatsPanel {
   uint32_t window_frames_ = 0;
 };
 
-std::string orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured, glm::dvec3 target,
-                  bool streams, uint32_t height, StatsPanel& panel);
+std::string orbit(Engine& engine, glm::dvec3 target, bool streams, StatsPanel& panel);
 
 // The tile problems so far (failed tiles, content warnings), one line per kind with how many
 // tiles had it: the first tile's message in full (it names the tile's URI).
@@ -308,6 +337,35 @@ Input take_input() {
   return in;
 }
 
+// The canvas's drawing-buffer size the page asks for (Module.stippleSize: its container's size
+// in device pixels, times ?scale=), when it changed since the last call: set as the Viewport,
+// which the canvas target configures the surface for before the next frame and the tileset's
+// screen-space error follows. Returns whether the size changed (a frame is to be drawn).
+bool take_resize(Registry& main) {
+  uint32_t size[2] = {};
+  // (No commas outside parentheses in the JS: it is a macro argument.)
+  const int asked = EM_ASM_INT(
+      {
+        const s = Module.stippleSize;
+        if (!s || !s.changed) return 0;
+        s.changed = false;
+        HEAPU32[$0 >> 2] = s.width;
+        HEAPU32[($0 >> 2) + 1] = s.height;
+        return 1;
+      },
+      size);
+  if (!asked) return false;
+  // The device's largest texture (and `--width`'s range) bounds the drawing buffer.
+  const uint32_t largest =
+      std::min<uint32_t>(8192, main.resource<GpuContext>()->limits.maxTextureDimension2D);
+  const Viewport wanted{std::clamp<uint32_t>(size[0], 1, largest),
+                        std::clamp<uint32_t>(size[1], 1, largest)};
+  auto& viewport = main.resource<Viewport>();
+  if (wanted.width == viewport.width && wanted.height == viewport.height) return false;
+  viewport = wanted;
+  return true;
+}
+
 // The path of a file the page has put in its file system to be opened next (dropped, or chosen
 // with its button), or "" (then none is waiting).
 std::string take_open() {
@@ -333,11 +391,11 @@ void report_camera(double yaw, double pitch, double distance, const glm::dvec3& 
 }
 
 // After the first view: the camera orbits `target` (drag turns it, the wheel, keys and pinch
-// zoom, a two-finger or right-button drag moves the target across the view). A tileset streams
-// for the new view (`streams`), one engine frame per animation frame while the view changes or
-// tiles load; idle otherwise. Returns the path of a file to open next, once the page has one.
-std::string orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured, glm::dvec3 target,
-                  bool streams, uint32_t height, StatsPanel& panel) {
+// zoom, a two-finger or right-button drag moves the target across the view). One engine frame per
+// animation frame when something changed: the camera, a control, the canvas's size, or, for a
+// tileset streaming for the new view (`streams`), a tile arrived; none otherwise (the canvas keeps
+// the last frame). Returns the path of a file to open next, once the page has one.
+std::string orbit(Engine& engine, glm::dvec3 target, bool streams, StatsPanel& panel) {
   Registry& main = engine.main();
   Camera camera;
   main.view<Camera>().each([&](const Camera& c) { camera = c; });
@@ -347,11 +405,13 @@ std::string orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured, g
   double pitch = std::asin(std::clamp(offset.y / distance, -1.0, 1.0));
   report_camera(yaw, pitch, distance, target);
   uint64_t moves = 0, frames = 0;
+  bool capture = false;  // asked for and not yet drawn
   for (;;) {
     stipple_next_frame();
     panel.publish(engine);
     if (std::string next = take_open(); !next.empty()) return next;
     const bool restyled = take_controls(main);
+    const bool resized = take_resize(main);
     const Input in = take_input();
     const bool moved = in.dx != 0 || in.dy != 0 || in.zoom != 0 || in.pan_x != 0 || in.pan_y != 0;
     if (moved) {
@@ -363,7 +423,9 @@ std::string orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured, g
       if (in.pan_x != 0 || in.pan_y != 0) {
         // A pixel at the target's depth, in world units: the points under the fingers follow
         // them. (The view is never straight up or down: pitch stops short of the poles.)
-        const double pixel = 2.0 * distance * std::tan(camera.fov_y / 2) / double(height);
+        // (The page sends the drag in the canvas's pixels.)
+        const double height = double(main.resource<Viewport>().height);
+        const double pixel = 2.0 * distance * std::tan(camera.fov_y / 2) / height;
         const glm::dvec3 right = glm::normalize(glm::cross(-dir, glm::dvec3(0, 1, 0)));
         const glm::dvec3 up = glm::cross(right, -dir);
         target += (-in.pan_x * right + in.pan_y * up) * pixel;
@@ -376,18 +438,28 @@ std::string orbit(Engine& engine, const std::shared_ptr<gpu::Image>& captured, g
       report("cameraMoves", std::to_string(++moves));
       report_camera(yaw, pitch, distance, target);
     }
-    if (!moved && !restyled && (!streams || main.resource<tiles3d::TilesetStats>().idle)) continue;
+    // Loads under way draw nothing until one finishes (the frame that takes it in).
+    const bool arrived = streams && main.resource<tiles3d::TilesetStream>().streamer->has_results();
+    if (!moved && !restyled && !resized && !arrived) {
+      // A capture draws the unchanged view again: not a view frame (viewFrames, frame time).
+      capture = capture || take_capture_request();
+      if (capture && draw_capture(engine)) {
+        capture = false;
+        panel.publish(engine, true);  // the frames drawn count it
+      }
+      continue;
+    }
     const double start = emscripten_get_now();
     engine.update();
     if (!streams) engine.wait_for_render();
     panel.frame(emscripten_get_now() - start);
-    if (!captured->rgba.empty()) show(*captured);
     // Frames drawn since the first view (tests wait for the one after a control's change).
     report("viewFrames", std::to_string(++frames));
+    panel.publish(engine, true);
   }
 }
 
-// Until the page has a file to open (after an error, or a view that is not interactive).
+// Until the page has a file to open (after an error).
 std::string wait_for_open() {
   for (;;) {
     stipple_next_frame();
@@ -399,8 +471,9 @@ std::string wait_for_open() {
 // plan_scene, add_scene_plugin, place_camera; for a streamed source settle_streamed_scene), drawn
 // on the page's canvas. A point cloud is drawn once; a streamed source one engine frame per
 // animation frame while its tiles stream in, until it has settled and `frames` more frames are
-// drawn. Then it reports done and, when interactive, the camera follows the page's controls.
-// Returns the path of a file to open next (dropped on the page), or "" when not interactive.
+// drawn. Then it reports done and, when interactive, the camera follows the page's controls;
+// otherwise the view is kept (never returning) to be drawn again for the page's captures.
+// Returns the path of a file to open next (dropped on the page).
 std::string run_view(const Options& o) {
   Engine engine;
   scene::add_engine_core(engine, {.keep_history = true});
@@ -411,11 +484,8 @@ std::string run_view(const Options& o) {
   const double load_start = emscripten_get_now();
   scene::add_scene_plugin(engine, plan);
   const double load_ms = emscripten_get_now() - load_start;
-  // Frames until the page moves on (the camera controls draw more of them).
-  engine.add_plugin(HeadlessTargetPlugin{o.view.width, o.view.height, "", 0});
-  auto captured = std::make_shared<gpu::Image>();
-  engine.render().insert_resource(
-      FrameCapture{[captured](uint64_t, const gpu::Image& image) { *captured = image; }});
+  // Drawn into the page's canvas, sized as the page asks (take_resize).
+  engine.add_plugin(web::CanvasTargetPlugin{"#canvas", o.view.width, o.view.height});
   scene::place_camera(engine, plan, o.view, true);
   const char* renderer = plan.compute() ? "compute" : "billboard";
   report("renderer", renderer);
@@ -428,8 +498,7 @@ std::string run_view(const Options& o) {
   if (!streamed) {
     engine.run(1);
     const double ms = emscripten_get_now() - start;
-    if (captured->rgba.empty()) fail("no frame was drawn");
-    show(*captured);
+    if (engine.render().resource<RenderStats>().frames == 0) fail("no frame was drawn");
     report_adapter();
     report("points", std::to_string(main.resource<pc::SceneInfo>().points));
     report("pointSize",
@@ -442,6 +511,7 @@ std::string run_view(const Options& o) {
     std::vector<double> settled_ms;  // frame times once streamed
     size_t problems = 0;
     for (;;) {
+      take_resize(main);  // the canvas follows the page while the tiles stream in
       const double frame_start = emscripten_get_now();
       engine.update();
       const auto& settle = main.resource<scene::StreamSettle>();
@@ -449,7 +519,6 @@ std::string run_view(const Options& o) {
       if (settle.settled > 0) settled_ms.push_back(emscripten_get_now() - frame_start);
       panel.frame(emscripten_get_now() - frame_start);
       panel.publish(engine);
-      if (!captured->rgba.empty()) show(*captured);
       const auto& s = main.resource<tiles3d::TilesetStream>();
       const auto& stats = main.resource<tiles3d::TilesetStats>();
       size_t n = 0;
@@ -490,7 +559,17 @@ std::string run_view(const Options& o) {
         for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
       target = drawn.empty() ? s.world_bounds.center() : drawn.center();
     }
-    next = orbit(engine, captured, target, streamed, o.view.height, panel);
+    next = orbit(engine, target, streamed, panel);
+  } else {
+    // The view stays as drawn, kept only to be drawn again for the page's captures.
+    for (bool capture = false;;) {
+      stipple_next_frame();
+      capture = capture || take_capture_request();
+      if (capture && draw_capture(engine)) {
+        capture = false;
+        panel.publish(engine, true);
+      }
+    }
   }
   engine.shutdown();
   return next;

@@ -190,6 +190,41 @@ TEST_P(RenderGraphGpu, UndeclaredResourcesAreErrors) {
   }
 }
 
+// A target imported without objects cannot run; bound just before execute() (as the engine binds
+// a late target such as the page's canvas), it is drawn into.
+TEST_P(RenderGraphGpu, ATargetBoundJustBeforeExecuteIsDrawnInto) {
+  auto ctx = context();
+  gpu::Texture target =
+      gpu::create_texture_2d(*ctx, kWidth, kHeight, WGPUTextureFormat_RGBA8Unorm,
+                             WGPUTextureUsage_CopyDst | WGPUTextureUsage_CopySrc, "target");
+  gpu::TextureView target_view = gpu::create_view(target);
+  gpu::Buffer buffer = gpu::create_buffer(*ctx, 256, WGPUBufferUsage_Storage, "counters");
+  gpu::TransientPool pool;
+  Counters counters;
+  gpu::RenderGraph g;
+  build(g, nullptr, nullptr, buffer.get(), counters);
+  g.compile();
+  try {
+    g.execute(*ctx, pool);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("the imported texture 'target' has no texture bound"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(counters.clear, 0) << "a pass ran before the error";
+  g.bind_imported_texture("target", target.get(), target_view.get());
+  g.execute(*ctx, pool);
+  EXPECT_EQ(counters.copy, 1);
+  gpu::Image image =
+      gpu::read_texture(*ctx, target.get(), kWidth, kHeight, WGPUTextureFormat_RGBA8Unorm);
+  const uint8_t* p = &image.rgba[(size_t(kHeight / 2) * kWidth + kWidth / 2) * 4];
+  EXPECT_NEAR(p[0], 64, 1);
+  EXPECT_NEAR(p[1], 128, 1);
+  EXPECT_NEAR(p[2], 191, 1);
+  ctx->check("late bound target");
+}
+
 // `stipple render` runs its point pass on the graph: --dump-graph and per-pass --stats.
 TEST_P(RenderGraphGpu, RenderCommandDumpsGraphAndPassTimes) {
   auto dir = std::filesystem::temp_directory_path() /

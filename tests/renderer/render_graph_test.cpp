@@ -233,6 +233,39 @@ TEST(RenderGraph, ReportsWritesToReadOnlyImports) {
       << message;
 }
 
+// A target taken only just before execute() (a browser canvas's texture) is imported without
+// objects and bound later, before or after compile(); the plan stays as compiled.
+TEST(RenderGraph, BindsAnImportedTextureAfterThePassesAreAdded) {
+  RenderGraph g;
+  import_target(g, "color");
+  g.import_buffer("counters", nullptr, {256, WGPUBufferUsage_Storage}, Access::Writable);
+  g.add_pass("draw", PassKind::Render, {}).write("color");
+  const auto texture = reinterpret_cast<WGPUTexture>(uintptr_t(0x10));
+  const auto view = reinterpret_cast<WGPUTextureView>(uintptr_t(0x20));
+  g.compile();
+  g.bind_imported_texture("color", texture, view);
+  EXPECT_TRUE(g.compiled());
+  const gpu::GraphResource& bound = g.plan().resources[resource(g, "color")];
+  EXPECT_EQ(bound.imported_texture, texture);
+  EXPECT_EQ(bound.imported_view, view);
+  // Recompiling keeps the objects.
+  g.add_pass("late", PassKind::Render, {}).write("color");
+  g.compile();
+  EXPECT_EQ(g.plan().resources[resource(g, "color")].imported_view, view);
+
+  for (const char* name : {"counters", "nowhere"}) {
+    try {
+      g.bind_imported_texture(name, texture, view);
+      FAIL() << name << ": expected an error";
+    } catch (const Error& e) {
+      EXPECT_NE(
+          std::string(e.what()).find(std::string("'") + name + "' is not an imported texture"),
+          std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 TEST(RenderGraph, ReportsDuplicateNames) {
   RenderGraph passes;
   passes.add_pass("points", PassKind::Render, {});

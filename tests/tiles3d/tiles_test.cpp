@@ -727,6 +727,34 @@ TEST(Streamer, MemoryBudgetHoldsOverACameraFlight) {
   EXPECT_TRUE(streamer.errors().empty());
 }
 
+// has_results: a finished load waits for the next update(), which takes it in (a front end that
+// draws only on change runs a frame then); none is left once it has.
+TEST(Streamer, SaysWhenAFinishedLoadWaitsForTheNextUpdate) {
+  fs::path dir = temp_dir("results");
+  write_grid_tileset(dir, 2, 500);
+  auto ts = std::make_shared<io::Tileset>(io::load_tileset((dir / "tileset.json").string()));
+  tiles3d::StreamerOptions opt;
+  opt.threads = 1;
+  tiles3d::TileStreamer streamer(ts, opt);
+  EXPECT_FALSE(streamer.has_results());
+  tiles3d::View v;
+  v.camera.look_at(z_up_to_y_up({500, -500, 800}), z_up_to_y_up({500, 500, 0}));
+  streamer.update(v);
+  ASSERT_FALSE(streamer.idle());
+  int loads = 0;
+  while (!streamer.idle()) {
+    streamer.wait_for_progress();
+    EXPECT_TRUE(streamer.has_results());
+    const uint64_t before = streamer.stats().loads_completed + streamer.stats().expansions;
+    streamer.update(v);
+    EXPECT_GT(streamer.stats().loads_completed + streamer.stats().expansions, before);
+    ++loads;
+  }
+  EXPECT_GT(loads, 0);
+  EXPECT_FALSE(streamer.has_results());
+  EXPECT_TRUE(streamer.errors().empty());
+}
+
 TEST(Streamer, RenderLoadConvertsTilesToChunks) {
   fs::path dir = temp_dir("render");
   write_grid_tileset(dir, 2, 500);

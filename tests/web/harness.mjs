@@ -128,20 +128,37 @@ export async function startNginx(root, { headers = {} } = {}) {
 }
 
 // Headless chromium with WebGL on SwiftShader; with `webgpu`, WebGPU on SwiftShader's Vulkan
-// (Chromium 156 runs it headless with these flags).
+// (Chromium 156 runs it headless with these flags). The compositor is on SwiftShader too
+// (ANGLE): without it a WebGPU canvas has no shared image to present through and its device is
+// lost at the first frame ("Could not find SharedImageBackingFactory" in the GPU process's log).
 export async function launchBrowser({ webgpu = false } = {}) {
   const puppeteer = require('puppeteer-core');
   const args = webgpu
     ? ['--no-sandbox', '--enable-unsafe-webgpu', '--enable-features=Vulkan', '--use-vulkan=native',
-       '--ignore-gpu-blocklist', '--window-size=800,600']
+       '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist',
+       '--window-size=800,600']
     : ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
        '--ignore-gpu-blocklist', '--window-size=800,600'];
   return puppeteer.launch({ executablePath: chromiumPath, headless: true, args });
 }
 
+// The fraction of the page's canvas (#canvas) that is lit (brighter than the dark background).
+// Its pixels are read as in compareCanvas.
+export async function litFraction(page) {
+  return page.evaluate(async () => {
+    const a = (await window.stippleCapture()).data;
+    let lit = 0;
+    for (let i = 0; i < a.length; i += 4) if (a[i] + a[i + 1] + a[i + 2] > 60) ++lit;
+    return lit / (a.length / 4);
+  });
+}
+
 // Per-pixel comparison of the page's canvas (#canvas) with a PNG (decoded by the browser): the
 // mean largest channel difference, the fraction of pixels off by more than 48, and the fraction
-// of each image that is lit (brighter than the dark background).
+// of each image that is lit (brighter than the dark background). The web viewer's canvas is
+// WebGPU, which headless Chromium on SwiftShader reads blank (drawImage, toDataURL, screenshots):
+// its pixels come from the page (window.stippleCapture: the view drawn again and read back, only
+// when asked).
 export async function compareCanvas(page, png) {
   return page.evaluate(async (b64) => {
     const bytes = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
@@ -151,7 +168,13 @@ export async function compareCanvas(page, png) {
     const canvas = document.getElementById('canvas');
     if (canvas.width !== bitmap.width || canvas.height !== bitmap.height)
       return { size: `${canvas.width}x${canvas.height} vs ${bitmap.width}x${bitmap.height}` };
-    const a = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
+    // (A page without it, the readback page that bench/web_frames.mjs --before measures, draws
+    // into a 2D canvas.)
+    const frame = window.stippleCapture ? await window.stippleCapture()
+      : canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height);
+    if (frame.width !== canvas.width || frame.height !== canvas.height)
+      return { size: `the frame read back is ${frame.width}x${frame.height}, the canvas ${canvas.width}x${canvas.height}` };
+    const a = frame.data;
     const b = ref.getImageData(0, 0, bitmap.width, bitmap.height).data;
     let sum = 0, off = 0, lit = 0, refLit = 0;
     for (let i = 0; i < a.length; i += 4) {

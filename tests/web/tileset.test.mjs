@@ -33,17 +33,6 @@ function open(page_path) {
   return c.openPage(suite.browser, page_path.startsWith('http') ? page_path : suite.server.url(page_path));
 }
 
-// The background's colour is dark: a pixel brighter than this is a drawn point.
-async function litFraction(page) {
-  return page.evaluate(() => {
-    const canvas = document.getElementById('canvas');
-    const a = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
-    let lit = 0;
-    for (let i = 0; i < a.length; i += 4) if (a[i] + a[i + 1] + a[i + 2] > 60) ++lit;
-    return lit / (a.length / 4);
-  });
-}
-
 test('a tileset by URL matches the native render of the same camera', { skip: skip || false }, async () => {
   const ref = path.join(work, 'native.png');
   const tileset = path.join(work, 'www/tiles/tileset.json');
@@ -103,7 +92,7 @@ test('a tile that is not found (404) is an error on the page; the other tiles ar
   assert.match(state.problems, new RegExp(`${name.replace('.', '\\.')}: HTTP 404 \\(not found\\)`));
   assert.ok(state.problemsShown, 'the tile error is shown on the page');
   assert.ok(Number(state.points) > 1000, `only ${state.points} points drawn`);
-  const lit = await litFraction(page);
+  const lit = await h.litFraction(page);
   assert.ok(lit > 0.05, `only ${lit} of the canvas is drawn`);
   await page.close();
 });

@@ -53,6 +53,14 @@ void execute_frame_graph(Registry& render) {
     write_file_atomically(fg.dump_path, dot.str());
     fg.dump_path.clear();
   }
+  if (auto& late = render.resource<RenderTarget>(); late.acquire) {
+    // A late target's texture: nothing yields between here and the graph's submission.
+    if (!late.acquire(late)) {
+      fg.active = false;
+      return;
+    }
+    fg.graph.bind_imported_texture("color", late.texture, late.view);
+  }
   fg.graph.execute(ctx, fg.pool, fg.timing ? &fg.timer : nullptr);
   fg.executed = true;
   ctx.check("drawing a frame");

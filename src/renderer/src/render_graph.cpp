@@ -81,6 +81,21 @@ void RenderGraph::import_buffer(std::string name, WGPUBuffer buffer, const Buffe
   compiled_ = false;
 }
 
+void RenderGraph::bind_imported_texture(std::string_view name, WGPUTexture texture,
+                                        WGPUTextureView view) {
+  auto it = std::find_if(imports_.begin(), imports_.end(),
+                         [&](const GraphResource& r) { return r.name == name; });
+  if (it == imports_.end() || it->kind != ResourceKind::Texture)
+    fail("render graph: '{}' is not an imported texture", name);
+  it->imported_texture = texture;
+  it->imported_view = view;
+  // The compiled plan holds copies of the imports.
+  if (auto r = plan_.resource_index.find(name); compiled_ && r != plan_.resource_index.end()) {
+    plan_.resources[r->second].imported_texture = texture;
+    plan_.resources[r->second].imported_view = view;
+  }
+}
+
 PassBuilder RenderGraph::add_pass(std::string name, PassKind kind, PassExecute execute) {
   GraphPass pass;
   pass.name = std::move(name);
@@ -355,6 +370,9 @@ void draw_fullscreen(PassContext& pc, WGPUTextureView target, WGPURenderPipeline
 
 void RenderGraph::execute(Context& ctx, TransientPool& pool, PassTimer* timer) {
   if (!compiled_) compile();
+  for (const GraphResource& r : plan_.resources)
+    if (r.imported && r.kind == ResourceKind::Texture && (!r.imported_texture || !r.imported_view))
+      fail("render graph: the imported texture '{}' has no texture bound", r.name);
   std::vector<uint32_t> slots = assign_transients(plan_, pool);
   // New slots get their GPU objects now; reused ones keep theirs.
   for (uint32_t r = 0; r < slots.size(); ++r) {

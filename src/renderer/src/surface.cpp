@@ -1,12 +1,47 @@
 #include "stipple/renderer/surface.hpp"
 
 #include <algorithm>
+#include <initializer_list>
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
 #include "webgpu_loader.hpp"
+#ifdef __EMSCRIPTEN__
+#include "webgpu_web.hpp"
+#endif
 
 namespace stipple::gpu {
+
+namespace {
+
+// The surface's format, usage and present modes from its capabilities: the first of `preferred`
+// it offers (else its first format); CopySrc where offered, so frames can be read back for
+// screenshots. `what` names the surface in errors.
+void take_capabilities(Context& ctx, Surface& s, std::initializer_list<WGPUTextureFormat> preferred,
+                       const char* what) {
+  WGPUSurfaceCapabilities caps = WGPU_SURFACE_CAPABILITIES_INIT;
+  if (wgpuSurfaceGetCapabilities(s.surface.get(), ctx.adapter.get(), &caps) != WGPUStatus_Success)
+    fail("{}: the adapter cannot present to {}", ctx.description.backend, what);
+  std::vector<WGPUTextureFormat> formats;
+  for (size_t i = 0; i < caps.formatCount; ++i) formats.push_back(standard_format(caps.formats[i]));
+  for (size_t i = 0; i < caps.presentModeCount; ++i)
+    s.present_modes.push_back(caps.presentModes[i]);
+  WGPUTextureUsage usages = caps.usages;
+  wgpuSurfaceCapabilitiesFreeMembers(caps);
+  if (formats.empty()) fail("{}: {} offers no texture format", ctx.description.backend, what);
+  s.format = formats.front();
+  for (WGPUTextureFormat f : preferred)
+    if (std::find(formats.begin(), formats.end(), f) != formats.end()) {
+      s.format = f;
+      break;
+    }
+  s.usage = WGPUTextureUsage_RenderAttachment;
+  if (usages & WGPUTextureUsage_CopySrc) s.usage |= WGPUTextureUsage_CopySrc;
+  STIPPLE_DEBUG("surface: format {}, usages 0x{:x}, {} present modes", int(s.format),
+                uint64_t(usages), s.present_modes.size());
+}
+
+}  // namespace
 
 Surface create_x11_surface(Context& ctx, void* x11_display, uint64_t x11_window) {
   // The same chained struct for wgpu-native and Dawn: both number SurfaceSourceXlibWindow 6.
@@ -20,28 +55,34 @@ Surface create_x11_surface(Context& ctx, void* x11_display, uint64_t x11_window)
   s.surface = SurfaceHandle(wgpuInstanceCreateSurface(ctx.instance.get(), &desc));
   if (!s.surface)
     fail("{}: could not create a surface for the X11 window", ctx.description.backend);
-
-  WGPUSurfaceCapabilities caps = WGPU_SURFACE_CAPABILITIES_INIT;
-  if (wgpuSurfaceGetCapabilities(s.surface.get(), ctx.adapter.get(), &caps) != WGPUStatus_Success)
-    fail("{}: the adapter cannot present to this window", ctx.description.backend);
-  std::vector<WGPUTextureFormat> formats;
-  for (size_t i = 0; i < caps.formatCount; ++i) formats.push_back(standard_format(caps.formats[i]));
-  for (size_t i = 0; i < caps.presentModeCount; ++i)
-    s.present_modes.push_back(caps.presentModes[i]);
-  WGPUTextureUsage usages = caps.usages;
-  wgpuSurfaceCapabilitiesFreeMembers(caps);
-  if (formats.empty()) fail("{}: the surface offers no texture format", ctx.description.backend);
-  s.format = formats.front();
-  for (WGPUTextureFormat f : {WGPUTextureFormat_BGRA8Unorm, WGPUTextureFormat_RGBA8Unorm})
-    if (std::find(formats.begin(), formats.end(), f) != formats.end()) {
-      s.format = f;
-      break;
-    }
-  s.usage = WGPUTextureUsage_RenderAttachment;
-  if (usages & WGPUTextureUsage_CopySrc) s.usage |= WGPUTextureUsage_CopySrc;
-  STIPPLE_DEBUG("surface: format {}, usages 0x{:x}, {} present modes", int(s.format),
-                uint64_t(usages), s.present_modes.size());
+  take_capabilities(ctx, s, {WGPUTextureFormat_BGRA8Unorm, WGPUTextureFormat_RGBA8Unorm},
+                    "this window");
   return s;
+}
+
+Surface create_canvas_surface(Context& ctx, const char* selector) {
+#ifdef __EMSCRIPTEN__
+  web::SurfaceSourceCanvasSelector source{};
+  source.chain.sType = web::kSurfaceSourceCanvasSelector;
+  source.selector = selector;
+  WGPUSurfaceDescriptor desc = WGPU_SURFACE_DESCRIPTOR_INIT;
+  desc.nextInChain = &source.chain;
+  desc.label = to_view("stipple-canvas");
+  Surface s;
+  s.surface = SurfaceHandle(wgpuInstanceCreateSurface(ctx.instance.get(), &desc));
+  if (!s.surface) fail("no WebGPU canvas context for '{}'", selector);
+  // The canvas's preferred format comes first (webgpu_web.cpp): any other costs the browser a
+  // conversion when it composites the page.
+  take_capabilities(ctx, s, {}, "the canvas");
+  // A canvas texture takes storage writes in a format that has them (RGBA8, not BGRA8 without
+  // a feature): the compute rasterizer's display pass then writes it directly (a compute pass)
+  // instead of through a render pass.
+  if (s.format == WGPUTextureFormat_RGBA8Unorm) s.usage |= WGPUTextureUsage_StorageBinding;
+  return s;
+#else
+  (void)ctx;
+  fail("a canvas ('{}') exists only in the browser build", selector);
+#endif
 }
 
 WGPUPresentMode choose_present_mode(const std::vector<WGPUPresentMode>& supported, bool vsync) {

@@ -11,8 +11,8 @@
 #include "stipple/core/log.hpp"
 #include "stipple/io/content_summary.hpp"
 #include "stipple/io/copc.hpp"
-#include "stipple/io/glb_points.hpp"
 #include "stipple/io/ept.hpp"
+#include "stipple/io/glb_points.hpp"
 #include "stipple/io/potree.hpp"
 
 namespace stipple::tiles3d {
@@ -294,6 +294,11 @@ void TileStreamer::wait_for_progress() {
   if (in_flight_ == 0) return;
   std::unique_lock lock(shared_->mutex);
   shared_->done_cv.wait(lock, [&] { return !shared_->done.empty(); });
+}
+
+bool TileStreamer::has_results() const {
+  std::lock_guard lock(shared_->mutex);
+  return !shared_->done.empty();
 }
 
 bool TileStreamer::idle() const {

@@ -48,13 +48,19 @@ struct GpuPlugin {
 
 // Render-world resource: where this frame is drawn. Set by a target plugin in Prepare; invalid
 // (no texture) when there is nothing to draw into (a minimised window), and then no graph runs.
+// A target whose texture must be taken just before the frame is submitted (a browser canvas's
+// expires whenever the page's thread yields, which Prepare and Queue systems may do: shader
+// compilation, buffer mapping) leaves texture and view null and sets `acquire`, which the graph's
+// Draw system calls right before it runs the graph: it fills texture and view, or returns false
+// to skip the frame.
 struct RenderTarget {
   WGPUTexture texture = nullptr;  // not owned
   WGPUTextureView view = nullptr;
   uint32_t width = 0, height = 0;
   WGPUTextureFormat format = WGPUTextureFormat_RGBA8Unorm;
   WGPUTextureUsage usage = WGPUTextureUsage_RenderAttachment;
-  bool valid() const { return texture && view && width > 0 && height > 0; }
+  std::function<bool(RenderTarget&)> acquire;
+  bool valid() const { return (acquire || (texture && view)) && width > 0 && height > 0; }
 };
 
 // Render-world resource: this frame's graph and what lives across frames.

@@ -178,6 +178,12 @@ class RenderGraph {
   void import_texture(std::string name, WGPUTexture texture, WGPUTextureView view,
                       const TextureDesc& desc, Access access);
   void import_buffer(std::string name, WGPUBuffer buffer, const BufferDesc& desc, Access access);
+  // Gives an imported texture its objects after the passes are added (imported with null ones),
+  // or replaces them; the plan does not change. For a target acquired only just before
+  // execute(): a browser canvas's texture expires whenever the page's thread yields, which the
+  // systems that add passes may do (shader compilation, buffer mapping). Throws stipple::Error
+  // for a name that is no imported texture.
+  void bind_imported_texture(std::string_view name, WGPUTexture texture, WGPUTextureView view);
   PassBuilder add_pass(std::string name, PassKind kind, PassExecute execute);
 
   // Validates and plans; throws stipple::Error naming the pass and resource for: a read of a
@@ -189,6 +195,7 @@ class RenderGraph {
   const std::vector<GraphPass>& passes() const { return passes_; }
 
   // Compiles if needed, runs the surviving passes into one command encoder and submits it.
+  // Throws stipple::Error for an imported texture that has no objects yet.
   // With an enabled timer, render/compute passes get timestamp writes (in order; passes beyond
   // its capacity are not timed).
   void execute(Context& ctx, TransientPool& pool, PassTimer* timer = nullptr);

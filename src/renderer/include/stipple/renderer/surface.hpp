@@ -1,7 +1,9 @@
 #pragma once
 // Presenting to a window: a WebGPU surface made from native (X11) handles, configured for the
-// window's size with FIFO (vsync) or Immediate/Mailbox (no vsync) where the surface offers them.
-// The renderer does not know about GLFW: the platform module hands over the handles.
+// window's size with FIFO (vsync) or Immediate/Mailbox (no vsync) where the surface offers them;
+// in the browser build, a surface over an HTML canvas (the page's WebGPU canvas context), which
+// the browser presents when the page's thread yields. The renderer does not know about GLFW or
+// the page: the platform module hands over the handles, the page names its canvas.
 #include <cstdint>
 #include <vector>
 
@@ -24,6 +26,11 @@ struct Surface {
 
 // Creates the surface for an X11 window (Display*, Window). Throws stipple::Error.
 Surface create_x11_surface(Context& ctx, void* x11_display, uint64_t x11_window);
+
+// Creates the surface for the page's canvas named by a CSS selector ("#canvas"), in its
+// preferred format (a compositor copy saved). Browser build only; elsewhere, and where the
+// selector names no canvas, throws stipple::Error.
+Surface create_canvas_surface(Context& ctx, const char* selector);
 
 // The present mode for a vsync setting among the supported ones: FIFO with vsync (always
 // supported); otherwise Immediate, then Mailbox, then FIFO.

@@ -94,6 +94,9 @@ class TileStreamer {
   // Blocks until something in flight finishes (or returns at once when nothing is).
   void wait_for_progress();
   bool idle() const;  // nothing queued or in flight (loads and pending children)
+  // Something in flight has finished since the last update(), which will take it in: a front
+  // end that draws only on change (the page) runs a frame then, not while loads are under way.
+  bool has_results() const;
 
   const io::Tileset& tileset() const { return *tileset_; }
   // Content of a Loaded tile (all of its contents merged); nullptr otherwise.
@@ -133,7 +136,7 @@ class TileStreamer {
   uint64_t frame_ = 0;
   StreamerStats stats_;
   std::vector<TileError> new_errors_, all_errors_, new_warnings_;
-  std::vector<bool> warned_;          // by tile: its content warnings were handed out
+  std::vector<bool> warned_;         // by tile: its content warnings were handed out
   std::set<std::string> not_drawn_;  // content kinds warned about (once each)
   uint32_t in_flight_ = 0;
 
