@@ -288,7 +288,7 @@ Context::~Context() {
 std::unique_ptr<Context> create_context(const ContextOptions& options) {
   Backend backend = options.backend.empty() ? default_backend() : parse_backend(options.backend);
   load_backend(backend);
-  if (has_proc("wgpuSetLogCallback")) {
+  if (has_proc("wgpuSetLogCallback") && has_proc("wgpuSetLogLevel")) {
     wgpuSetLogCallback(on_wgpu_log, nullptr);
     wgpuSetLogLevel(WGPULogLevel_Warn);
   }
@@ -320,6 +320,16 @@ std::unique_ptr<Context> create_context(const ContextOptions& options) {
   adapter_cb.userdata1 = &adapter_result;
   wgpuInstanceRequestAdapter(ctx->instance.get(), &adapter_options, adapter_cb);
   ctx->wait_until([&] { return adapter_result.done; });
+#ifdef __EMSCRIPTEN__
+  // Chromium 156 with ANGLE on Vulkan (an NVIDIA GPU, headless) answers a page's first request
+  // with null ("A valid external Instance reference no longer exists.") and the next with the
+  // GPU's adapter (bench/RESULTS.md, "The page on a GPU"): ask again before giving up.
+  for (int attempt = 0; attempt < 3 && !adapter_result.adapter; ++attempt) {
+    adapter_result = AdapterResult{};
+    wgpuInstanceRequestAdapter(ctx->instance.get(), &adapter_options, adapter_cb);
+    ctx->wait_until([&] { return adapter_result.done; });
+  }
+#endif
   if (!adapter_result.adapter) {
 #ifdef __EMSCRIPTEN__
     fail("the browser offers no WebGPU adapter ({}): is WebGPU enabled (chrome://gpu)?",

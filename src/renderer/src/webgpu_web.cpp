@@ -832,6 +832,13 @@ void BufferRelease(WGPUBuffer buffer) {
   forget_ranges(buffer);
   stipple_em_wgpuBufferRelease(EMH(Buffer, buffer));
 }
+// The buffer's size from the browser's GPUBuffer (a double: library_webgpu.js's own
+// wgpuBufferGetSize returns a Number where WASM_BIGINT wants a BigInt).
+EM_JS(double, stipple_buffer_size, (em::WGPUBuffer buffer),
+      { return WebGPU.mgrBuffer.get(buffer).size; });
+uint64_t BufferGetSize(WGPUBuffer buffer) {
+  return uint64_t(stipple_buffer_size(EMH(Buffer, buffer)));
+}
 
 WGPUTextureView TextureCreateView(WGPUTexture texture, const WGPUTextureViewDescriptor* desc) {
   if (!desc)
@@ -1184,37 +1191,39 @@ const Entry kEntries[] =
                                              STIPPLE_ENTRY(BufferGetMappedRange) STIPPLE_ENTRY(
                                                  BufferGetConstMappedRange) STIPPLE_ENTRY(BufferUnmap)
                                                  STIPPLE_ENTRY(BufferDestroy) STIPPLE_ENTRY(
-                                                     BufferRelease) STIPPLE_ENTRY(TextureCreateView)
-                                                     STIPPLE_ENTRY(TextureRelease) STIPPLE_ENTRY(
-                                                         TextureViewRelease) STIPPLE_ENTRY(SamplerRelease)
-                                                         STIPPLE_ENTRY(ShaderModuleRelease) STIPPLE_ENTRY(
+                                                     BufferGetSize) STIPPLE_ENTRY(BufferRelease)
+                                                     STIPPLE_ENTRY(TextureCreateView) STIPPLE_ENTRY(
+                                                         TextureRelease) STIPPLE_ENTRY(TextureViewRelease)
+                                                         STIPPLE_ENTRY(SamplerRelease) STIPPLE_ENTRY(ShaderModuleRelease) STIPPLE_ENTRY(
                                                              BindGroupLayoutRelease) STIPPLE_ENTRY(BindGroupRelease)
                                                              STIPPLE_ENTRY(PipelineLayoutRelease) STIPPLE_ENTRY(
-                                                                 ComputePipelineGetBindGroupLayout)
+                                                                 ComputePipelineGetBindGroupLayout) STIPPLE_ENTRY(ComputePipelineRelease) STIPPLE_ENTRY(RenderPipelineGetBindGroupLayout) STIPPLE_ENTRY(RenderPipelineRelease) STIPPLE_ENTRY(QuerySetRelease) STIPPLE_ENTRY(CommandEncoderBeginComputePass) STIPPLE_ENTRY(CommandEncoderBeginRenderPass) STIPPLE_ENTRY(CommandEncoderClearBuffer) STIPPLE_ENTRY(CommandEncoderCopyBufferToBuffer) STIPPLE_ENTRY(CommandEncoderCopyTextureToBuffer) STIPPLE_ENTRY(CommandEncoderResolveQuerySet) STIPPLE_ENTRY(CommandEncoderFinish) STIPPLE_ENTRY(CommandEncoderRelease) STIPPLE_ENTRY(CommandBufferRelease) STIPPLE_ENTRY(ComputePassEncoderSetPipeline) STIPPLE_ENTRY(ComputePassEncoderSetBindGroup) STIPPLE_ENTRY(ComputePassEncoderDispatchWorkgroups)
                                                                  STIPPLE_ENTRY(
-                                                                     ComputePipelineRelease)
+                                                                     ComputePassEncoderDispatchWorkgroupsIndirect) STIPPLE_ENTRY(ComputePassEncoderEnd)
                                                                      STIPPLE_ENTRY(
-                                                                         RenderPipelineGetBindGroupLayout)
-                                                                         STIPPLE_ENTRY(RenderPipelineRelease) STIPPLE_ENTRY(QuerySetRelease) STIPPLE_ENTRY(CommandEncoderBeginComputePass) STIPPLE_ENTRY(CommandEncoderBeginRenderPass) STIPPLE_ENTRY(CommandEncoderClearBuffer) STIPPLE_ENTRY(CommandEncoderCopyBufferToBuffer) STIPPLE_ENTRY(CommandEncoderCopyTextureToBuffer) STIPPLE_ENTRY(CommandEncoderResolveQuerySet) STIPPLE_ENTRY(CommandEncoderFinish) STIPPLE_ENTRY(CommandEncoderRelease) STIPPLE_ENTRY(CommandBufferRelease) STIPPLE_ENTRY(ComputePassEncoderSetPipeline) STIPPLE_ENTRY(ComputePassEncoderSetBindGroup) STIPPLE_ENTRY(ComputePassEncoderDispatchWorkgroups) STIPPLE_ENTRY(ComputePassEncoderDispatchWorkgroupsIndirect) STIPPLE_ENTRY(ComputePassEncoderEnd) STIPPLE_ENTRY(ComputePassEncoderRelease) STIPPLE_ENTRY(RenderPassEncoderSetPipeline) STIPPLE_ENTRY(
+                                                                         ComputePassEncoderRelease) STIPPLE_ENTRY(RenderPassEncoderSetPipeline)
+                                                                         STIPPLE_ENTRY(
                                                                              RenderPassEncoderSetBindGroup) STIPPLE_ENTRY(RenderPassEncoderSetVertexBuffer)
                                                                              STIPPLE_ENTRY(
                                                                                  RenderPassEncoderSetIndexBuffer) STIPPLE_ENTRY(RenderPassEncoderSetScissorRect)
                                                                                  STIPPLE_ENTRY(
                                                                                      RenderPassEncoderDraw) STIPPLE_ENTRY(RenderPassEncoderDrawIndexed)
                                                                                      STIPPLE_ENTRY(
-                                                                                         RenderPassEncoderDrawIndirect) STIPPLE_ENTRY(RenderPassEncoderEnd)
+                                                                                         RenderPassEncoderDrawIndirect)
                                                                                          STIPPLE_ENTRY(
-                                                                                             RenderPassEncoderRelease) STIPPLE_ENTRY(SurfaceConfigure)
-                                                                                             STIPPLE_ENTRY(SurfaceUnconfigure) STIPPLE_ENTRY(
-                                                                                                 SurfaceGetCapabilities)
-                                                                                                 STIPPLE_ENTRY(
-                                                                                                     SurfaceCapabilitiesFreeMembers)
+                                                                                             RenderPassEncoderEnd) STIPPLE_ENTRY(RenderPassEncoderRelease)
+                                                                                             STIPPLE_ENTRY(
+                                                                                                 SurfaceConfigure)
+                                                                                                 STIPPLE_ENTRY(SurfaceUnconfigure) STIPPLE_ENTRY(
+                                                                                                     SurfaceGetCapabilities)
                                                                                                      STIPPLE_ENTRY(
-                                                                                                         SurfaceGetCurrentTexture)
+                                                                                                         SurfaceCapabilitiesFreeMembers)
                                                                                                          STIPPLE_ENTRY(
-                                                                                                             SurfacePresent)
+                                                                                                             SurfaceGetCurrentTexture)
                                                                                                              STIPPLE_ENTRY(
-                                                                                                                 SurfaceRelease)};
+                                                                                                                 SurfacePresent)
+                                                                                                                 STIPPLE_ENTRY(
+                                                                                                                     SurfaceRelease)};
 #undef STIPPLE_ENTRY
 
 }  // namespace
