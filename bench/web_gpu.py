@@ -1,0 +1,165 @@
+#!/usr/bin/env python3
+"""bench/web_gpu.py: the web viewer in headless Chromium on whatever GPU the machine has, without
+node or nginx (the GPU machine has neither): a Python server on loopback serves the viewer
+(build-web/) under /viewer/ and a data folder under /data/, cross-origin isolated (COOP/COEP), and
+adds to stipple.html a script that, once the page reports done or an error, posts what it reports
+(window.stipple) and the WebGPU adapter the page was given to /__report; then Chromium is closed
+and the report printed as JSON (and written to --out).
+
+  bench/web_gpu.py --chromium CMD [--web build-web] [--data DIR] [--query 'url=/data/t/tileset.json&frames=20']
+                   [--window 1280x720] [--timeout-s 600] [--out report.json] [--swiftshader] [--moves N]
+
+On the GPU machine (bench/RESULTS.md, "The page on a GPU"): CMD is the runner that
+bench/device-chromium-pack.sh packs, VK_ICD_FILENAMES names the NVIDIA driver's manifest.
+"""
+import argparse, http.server, json, os, shlex, signal, subprocess, sys, threading, time
+
+p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+p.add_argument('--chromium', required=True)
+p.add_argument('--web', default=os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'build-web'))
+p.add_argument('--data', default=None)
+p.add_argument('--query', default='')
+p.add_argument('--window', default='1280x720')
+p.add_argument('--timeout-s', type=float, default=600)
+p.add_argument('--out', default=None)
+p.add_argument('--swiftshader', action='store_true', help="the tests' flags: WebGPU on SwiftShader")
+p.add_argument('--flags', default='', help='more Chromium flags')
+p.add_argument('--moves', type=int, default=0, help='camera turns after the view is done (frames to time)')
+p.add_argument('--retry-adapter', action='store_true', help='ask again where requestAdapter gives null')
+a = p.parse_args()
+
+# Polls the page's report; posts it with the adapter's description once done or failed.
+REPORTER = b"""<script>
+const stippleMoves = MOVES;
+// After the view is done: `stippleMoves` turns of the camera (ArrowLeft, one an animation frame),
+// so that the page draws that many frames; the page's own time per frame (engine update and
+// render submitted: its CPU work) and the frames drawn per second of them.
+async function stippleMeasureMoves() {
+  const stats = () => JSON.parse(window.stipple.stats || '{}');
+  const frame = () => new Promise((r) => requestAnimationFrame(() => r()));
+  const f0 = stats().frames, t0 = performance.now(), ms = [];
+  for (let i = 0; i < stippleMoves; ++i) {
+    window.dispatchEvent(new KeyboardEvent('keydown', { key: 'ArrowLeft', code: 'ArrowLeft' }));
+    await frame();
+    await frame();
+    ms.push(stats().frameMs);
+  }
+  const seconds = (performance.now() - t0) / 1000;
+  await new Promise((r) => setTimeout(r, 300));
+  const frames = stats().frames - f0;
+  const sorted = [...ms].sort((a, b) => a - b);
+  return { moves: stippleMoves, framesDrawn: frames, seconds, fps: frames / seconds,
+           pageFrameMsMedian: sorted[sorted.length >> 1], pageFrameMsSamples: ms };
+}
+(function poll() {
+  const s = window.stipple;
+  if (!s || !(s.done || s.error)) { setTimeout(poll, 250); return; }
+  (async () => {
+    let adapter = null;
+    try {
+      const ad = await navigator.gpu.requestAdapter({ powerPreference: 'high-performance' });
+      const i = ad && (ad.info || (ad.requestAdapterInfo && await ad.requestAdapterInfo()));
+      adapter = i ? { vendor: i.vendor, architecture: i.architecture, device: i.device,
+                      description: i.description } : null;
+    } catch (e) { adapter = String(e); }
+    let moves = null;
+    try { if (stippleMoves > 0 && !s.error) moves = await stippleMeasureMoves(); } catch (e) { moves = String(e); }
+    await fetch('/__report', { method: 'POST', body: JSON.stringify({ stipple: { ...window.stipple }, adapter,
+      moves, devicePixelRatio: window.devicePixelRatio, inner: [innerWidth, innerHeight] }) });
+  })();
+})();
+</script>
+"""
+# With --retry-adapter: requestAdapter asked again (5 times, 200 ms apart) where it returns null.
+# Chromium 156 with ANGLE on Vulkan answered the page's first request with null ("A valid
+# external Instance reference no longer exists.") and a later one with the NVIDIA adapter.
+RETRY = b"""<script>
+{
+  const request = GPU.prototype.requestAdapter;
+  GPU.prototype.requestAdapter = async function (options) {
+    for (let i = 0; i < 5; ++i) {
+      const adapter = await request.call(this, options);
+      if (adapter) return adapter;
+      console.log(`requestAdapter returned null (try ${i + 1})`);
+      await new Promise((r) => setTimeout(r, 200));
+    }
+    return null;
+  };
+}
+</script>
+"""
+report = {}
+done = threading.Event()
+
+
+class Handler(http.server.SimpleHTTPRequestHandler):
+    def log_message(self, *args):
+        pass
+
+    def end_headers(self):
+        self.send_header('Cross-Origin-Opener-Policy', 'same-origin')
+        self.send_header('Cross-Origin-Embedder-Policy', 'require-corp')
+        self.send_header('Cross-Origin-Resource-Policy', 'same-origin')
+        self.send_header('Cache-Control', 'no-store')
+        super().end_headers()
+
+    def translate_path(self, path):
+        path = path.split('?', 1)[0]
+        for prefix, root in (('/viewer/', a.web), ('/data/', a.data)):
+            if root and path.startswith(prefix):
+                return os.path.join(os.path.abspath(root), path[len(prefix):])
+        return '/nonexistent'
+
+    def do_GET(self):
+        if self.path.split('?', 1)[0] == '/viewer/stipple.html':
+            with open(os.path.join(a.web, 'stipple.html'), 'rb') as f:
+                body = f.read().replace(b'</body>', REPORTER.replace(b'MOVES', str(a.moves).encode()) + b'</body>')
+            if a.retry_adapter:
+                body = body.replace(b'<head>', b'<head>' + RETRY, 1)
+            self.send_response(200)
+            self.send_header('Content-Type', 'text/html')
+            self.send_header('Content-Length', str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+            return
+        super().do_GET()
+
+    def do_POST(self):
+        body = self.rfile.read(int(self.headers.get('Content-Length', '0')))
+        self.send_response(204)
+        self.end_headers()
+        report.update(json.loads(body))
+        done.set()
+
+
+Handler.extensions_map = {**http.server.SimpleHTTPRequestHandler.extensions_map,
+                          '.wasm': 'application/wasm', '.js': 'text/javascript',
+                          '.mjs': 'text/javascript', '.json': 'application/json'}
+server = http.server.ThreadingHTTPServer(('127.0.0.1', 0), Handler)
+threading.Thread(target=server.serve_forever, daemon=True).start()
+url = f'http://127.0.0.1:{server.server_address[1]}/viewer/stipple.html?{a.query}'
+w, h = a.window.split('x')
+flags = ['--headless=new', '--no-sandbox', '--enable-unsafe-webgpu', '--ignore-gpu-blocklist',
+         f'--window-size={w},{h}', '--user-data-dir=/tmp/web-gpu-profile', '--enable-logging=stderr',
+         '--v=0', '--no-first-run', '--disable-dev-shm-usage']
+if a.swiftshader:
+    flags += ['--enable-features=Vulkan', '--use-vulkan=native']
+flags += shlex.split(a.flags)
+print('opening', url, file=sys.stderr, flush=True)
+t0 = time.time()
+log_path = (a.out or '/tmp/web-gpu') + '.chromium.log'
+with open(log_path, 'w') as log:
+    proc = subprocess.Popen(shlex.split(a.chromium) + flags + [url], stdout=log, stderr=log,
+                            start_new_session=True)
+    ok = done.wait(a.timeout_s)
+    os.killpg(proc.pid, signal.SIGKILL)
+report['wallS'] = round(time.time() - t0, 2)
+report['url'] = url
+if not ok:
+    report['timeout'] = True
+out = json.dumps(report, indent=1)
+print(out)
+if a.out:
+    with open(a.out, 'w') as f:
+        f.write(out)
+sys.exit(0 if ok and 'error' not in report.get('stipple', {}) else 1)

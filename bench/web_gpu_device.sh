@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# The web viewer beside native stipple on the GPU machine (bench/RESULTS.md, "The page on a
+# GPU"), from the repository root there, with what bench/device-chromium-pack.sh and
+# bench/device-pack.sh packed here carried over: the three chromium parts kept under /tmp by
+# earlier calls (or chromium already unpacked there), .devpkg/stipple.tar.xz, each page build to
+# measure as .devpkg/web-NAME/ (stipple.html, .js, .wasm), .devpkg/fonts/ (a TrueType font:
+# Chromium's font manager aborts without one) and the Vulkan loader's .gl/*.deb (device README).
+#   bench/web_gpu_device.sh [QUERY...]     (default: the built-in scene at 1M and 136M points)
+# Writes to $OUT (or /tmp/web-gpu-out): one JSON report a page and query, the Chromium logs, and
+# native.txt (stipple render of the same scene and size, Dawn and wgpu-native, 20 frames, the
+# renderer chosen as the page chooses it). WEB_DIRS picks page builds; RETRY_ADAPTER=1 has the
+# harness ask for an adapter again where the page's first request gets null.
+set -uo pipefail
+out=${OUT:-/tmp/web-gpu-out}
+mkdir -p "$out"
+for f in .gl/*.deb; do dpkg -x "$f" /; done
+ldconfig
+[ -x /tmp/chromium-pkg/run ] || (cat /tmp/chromium-part-0?.xz | xz -d | tar x -C /tmp) || exit 1
+[ -x /tmp/stipple-pkg/run ] || tar xf .devpkg/stipple.tar.xz -C /tmp || exit 1
+export VK_ICD_FILENAMES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+printf '<?xml version="1.0"?><fontconfig><dir>%s</dir><cachedir>/tmp/fc</cachedir></fontconfig>' \
+  "$PWD/.devpkg/fonts" >/tmp/fonts.conf
+export FONTCONFIG_FILE=/tmp/fonts.conf
+# WebGPU on the NVIDIA driver: ANGLE on Vulkan, no Vulkan surface (no display). With Chromium's
+# Vulkan alone (the tests' flags) it offers SwiftShader.
+flags="--use-angle=vulkan --enable-features=Vulkan,VulkanFromANGLE,DefaultANGLEVulkan --disable-vulkan-surface"
+queries=("$@")
+[ ${#queries[@]} -gt 0 ] || queries=("width=1280&height=720&scene-points=1000000"
+                                    "width=1280&height=720&scene-points=136000000")
+for web in ${WEB_DIRS:-.devpkg/web-*}; do
+  name=$(basename "$web")
+  i=0
+  for q in "${queries[@]}"; do
+    i=$((i + 1))
+    echo "== $name: $q"
+    python3 bench/web_gpu.py --chromium /tmp/chromium-pkg/run --web "$web" --flags "$flags" \
+      ${RETRY_ADAPTER:+--retry-adapter} --moves 30 --query "$q" --out "$out/$name-$i.json" --timeout-s 240 |
+      grep -E '"(renderer|adapter|points|ms|loadMs|stats|error|vendor|wallS|timeout|fps|framesDrawn|pageFrameMsMedian)"'
+  done
+done
+for q in "${queries[@]}"; do
+  pts=$(sed -n 's/.*scene-points=\([0-9]*\).*/\1/p' <<<"$q")
+  for backend in dawn wgpu; do
+    echo "== native $backend: $pts points"
+    /tmp/stipple-pkg/run render --scene-points "${pts:-1000000}" --width 1280 --height 720 \
+      --backend $backend --frames 20 -o /tmp/native.png 2>&1 | tail -3
+  done
+done | tee "$out/native.txt"
