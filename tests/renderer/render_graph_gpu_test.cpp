@@ -225,6 +225,37 @@ TEST_P(RenderGraphGpu, ATargetBoundJustBeforeExecuteIsDrawnInto) {
   ctx->check("late bound target");
 }
 
+// Work added with add_prepare (pipelines made on first use, which may yield in the browser) runs
+// once, in order, before any pass: by prepare(), which the engine calls before it takes a late
+// target's texture, or by execute() for what prepare() has not run.
+TEST_P(RenderGraphGpu, PreparesRunOnceBeforeThePasses) {
+  auto ctx = context();
+  gpu::Texture target =
+      gpu::create_texture_2d(*ctx, kWidth, kHeight, WGPUTextureFormat_RGBA8Unorm,
+                             WGPUTextureUsage_CopyDst | WGPUTextureUsage_CopySrc, "target");
+  gpu::TextureView target_view = gpu::create_view(target);
+  gpu::Buffer buffer = gpu::create_buffer(*ctx, 256, WGPUBufferUsage_Storage, "counters");
+  gpu::TransientPool pool;
+  Counters counters;
+  gpu::RenderGraph g;
+  build(g, target.get(), target_view.get(), buffer.get(), counters);
+  std::vector<std::string> order;
+  auto note = [&](const char* name) {
+    return [&order, &counters, name](gpu::Context&) {
+      order.push_back(std::string(name) + std::to_string(counters.clear));
+    };
+  };
+  g.add_prepare(note("a"));
+  g.add_prepare(note("b"));
+  g.prepare(*ctx);
+  EXPECT_EQ(order, (std::vector<std::string>{"a0", "b0"}));
+  g.add_prepare(note("c"));
+  g.execute(*ctx, pool);
+  EXPECT_EQ(order, (std::vector<std::string>{"a0", "b0", "c0"}));  // each once, before a pass
+  EXPECT_EQ(counters.clear, 1);
+  ctx->check("prepares");
+}
+
 // `stipple render` runs its point pass on the graph: --dump-graph and per-pass --stats.
 TEST_P(RenderGraphGpu, RenderCommandDumpsGraphAndPassTimes) {
   auto dir = std::filesystem::temp_directory_path() /

@@ -53,6 +53,9 @@ void execute_frame_graph(Registry& render) {
     write_file_atomically(fg.dump_path, dot.str());
     fg.dump_path.clear();
   }
+  // Pipelines made on first use wait for their validation, which may yield: before a late
+  // target's texture is taken.
+  fg.graph.prepare(ctx);
   if (auto& late = render.resource<RenderTarget>(); late.acquire) {
     // A late target's texture: nothing yields between here and the graph's submission.
     if (!late.acquire(late)) {

@@ -435,8 +435,8 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   const bool events = !use64 && !options.hqs && p.kernel.fallback_events == AutoSwitch::On;
   const bool accumulate = options.hqs || (!use64 && !events);
   const bool large = options.point_size >= 2.0f;  // dilated after the geometry pass
-  // Translucent points blended over the opaque ones: the split pipelines (made in the first
-  // pass), raster-translucent and its display.
+  // Translucent points blended over the opaque ones: the split pipelines (made before the
+  // passes run), raster-translucent and its display.
   const bool translucent = options.translucent;
   const uint64_t pixels = uint64_t(width) * height;
   const std::string depth_name = "raster-depth-buffer", accum_name = "raster-accum";
@@ -504,12 +504,12 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
     }
   };
 
+  if (translucent) graph.add_prepare([&p](gpu::Context& ctx) { ensure_split_pipelines(ctx, p); });
   gpu::PassBuilder clear_pass = graph.add_pass(
       "raster-clear", gpu::PassKind::Compute,
       [&p, &cloud, upload_frame, depth_name, accum_name, groups_x, groups_y, accumulate, events,
        events_name, translucent](gpu::PassContext& pc) {
         gpu::Context& ctx = pc.gpu();
-        if (translucent) ensure_split_pipelines(ctx, p);
         upload_frame(ctx);
         wgpuCommandEncoderClearBuffer(pc.encoder(), p.counters.get(), 0, WGPU_WHOLE_SIZE);
         if (events)  // the regions' counters

@@ -588,10 +588,13 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
   PointPipelines* pp = &p;
   GpuPointCloud* cp = &cloud;
   const bool translucent = setup->translucent;
-  // The first pass that runs uploads the uniforms and makes the cloud's bind groups.
-  auto prepare = [pp, cp, camera, setup](gpu::Context& ctx) {
+  // Pipelines made on first use, before any pass runs (their validation may yield).
+  graph.add_prepare([pp, setup](gpu::Context& ctx) {
     if (setup->extras) ensure_extras_pipelines(ctx, *pp);
     if (setup->translucent) ensure_translucent_pipelines(ctx, *pp, setup->extras);
+  });
+  // The first pass that runs uploads the uniforms and makes the cloud's bind groups.
+  auto prepare = [pp, cp, camera, setup](gpu::Context& ctx) {
     ensure_cloud_groups(ctx, *pp, *cp);
     write_uniforms(ctx, *pp, *cp, camera, *setup);
   };

@@ -368,7 +368,17 @@ void draw_fullscreen(PassContext& pc, WGPUTextureView target, WGPURenderPipeline
   wgpuRenderPassEncoderEnd(pass.get());
 }
 
+void RenderGraph::add_prepare(std::function<void(Context&)> prepare) {
+  prepares_.push_back(std::move(prepare));
+}
+
+void RenderGraph::prepare(Context& ctx) {
+  // By index: a prepare may add another.
+  for (; prepared_ < prepares_.size(); ++prepared_) prepares_[prepared_](ctx);
+}
+
 void RenderGraph::execute(Context& ctx, TransientPool& pool, PassTimer* timer) {
+  prepare(ctx);
   if (!compiled_) compile();
   for (const GraphResource& r : plan_.resources)
     if (r.imported && r.kind == ResourceKind::Texture && (!r.imported_texture || !r.imported_view))

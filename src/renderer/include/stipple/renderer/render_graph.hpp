@@ -185,6 +185,12 @@ class RenderGraph {
   // for a name that is no imported texture.
   void bind_imported_texture(std::string_view name, WGPUTexture texture, WGPUTextureView view);
   PassBuilder add_pass(std::string name, PassKind kind, PassExecute execute);
+  // Work a frame needs before any pass runs, outside the command encoder: making pipelines the
+  // first time a frame needs them, which waits for their validation and so may yield the
+  // browser's thread (a late target's texture is taken after it: bind_imported_texture).
+  // prepare() runs those added since it last ran, in order; execute() runs any left.
+  void add_prepare(std::function<void(Context&)> prepare);
+  void prepare(Context& ctx);
 
   // Validates and plans; throws stipple::Error naming the pass and resource for: a read of a
   // resource no earlier pass created (and not imported), a write to a read-only import or to a
@@ -213,6 +219,8 @@ class RenderGraph {
   friend class PassBuilder;
   std::vector<GraphResource> imports_;
   std::vector<GraphPass> passes_;
+  std::vector<std::function<void(Context&)>> prepares_;
+  size_t prepared_ = 0;  // prepares_ run so far
   CompiledGraph plan_;
   bool compiled_ = false;
   std::vector<uint32_t> timer_index_;  // per pass, from the last execute()
