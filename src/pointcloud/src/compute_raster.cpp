@@ -508,7 +508,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   gpu::PassBuilder clear_pass = graph.add_pass(
       "raster-clear", gpu::PassKind::Compute,
       [&p, &cloud, upload_frame, depth_name, accum_name, groups_x, groups_y, accumulate, events,
-       events_name, translucent](gpu::PassContext& pc) {
+       events_name](gpu::PassContext& pc) {
         gpu::Context& ctx = pc.gpu();
         upload_frame(ctx);
         wgpuCommandEncoderClearBuffer(pc.encoder(), p.counters.get(), 0, WGPU_WHOLE_SIZE);
