@@ -558,6 +558,27 @@ void draw_chunks(WGPURenderPassEncoder pass, const PointPipelines& p, const GpuP
   }
 }
 
+// A pass that adds the chunks drawn with `pipelines` into `target` (cleared to 0) where they lie
+// within the depth the earlier pass wrote (read only): Botsch et al.'s accumulation and the
+// translucent points' weighted sums alike.
+void draw_chunks_additive(gpu::PassContext& pc, WGPUTextureView target, WGPUTextureView depth_view,
+                          const PointPipelines& p, const GpuPointCloud& cloud,
+                          const std::array<gpu::RenderPipeline, 2>& pipelines, bool clod,
+                          const std::array<gpu::RenderPipeline, 2>* extras_pipelines) {
+  WGPURenderPassColorAttachment color = color_attachment(target, WGPULoadOp_Clear, glm::vec4(0.0f));
+  WGPURenderPassDepthStencilAttachment depth = depth_attachment(depth_view, false, true);
+  depth.depthReadOnly = true;
+  depth.depthLoadOp = WGPULoadOp_Undefined;
+  depth.depthStoreOp = WGPUStoreOp_Undefined;
+  WGPURenderPassDescriptor desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
+  desc.colorAttachmentCount = 1;
+  desc.colorAttachments = &color;
+  desc.depthStencilAttachment = &depth;
+  gpu::RenderPassEncoder pass = pc.begin_render_pass(desc);
+  draw_chunks(pass.get(), p, cloud, pipelines, clod, extras_pipelines);
+  wgpuRenderPassEncoderEnd(pass.get());
+}
+
 }  // namespace
 
 std::vector<std::string> point_pass_names(const PointRenderSettings& s, bool translucent) {
@@ -686,21 +707,8 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
     declare_depth(pass);
 
     auto accum_pass = [pp, cp, targets, clod, accum, extras](gpu::PassContext& pc) {
-      WGPURenderPassColorAttachment color =
-          color_attachment(pc.view(accum), WGPULoadOp_Clear, glm::vec4(0.0f));
-      WGPURenderPassDepthStencilAttachment depth =
-          depth_attachment(pc.view(targets.depth), false, true);
-      depth.depthReadOnly = true;
-      depth.depthLoadOp = WGPULoadOp_Undefined;
-      depth.depthStoreOp = WGPUStoreOp_Undefined;
-      WGPURenderPassDescriptor desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
-      desc.colorAttachmentCount = 1;
-      desc.colorAttachments = &color;
-      desc.depthStencilAttachment = &depth;
-      gpu::RenderPassEncoder pass = pc.begin_render_pass(desc);
-      draw_chunks(pass.get(), *pp, *cp, pp->splat_accum, clod,
-                  extras ? &pp->splat_accum_x : nullptr);
-      wgpuRenderPassEncoderEnd(pass.get());
+      draw_chunks_additive(pc, pc.view(accum), pc.view(targets.depth), *pp, *cp, pp->splat_accum,
+                           clod, extras ? &pp->splat_accum_x : nullptr);
     };
     auto acc = graph.add_pass("splat-accumulate", gpu::PassKind::Render, std::move(accum_pass));
     if (clod) acc.read("clod-args");
@@ -728,21 +736,8 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
     // depth, then their average laid over the image by their coverage.
     const std::string oit_accum = "oit-accumulation";
     auto translucent_pass = [pp, cp, targets, clod, extras, oit_accum](gpu::PassContext& pc) {
-      WGPURenderPassColorAttachment color =
-          color_attachment(pc.view(oit_accum), WGPULoadOp_Clear, glm::vec4(0.0f));
-      WGPURenderPassDepthStencilAttachment depth =
-          depth_attachment(pc.view(targets.depth), false, true);
-      depth.depthReadOnly = true;
-      depth.depthLoadOp = WGPULoadOp_Undefined;
-      depth.depthStoreOp = WGPUStoreOp_Undefined;
-      WGPURenderPassDescriptor desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
-      desc.colorAttachmentCount = 1;
-      desc.colorAttachments = &color;
-      desc.depthStencilAttachment = &depth;
-      gpu::RenderPassEncoder pass = pc.begin_render_pass(desc);
-      draw_chunks(pass.get(), *pp, *cp, pp->translucent, clod,
-                  extras ? &pp->translucent_x : nullptr);
-      wgpuRenderPassEncoderEnd(pass.get());
+      draw_chunks_additive(pc, pc.view(oit_accum), pc.view(targets.depth), *pp, *cp,
+                           pp->translucent, clod, extras ? &pp->translucent_x : nullptr);
     };
     auto oit =
         graph.add_pass("points-translucent", gpu::PassKind::Render, std::move(translucent_pass));
