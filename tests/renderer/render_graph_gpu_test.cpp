@@ -88,15 +88,27 @@ void build(gpu::RenderGraph& g, WGPUTexture target, WGPUTextureView target_view,
       .create_buffer("junk", {1024, WGPUBufferUsage_Storage});
 }
 
+// What build() imports: the target texture and its view, the counters buffer.
+struct Imports {
+  gpu::Texture target;
+  gpu::TextureView target_view;
+  gpu::Buffer buffer;
+};
+
+Imports make_imports(gpu::Context& ctx) {
+  Imports i;
+  i.target = gpu::create_texture_2d(ctx, kWidth, kHeight, WGPUTextureFormat_RGBA8Unorm,
+                                    WGPUTextureUsage_CopyDst | WGPUTextureUsage_CopySrc, "target");
+  i.target_view = gpu::create_view(i.target);
+  i.buffer = gpu::create_buffer(ctx, 256, WGPUBufferUsage_Storage, "counters");
+  return i;
+}
+
 }  // namespace
 
 TEST_P(RenderGraphGpu, RunsSurvivingPassesAndPoolsTransients) {
   auto ctx = context();
-  gpu::Texture target =
-      gpu::create_texture_2d(*ctx, kWidth, kHeight, WGPUTextureFormat_RGBA8Unorm,
-                             WGPUTextureUsage_CopyDst | WGPUTextureUsage_CopySrc, "target");
-  gpu::TextureView target_view = gpu::create_view(target);
-  gpu::Buffer buffer = gpu::create_buffer(*ctx, 256, WGPUBufferUsage_Storage, "counters");
+  auto [target, target_view, buffer] = make_imports(*ctx);
 
   gpu::TransientPool pool;
   gpu::PassTimer timer;
@@ -194,11 +206,7 @@ TEST_P(RenderGraphGpu, UndeclaredResourcesAreErrors) {
 // a late target such as the page's canvas), it is drawn into.
 TEST_P(RenderGraphGpu, ATargetBoundJustBeforeExecuteIsDrawnInto) {
   auto ctx = context();
-  gpu::Texture target =
-      gpu::create_texture_2d(*ctx, kWidth, kHeight, WGPUTextureFormat_RGBA8Unorm,
-                             WGPUTextureUsage_CopyDst | WGPUTextureUsage_CopySrc, "target");
-  gpu::TextureView target_view = gpu::create_view(target);
-  gpu::Buffer buffer = gpu::create_buffer(*ctx, 256, WGPUBufferUsage_Storage, "counters");
+  auto [target, target_view, buffer] = make_imports(*ctx);
   gpu::TransientPool pool;
   Counters counters;
   gpu::RenderGraph g;
@@ -230,11 +238,7 @@ TEST_P(RenderGraphGpu, ATargetBoundJustBeforeExecuteIsDrawnInto) {
 // target's texture, or by execute() for what prepare() has not run.
 TEST_P(RenderGraphGpu, PreparesRunOnceBeforeThePasses) {
   auto ctx = context();
-  gpu::Texture target =
-      gpu::create_texture_2d(*ctx, kWidth, kHeight, WGPUTextureFormat_RGBA8Unorm,
-                             WGPUTextureUsage_CopyDst | WGPUTextureUsage_CopySrc, "target");
-  gpu::TextureView target_view = gpu::create_view(target);
-  gpu::Buffer buffer = gpu::create_buffer(*ctx, 256, WGPUBufferUsage_Storage, "counters");
+  auto [target, target_view, buffer] = make_imports(*ctx);
   gpu::TransientPool pool;
   Counters counters;
   gpu::RenderGraph g;

@@ -318,18 +318,19 @@ std::unique_ptr<Context> create_context(const ContextOptions& options) {
       r->message = to_string(message);
   };
   adapter_cb.userdata1 = &adapter_result;
-  wgpuInstanceRequestAdapter(ctx->instance.get(), &adapter_options, adapter_cb);
-  ctx->wait_until([&] { return adapter_result.done; });
 #ifdef __EMSCRIPTEN__
   // Chromium 156 with ANGLE on Vulkan (an NVIDIA GPU, headless) answers a page's first request
   // with null ("A valid external Instance reference no longer exists.") and the next with the
   // GPU's adapter (bench/RESULTS.md, "The page on a GPU"): ask again before giving up.
-  for (int attempt = 0; attempt < 3 && !adapter_result.adapter; ++attempt) {
+  constexpr int kAdapterRequests = 4;
+#else
+  constexpr int kAdapterRequests = 1;
+#endif
+  for (int request = 0; request < kAdapterRequests && !adapter_result.adapter; ++request) {
     adapter_result = AdapterResult{};
     wgpuInstanceRequestAdapter(ctx->instance.get(), &adapter_options, adapter_cb);
     ctx->wait_until([&] { return adapter_result.done; });
   }
-#endif
   if (!adapter_result.adapter) {
 #ifdef __EMSCRIPTEN__
     fail("the browser offers no WebGPU adapter ({}): is WebGPU enabled (chrome://gpu)?",
