@@ -47,6 +47,7 @@ std::vector<PluginInfo> builtin_plugins() {
           plugin_info<viewer::SurfaceTargetPlugin>(),
           plugin_info<viewer::UiPlugin>(),
           plugin_info<viewer::ScriptedInputPlugin>(),
+          plugin_info<tools::ToolsCorePlugin>(),
           plugin_info<viewer::ToolsPlugin>(),
           plugin_info<viewer::CameraControllerPlugin>(),
           plugin_info<viewer::ViewerPlugin>()};
@@ -75,7 +76,8 @@ void run_plugins(const std::string& dot_path) {
       "[not with --single-thread], GpuPlugin, RenderGraphPlugin, PointCloudPlugin (TilesetPlugin "
       "for a tileset, VirtualPointCloudPlugin over the host budget or with --virtual), "
       "WindowPlugin, [ScriptedInputPlugin with --script], "
-      "InputPlugin, SurfaceTargetPlugin, UiPlugin [not with --no-ui], ToolsPlugin, "
+      "InputPlugin, SurfaceTargetPlugin, UiPlugin [not with --no-ui], ToolsPlugin (adds "
+      "ToolsCorePlugin), "
       "CameraControllerPlugin, ViewerPlugin\n");
   if (dot_path.empty()) return;
   std::string dot = plugins_dot(plugins);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 
 namespace stipple {
@@ -175,6 +176,14 @@ Camera ViewFit::camera() const {
   const double distance = glm::dot(forward_, extent_.center()) - z;
   c.near_plane = std::max(distance * 1e-4, std::min(1e-3, 0.5 * (nearest_ - z)));
   return c;
+}
+
+glm::dvec3 cursor_ray(const Camera& camera, const glm::dvec2& cursor, const glm::dvec2& viewport) {
+  double aspect = viewport.x / std::max(viewport.y, 1.0);
+  double t = std::tan(camera.fov_y * 0.5);
+  double x = (2.0 * cursor.x / std::max(viewport.x, 1.0) - 1.0) * t * aspect;
+  double y = (1.0 - 2.0 * cursor.y / std::max(viewport.y, 1.0)) * t;
+  return glm::normalize(camera.orientation * glm::dvec3(x, y, -1.0));
 }
 
 }  // namespace stipple

@@ -46,14 +46,6 @@ void apply_controller(const CameraController& c, Camera& camera) {
   camera.orientation = orientation_from(c.yaw, c.pitch);
 }
 
-glm::dvec3 cursor_ray(const Camera& camera, const glm::dvec2& cursor, const glm::dvec2& viewport) {
-  double aspect = viewport.x / std::max(viewport.y, 1.0);
-  double t = std::tan(camera.fov_y * 0.5);
-  double x = (2.0 * cursor.x / std::max(viewport.x, 1.0) - 1.0) * t * aspect;
-  double y = (1.0 - 2.0 * cursor.y / std::max(viewport.y, 1.0)) * t;
-  return glm::normalize(camera.orientation * glm::dvec3(x, y, -1.0));
-}
-
 void update_orbit(CameraController& c, const platform::InputState& in, double fov_y,
                   const glm::dvec2& viewport) {
   const glm::dvec2 d = in.cursor_delta;

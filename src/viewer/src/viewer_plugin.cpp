@@ -45,8 +45,8 @@ void viewer_keys(Registry& main) {
   }
   if (capture && capture->keyboard) return;
   // Escape quits, unless it cancels a measurement being drawn (the tools see it first).
-  const auto* tools = main.try_resource<ToolsState>();
-  if (input.pressed(Key::Escape) && !(tools && tools->active >= 0))
+  const auto* tool_state = main.try_resource<tools::ToolsState>();
+  if (input.pressed(Key::Escape) && !(tool_state && tool_state->active >= 0))
     main.resource<AppExit>().requested = true;
   if (input.pressed(Key::P))
     main.resource<ScreenshotRequests>().paths.push_back(next_screenshot_name());

@@ -5,6 +5,7 @@
 
 #include <glm/gtc/quaternion.hpp>
 #include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
 #include "stipple/math/aabb.hpp"
@@ -86,5 +87,9 @@ class ViewFit {
   double nearest_ = 1e300;    // the least depth along forward_ (from the origin)
   Aabb extent_;
 };
+
+// World-space direction through a cursor position: `cursor` in pixels from the top-left corner
+// of a view `viewport` pixels large (any pixels: a window's or a canvas's, as long as both agree).
+glm::dvec3 cursor_ray(const Camera& camera, const glm::dvec2& cursor, const glm::dvec2& viewport);
 
 }  // namespace stipple

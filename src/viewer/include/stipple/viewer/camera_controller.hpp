@@ -48,9 +48,6 @@ CameraController controller_from_camera(const Camera& camera, const glm::dvec3& 
 // Writes position and orientation into the camera.
 void apply_controller(const CameraController& c, Camera& camera);
 
-// World-space direction through a cursor position (window coordinates, origin top left).
-glm::dvec3 cursor_ray(const Camera& camera, const glm::dvec2& cursor, const glm::dvec2& viewport);
-
 // One frame of input. `viewport` is the window size in cursor units; dt in seconds.
 void update_orbit(CameraController& c, const platform::InputState& input, double fov_y,
                   const glm::dvec2& viewport);

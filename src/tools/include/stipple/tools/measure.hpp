@@ -19,7 +19,7 @@
 #include "stipple/pointcloud/filters.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
 
-namespace stipple::viewer {
+namespace stipple::tools {
 
 enum class Tool : uint8_t {
   None,
@@ -116,4 +116,4 @@ Measurement from_feature(const io::GeoFeature& f, const SourceFrame& frame, size
 std::string value_text(const Measurement& m, const std::string& unit);
 std::string unit_symbol(const std::string& unit);
 
-}  // namespace stipple::viewer
+}  // namespace stipple::tools

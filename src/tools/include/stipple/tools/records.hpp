@@ -18,7 +18,7 @@
 #include "stipple/pointcloud/picking.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
 
-namespace stipple::viewer {
+namespace stipple::tools {
 
 struct PointRecord {
   bool from_source = false;           // read from the file or regenerated, not the packed GPU copy
@@ -46,4 +46,4 @@ PointRecord read_point_record(const RecordSource& source, const pc::PickHit& hit
 std::vector<std::pair<std::string, io::GeoValue>> decode_extra_bytes(
     const std::vector<io::ExtraBytesDescriptor>& descriptors, const uint8_t* bytes, size_t size);
 
-}  // namespace stipple::viewer
+}  // namespace stipple::tools

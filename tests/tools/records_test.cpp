@@ -8,7 +8,7 @@
 #include <variant>
 #include <vector>
 
-#include "stipple/viewer/records.hpp"
+#include "stipple/tools/records.hpp"
 
 using namespace stipple;
 
@@ -62,7 +62,7 @@ TEST(Records, ExtraBytesDecodeByTheirDescriptors) {
   put<float>(bytes, -1.5f);
   bytes.push_back(0x01), bytes.push_back(0xa0), bytes.push_back(0xff);  // no descriptor
 
-  const auto fields = viewer::decode_extra_bytes(ds, bytes.data(), bytes.size());
+  const auto fields = tools::decode_extra_bytes(ds, bytes.data(), bytes.size());
   ASSERT_EQ(fields.size(), 7u);
   EXPECT_EQ(fields[0].first, "amplitude");
   EXPECT_EQ(number(fields[0].second), 300 * 0.5 + 10.0);
@@ -85,7 +85,7 @@ TEST(Records, ExtraBytesShorterThanTheDescriptors) {
   std::vector<uint8_t> bytes;
   put<uint16_t>(bytes, 513);
   bytes.push_back(0x7f), bytes.push_back(0x00), bytes.push_back(0x10);
-  const auto fields = viewer::decode_extra_bytes(ds, bytes.data(), bytes.size());
+  const auto fields = tools::decode_extra_bytes(ds, bytes.data(), bytes.size());
   ASSERT_EQ(fields.size(), 2u);
   EXPECT_EQ(number(fields[0].second), 513.0);
   EXPECT_EQ(fields[1].first, "extra_bytes");

@@ -1,4 +1,4 @@
-#include "stipple/viewer/records.hpp"
+#include "stipple/tools/records.hpp"
 
 #include <algorithm>
 #include <cstring>
@@ -10,7 +10,7 @@
 #include "stipple/math/geo.hpp"
 #include "stipple/pointcloud/filters.hpp"
 
-namespace stipple::viewer {
+namespace stipple::tools {
 namespace {
 
 template <typename T>
@@ -189,4 +189,4 @@ PointRecord read_point_record(const RecordSource& source, const pc::PickHit& hit
   return r;
 }
 
-}  // namespace stipple::viewer
+}  // namespace stipple::tools

@@ -1,4 +1,4 @@
-#include "stipple/viewer/measure.hpp"
+#include "stipple/tools/measure.hpp"
 
 #include <algorithm>
 #include <array>
@@ -12,7 +12,7 @@
 #include "stipple/math/camera.hpp"
 #include "stipple/math/geo.hpp"
 
-namespace stipple::viewer {
+namespace stipple::tools {
 
 namespace {
 struct ToolInfo {
@@ -372,4 +372,4 @@ Measurement from_feature(const io::GeoFeature& f, const SourceFrame& frame, size
   return m;
 }
 
-}  // namespace stipple::viewer
+}  // namespace stipple::tools
