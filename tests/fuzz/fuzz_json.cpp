@@ -10,7 +10,7 @@
 
 #include "stipple/core/error.hpp"
 #include "stipple/io/geojson.hpp"
-#include "stipple/viewer/measure.hpp"
+#include "stipple/tools/measure.hpp"
 #include "stipple/viewer/script.hpp"
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
@@ -23,10 +23,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     const stipple::io::GeoDocument doc = stipple::io::parse_geojson(text, "fuzz.geojson");
     (void)stipple::io::geojson_text(doc.features, 2992);
-    stipple::viewer::SourceFrame frame;
+    stipple::tools::SourceFrame frame;
     for (size_t i = 0; i < doc.features.size(); ++i) {
       try {
-        (void)stipple::viewer::from_feature(doc.features[i], frame, i, "fuzz.geojson");
+        (void)stipple::tools::from_feature(doc.features[i], frame, i, "fuzz.geojson");
       } catch (const stipple::Error&) {
       }
     }
@@ -34,7 +34,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   } catch (const stipple::Error&) {
   }
   try {
-    (void)stipple::viewer::parse_input_script(text, "fuzz.json");
+    (void)stipple::tools::parse_input_script(text, "fuzz.json");
   } catch (const stipple::Error&) {
   }
   return 0;
