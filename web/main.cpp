@@ -47,8 +47,10 @@
 #include "stipple/scene/scene.hpp"
 #include "stipple/tiles3d/streamer.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
+#include "stipple/tools/tools.hpp"
 
 #include "canvas_target.hpp"
+#include "tools_bridge.hpp"
 
 // Resolves at the page's next animation frame (or after 100 ms where the page is hidden and
 // frames are not run): the main thread's stack is suspended meanwhile (JSPI), so the page draws,
@@ -412,7 +414,11 @@ std::string orbit(Engine& engine, glm::dvec3 target, bool streams, StatsPanel& p
     if (std::string next = take_open(); !next.empty()) return next;
     const bool restyled = take_controls(main);
     const bool resized = take_resize(main);
-    const Input in = take_input();
+    // The tools first: while they hold the pointer (a vertex dragged) the camera stays.
+    bool holds_pointer = false;
+    const bool tooled = web::take_tool_commands(engine, holds_pointer);
+    Input in = take_input();
+    if (holds_pointer) in = {};
     const bool moved = in.dx != 0 || in.dy != 0 || in.zoom != 0 || in.pan_x != 0 || in.pan_y != 0;
     if (moved) {
       yaw -= in.dx * 0.005;
@@ -440,7 +446,8 @@ std::string orbit(Engine& engine, glm::dvec3 target, bool streams, StatsPanel& p
     }
     // Loads under way draw nothing until one finishes (the frame that takes it in).
     const bool arrived = streams && main.resource<tiles3d::TilesetStream>().streamer->has_results();
-    if (!moved && !restyled && !resized && !arrived) {
+    if (!moved && !restyled && !resized && !arrived && !tooled) {
+      web::report_tools(engine);  // a tool chosen, a message: nothing to draw
       // A capture draws the unchanged view again: not a view frame (viewFrames, frame time).
       capture = capture || take_capture_request();
       if (capture && draw_capture(engine)) {
@@ -453,6 +460,8 @@ std::string orbit(Engine& engine, glm::dvec3 target, bool streams, StatsPanel& p
     engine.update();
     if (!streams) engine.wait_for_render();
     panel.frame(emscripten_get_now() - start);
+    web::report_tools(engine);
+    web::report_overlay(engine);
     // Frames drawn since the first view (tests wait for the one after a control's change).
     report("viewFrames", std::to_string(++frames));
     panel.publish(engine, true);
@@ -487,6 +496,10 @@ std::string run_view(const Options& o) {
   // Drawn into the page's canvas, sized as the page asks (take_resize).
   engine.add_plugin(web::CanvasTargetPlugin{"#canvas", o.view.width, o.view.height});
   scene::place_camera(engine, plan, o.view, true);
+  // The tools (tools_bridge.cpp is the page's layer over them); exports on the page's thread.
+  tools::ToolsCorePlugin tools_plugin;
+  tools_plugin.background_exports = false;
+  engine.add_plugin(std::move(tools_plugin));
   const char* renderer = plan.compute() ? "compute" : "billboard";
   report("renderer", renderer);
   StatsPanel panel(renderer);
@@ -548,6 +561,7 @@ std::string run_view(const Options& o) {
   }
   report_controls(main);
   panel.publish(engine, true);
+  web::report_tools(engine, true);
   report("done", "1");
   std::string next;
   if (o.interactive) {

@@ -32,6 +32,7 @@ constexpr double kClickPixels = 4.0;  // a press and release this close are a cl
 struct ToolsRuntime {
   std::string measurements_out;
   bool written = false;
+  bool background_exports = true;
   RecordSource records;
   pc::ClipRegion base_clip;  // the command line's shapes
   uint64_t clip_version = ~uint64_t(0);
@@ -170,6 +171,17 @@ void run_in_background(ToolsRuntime& rt, ToolsState& s, uint64_t total,
   rt.progress_total = total;
   s.message = "exporting ...";
   auto progress = rt.progress;
+  if (!rt.background_exports) {
+    std::promise<std::string> done;
+    progress->store(0);
+    try {
+      done.set_value(work());
+    } catch (const Error& e) {
+      done.set_value(std::string("export failed: ") + e.what());
+    }
+    rt.jobs.push_back(done.get_future().share());
+    return;
+  }
   rt.jobs.push_back(std::async(std::launch::async, [work, before, progress] {
                       if (before.valid()) before.wait();
                       progress->store(0);
@@ -715,6 +727,7 @@ void ToolsCorePlugin::build(Engine& engine) {
   main.insert_resource(ToolsState{});
   ToolsRuntime rt;
   rt.measurements_out = measurements_out;
+  rt.background_exports = background_exports;
   main.insert_resource(std::move(rt));
   engine.add_system(MainStage::PostUpdate, tools_sync, "tools_sync");
 }

@@ -10,7 +10,7 @@ namespace stipple::app {
 
 // The viewer's files, needed and optional.
 inline const std::vector<std::string> kWebViewerFiles = {"stipple.html", "stipple.js",
-                                                         "stipple.wasm"};
+                                                         "stipple.wasm", "stipple-tools.js"};
 inline const std::vector<std::string> kWebViewerOptionalFiles = {"stipple.worker.js",
                                                                  "stipple-isolation.js"};
 

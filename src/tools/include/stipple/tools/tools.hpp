@@ -197,6 +197,9 @@ struct ToolsCorePlugin {
       "the tools' state: inspect, measure, profile, annotate, filter, clip and export";
   std::string measurements_in;   // loaded at start
   std::string measurements_out;  // written when the app exits
+  // Exports on their own threads (off: on the caller's, finished when start_* returns; the
+  // browser page, whose workers are the engine's pool's).
+  bool background_exports = true;
   void build(Engine& engine);
   void finish(Engine& engine);
 };
