@@ -230,3 +230,33 @@ test('every tool measures what it picked, edits, filters, clips and exports as n
   assert.equal(csv, nativeCsv, 'the page\'s profile CSV is stipple profile\'s');
   await page.close();
 });
+
+test('the tools on the built-in scene: records made again by index, values from them',
+     { skip: skip || false, timeout: 600000 }, async () => {
+  const url = suite.server.url(`viewer/stipple.html?scene-points=200000&width=${W}&height=${H}`);
+  const { page, log, state } = await c.openPage(suite.browser, url);
+  c.assertDone(state, log);
+  await until(page, (s) => s.legend, 'the tools state');
+  await chooseTool(page, '1', 'inspect');
+  await clickAt(page, 150, 150);
+  let s = await until(page, (s) => s.inspected, 'an inspected point');
+  assert.equal(s.inspected.source, 'procedural scene');
+  assert.equal(s.inspected.fromSource, true);
+  const picked = s.inspected.position;
+  await chooseTool(page, '3', 'height');
+  await clickAt(page, 150, 150);
+  await clickAt(page, 250, 120);
+  await chooseTool(page, '4', 'area');
+  for (const [x, y] of [[120, 200], [250, 120], [300, 140]]) await clickAt(page, x, y);
+  await clickAt(page, 5, 5, 'right');
+  s = await until(page, (s) => s.items.length === 2 && s.items[1].complete, 'height and area');
+  const [hgt, area] = s.items;
+  assert.deepEqual(hgt.points[0], picked, 'the same pixel picks the same record');
+  near(hgt.values.height, hgt.points[1][2] - hgt.points[0][2], 'height');
+  const [a, b, cc] = area.points;
+  near(area.values.areaHorizontal,
+       Math.abs((b[0] - a[0]) * (cc[1] - a[1]) - (cc[0] - a[0]) * (b[1] - a[1])) / 2, 'area');
+  // The built-in scene is no file: nothing to export.
+  assert.equal(s.canExport, false);
+  await page.close();
+});
