@@ -6,9 +6,11 @@
 // `stipple render tileset.json --width W --height H --frames F --max-sse S`. Prints a Markdown
 // table: the page's load to done (ms, from the navigation: the wasm fetched and compiled, the
 // adapter, the tiles streamed and the frames drawn meanwhile), its median frame once streamed
-// (`engine.update()` until the frame's GPU work is done: drawn into the page's WebGPU canvas; a
-// build of the readback page (--before) copied every frame back into a 2D canvas within it), the
-// native wall and GPU per frame (medians), and logs the canvas against the native image
+// on the page's thread (cpuMs, or frameMs for older builds: `engine.update()`, which no longer
+// waits for the GPU; builds before it waited for the frame's GPU work, and the readback page
+// (--before) copied every frame back into a 2D canvas within it) and the GPU's (gpuMs, from
+// timestamp queries in the page, where the adapter has them), the native wall and GPU per frame
+// (medians), and logs the canvas against the native image
 // (tileset.test.mjs's measure). bench/RESULTS.md ("A tileset by URL", "The page's WebGPU
 // canvas") has the figures.
 //
@@ -113,11 +115,12 @@ try {
       await page.close();
       console.log(`${size} (${name} page): web ${web.tiles} tiles, ${web.points} points, ${web.renderer}, ` +
                   `errors ${web.errors}, done in ${web.ms} ms (page opened to done ${wallMs} ms), ` +
-                  `frame ${web.frameMs} ms; native ${native.renderer}, ${native.points} points: wall ` +
+                  `frame ${web.cpuMs ?? web.frameMs} ms (GPU ${web.gpuMs ?? '-'} ms); native ${native.renderer}, ${native.points} points: wall ` +
                   `${native.wall} ms, GPU ${native.gpu} ms; web vs native ${JSON.stringify(d)}; ` +
                   `load average ${os.loadavg()[0].toFixed(1)}`);
       rows.push(`| ${size} | ${name} | ${web.points} (native ${native.points}) | ` +
-                `${wallMs.toLocaleString('en-US')} | ${web.frameMs} | ${native.wall} | ${native.gpu} |`);
+                `${wallMs.toLocaleString('en-US')} | ${web.cpuMs ?? web.frameMs} | ${web.gpuMs ?? '-'} | ` +
+                `${native.wall} | ${native.gpu} |`);
     }
   }
 } finally {
@@ -125,7 +128,8 @@ try {
   await server.stop();
   fs.rmSync(root, { recursive: true, force: true });
 }
-console.log('\n| size | page | points drawn | web: page load to done (ms) | web: frame once streamed ' +
-            '(median, ms) | native: wall per frame (median, ms) | native: GPU per frame (ms) |');
-console.log('|---|---|---:|---:|---:|---:|---:|');
+console.log('\n| size | page | points drawn | web: page load to done (ms) | web: CPU per frame once ' +
+            'streamed (median, ms) | web: GPU per frame (median, ms) | native: wall per frame ' +
+            '(median, ms) | native: GPU per frame (ms) |');
+console.log('|---|---|---:|---:|---:|---:|---:|---:|');
 for (const r of rows) console.log(r);

@@ -246,20 +246,28 @@ bool take_controls(Registry& main) {
 }
 
 // The stats panel's figures (window.stipple.stats, JSON), those of native `stipple view`'s panel:
-// frame time and frames per second (over the last half second of drawn frames: 0 while the view
-// is idle), frames drawn so far (engine frames whose graph ran, a capture's included: it stops
-// while the page is idle), points drawn of the scene's, for a tileset its tiles resident, loading
-// and failed, resident bytes against the memory budget and the tiles' GPU bytes; the renderer and
-// adapter, the canvas's size and format. Reported at most every 250 ms (`force`: now).
+// the last drawn frame's time on the page's thread (cpuMs: the engine's update, which records and
+// submits the frame without waiting for the GPU; frameMs, its older name, is the same figure),
+// the GPU time of the newest frame whose timestamps have come back (gpuMs, the sum of its passes'
+// times from timestamp queries, and gpuFrame, that frame's number; null where the adapter has no
+// timestamp queries (gpuTiming false) or none came back yet), frames per second (over the last half
+// second of drawn frames: 0 while the view is idle), frames drawn so far (engine frames whose graph
+// ran, a capture's included: it stops while the page is idle), points drawn of the scene's, for a
+// tileset its tiles resident, loading and failed, resident bytes against the memory budget and
+// the tiles' GPU bytes; the renderer and adapter, the canvas's size and format. Reported at most
+// every 250 ms (`force`: now).
 class StatsPanel {
  public:
   explicit StatsPanel(std::string renderer) : renderer_(std::move(renderer)) {}
-  // A drawn frame took `ms` (engine update and render).
+  // A drawn frame's engine update took `ms`.
   void frame(double ms) {
-    frame_ms_ = ms;
+    cpu_ms_ = ms;
     ++window_frames_;
   }
   void publish(Engine& engine, bool force = false) {
+    // Timestamps that came back since the last frame (the browser delivers them while the page
+    // waits for its next animation frame): an idle page shows its last frame's.
+    drain_pass_times(engine, false);
     const double now = emscripten_get_now();
     if (window_start_ == 0) window_start_ = now;
     if (now - window_start_ >= 500) {
@@ -283,20 +291,28 @@ class StatsPanel {
                       stats.drawn_tiles, s.loaded, s.in_flight + s.queued, s.failed,
                       stats.resident_bytes, stats.memory_budget, gpu ? gpu->gpu_bytes : 0);
     }
+    const bool timing = main.resource<GpuContext>()->has_feature(WGPUFeatureName_TimestampQuery);
+    std::string gpu = fmt::format(R"("gpuTiming":{},"gpuMs":null,"gpuFrame":null)", timing);
+    if (render_stats.pass_ms_frame > 0) {
+      double gpu_ms = 0;
+      for (const auto& [pass, ms] : render_stats.pass_ms) gpu_ms += ms;
+      gpu = fmt::format(R"("gpuTiming":{},"gpuMs":{:.3f},"gpuFrame":{})", timing, gpu_ms,
+                        render_stats.pass_ms_frame);
+    }
     const auto& canvas = engine.render().resource<web::CanvasInfo>();
     report("stats",
-           fmt::format(
-               R"({{"frameMs":{:.2f},"fps":{:.1f},"frames":{},"pointsDrawn":{},"points":{},)"
-               R"("renderer":"{}","canvas":"{}x{} {}",)"
-               R"j("adapter":"{} {} ({})"{}}})j",
-               frame_ms_, fps_, render_stats.frames, render_stats.points_drawn,
-               main.resource<pc::SceneInfo>().points, renderer_, canvas.width, canvas.height,
-               web::canvas_format_name(canvas.format), d.vendor, d.architecture, d.backend, tiles));
+           fmt::format(R"({{"cpuMs":{:.2f},"frameMs":{:.2f},{},"fps":{:.1f},"frames":{},)"
+                       R"("pointsDrawn":{},"points":{},"renderer":"{}","canvas":"{}x{} {}",)"
+                       R"j("adapter":"{} {} ({})"{}}})j",
+                       cpu_ms_, cpu_ms_, gpu, fps_, render_stats.frames, render_stats.points_drawn,
+                       main.resource<pc::SceneInfo>().points, renderer_, canvas.width,
+                       canvas.height, web::canvas_format_name(canvas.format), d.vendor,
+                       d.architecture, d.backend, tiles));
   }
 
  private:
   std::string renderer_;
-  double frame_ms_ = 0, fps_ = 0, last_ = 0, window_start_ = 0;
+  double cpu_ms_ = 0, fps_ = 0, last_ = 0, window_start_ = 0;
   uint32_t window_frames_ = 0;
 };
 
@@ -485,7 +501,11 @@ std::string wait_for_open() {
 // Returns the path of a file to open next (dropped on the page).
 std::string run_view(const Options& o) {
   Engine engine;
-  scene::add_engine_core(engine, {.keep_history = true});
+  // Frames are not waited for (each wait would be a round trip through the browser's GPU
+  // process): their timestamps come back a few frames later. The last frames' times are kept,
+  // for the streamed view's GPU time once settled.
+  scene::add_engine_core(engine,
+                         {.keep_history = true, .history_limit = 256, .wait_for_gpu = false});
   Registry& main = engine.main();
   scene::ScenePlan plan = scene::plan_scene(o.scene, *main.resource<GpuContext>());
   const bool streamed = plan.source.streamed();
@@ -521,7 +541,8 @@ std::string run_view(const Options& o) {
     panel.frame(ms);
   } else {
     scene::settle_streamed_scene(engine, plan, o.view, o.max_frames);
-    std::vector<double> settled_ms;  // frame times once streamed
+    std::vector<double> settled_ms;  // frame times once streamed (the engine's update)
+    uint64_t first_settled = 0;      // the number of the first frame drawn once streamed
     size_t problems = 0;
     for (;;) {
       take_resize(main);  // the canvas follows the page while the tiles stream in
@@ -529,7 +550,10 @@ std::string run_view(const Options& o) {
       engine.update();
       const auto& settle = main.resource<scene::StreamSettle>();
       // Frames drawn once streamed (the settling system ran before this frame was drawn).
-      if (settle.settled > 0) settled_ms.push_back(emscripten_get_now() - frame_start);
+      if (settle.settled > 0) {
+        settled_ms.push_back(emscripten_get_now() - frame_start);
+        if (first_settled == 0) first_settled = engine.render().resource<RenderStats>().frames;
+      }
       panel.frame(emscripten_get_now() - frame_start);
       panel.publish(engine);
       const auto& s = main.resource<tiles3d::TilesetStream>();
@@ -545,7 +569,7 @@ std::string run_view(const Options& o) {
       if (settle.settled >= o.frames) break;
       stipple_next_frame();
     }
-    engine.wait_for_render();
+    drain_pass_times(engine);  // the settled frames' GPU times
     const auto& stats = main.resource<tiles3d::TilesetStats>();
     report_adapter();
     report("tiles", std::to_string(stats.drawn_tiles));
@@ -554,9 +578,20 @@ std::string run_view(const Options& o) {
     report("pointSize",
            fmt::format("{:.3f}", main.resource<pc::PointDrawSettings>().render.point_size));
     report("ms", fmt::format("{:.1f}", emscripten_get_now() - start));
+    // Medians once streamed: the page's thread per frame (cpuMs; frameMs, its older name) and,
+    // where the adapter has timestamp queries, the GPU's (gpuMs).
     if (!settled_ms.empty()) {
       std::sort(settled_ms.begin(), settled_ms.end());
       report("frameMs", fmt::format("{:.1f}", settled_ms[settled_ms.size() / 2]));
+      report("cpuMs", fmt::format("{:.2f}", settled_ms[settled_ms.size() / 2]));
+      const auto& render_stats = engine.render().resource<RenderStats>();
+      std::vector<double> gpu_ms;
+      for (size_t i = 0; i < render_stats.gpu_ms.size(); ++i)
+        if (render_stats.gpu_frames[i] >= first_settled) gpu_ms.push_back(render_stats.gpu_ms[i]);
+      if (first_settled > 0 && !gpu_ms.empty()) {
+        std::sort(gpu_ms.begin(), gpu_ms.end());
+        report("gpuMs", fmt::format("{:.3f}", gpu_ms[gpu_ms.size() / 2]));
+      }
     }
   }
   report_controls(main);

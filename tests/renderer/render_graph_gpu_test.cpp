@@ -2,6 +2,7 @@
 // pooled, culled passes never run, surviving render/compute passes are timed.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -258,6 +259,74 @@ TEST_P(RenderGraphGpu, PreparesRunOnceBeforeThePasses) {
   EXPECT_EQ(order, (std::vector<std::string>{"a0", "b0", "c0"}));  // each once, before a pass
   EXPECT_EQ(counters.clear, 1);
   ctx->check("prepares");
+}
+
+// A graph of one empty compute pass per name, each writing the imported buffer "out".
+void build_named(gpu::RenderGraph& g, WGPUBuffer out, const std::vector<std::string>& names) {
+  g.import_buffer("out", out, {256, WGPUBufferUsage_Storage}, gpu::Access::Writable);
+  for (const auto& name : names)
+    g.add_pass(name, gpu::PassKind::Compute, [](gpu::PassContext& pc) {
+       gpu::ComputePassEncoder pass = pc.begin_compute_pass();
+       wgpuComputePassEncoderEnd(pass.get());
+     }).write("out");
+}
+
+// A ring of timers read back without waiting: each frame's times come back under the names of
+// that frame's passes (the pass list changes from frame to frame, and results are taken only
+// after later frames were recorded), oldest frame first; a frame that finds every slot in flight
+// goes untimed rather than waiting, and a slot is free again once its results are taken.
+TEST_P(RenderGraphGpu, TimerRingKeepsEachFramesPassNames) {
+  auto ctx = context();
+  gpu::Buffer buffer = gpu::create_buffer(*ctx, 256, WGPUBufferUsage_Storage, "out");
+  gpu::PassTimerRing ring = gpu::create_pass_timer_ring(*ctx, 4, 2);
+  if (ring.slots.empty()) GTEST_SKIP() << "no timestamp queries on this adapter";
+  ASSERT_EQ(ring.slots.size(), 2u);
+  gpu::TransientPool pool;
+  const std::vector<std::vector<std::string>> frames = {{"a", "b"}, {"c"}, {"d", "e", "f"}};
+  for (uint64_t f = 0; f < frames.size(); ++f) {
+    gpu::RenderGraph g;
+    build_named(g, buffer.get(), frames[f]);
+    gpu::PassTimer* timer = gpu::acquire_pass_timer(ring);
+    if (f < 2) {
+      ASSERT_NE(timer, nullptr) << "frame " << f;
+    } else {
+      EXPECT_EQ(timer, nullptr) << "both slots are in flight: the third frame goes untimed";
+    }
+    g.execute(*ctx, pool, timer);
+    if (timer) gpu::pass_timer_submitted(ring, timer, f + 1, g.timed_pass_names(*timer));
+  }
+  EXPECT_EQ(gpu::pass_times_in_flight(ring), 2u);
+  std::vector<gpu::FrameTimes> arrived = gpu::collect_pass_times(*ctx, ring, true);
+  ASSERT_EQ(arrived.size(), 2u);
+  EXPECT_EQ(arrived[0].frame, 1u);
+  EXPECT_EQ(arrived[1].frame, 2u);
+  auto names = [](const gpu::FrameTimes& t) {
+    std::vector<std::string> n;
+    for (const auto& [name, ms] : t.pass_ms) {
+      n.push_back(name);
+      EXPECT_TRUE(std::isfinite(ms) && ms >= 0.0) << name << " " << ms;
+    }
+    return n;
+  };
+  EXPECT_EQ(names(arrived[0]), (std::vector<std::string>{"a", "b"}));
+  EXPECT_EQ(names(arrived[1]), (std::vector<std::string>{"c"}));
+  EXPECT_EQ(gpu::pass_times_in_flight(ring), 0u);
+  EXPECT_TRUE(gpu::collect_pass_times(*ctx, ring, true).empty());
+
+  // Slots are reused: a fourth frame gets one, and its times are its own.
+  gpu::RenderGraph g;
+  build_named(g, buffer.get(), {"g"});
+  gpu::PassTimer* timer = gpu::acquire_pass_timer(ring);
+  ASSERT_NE(timer, nullptr);
+  g.execute(*ctx, pool, timer);
+  gpu::pass_timer_submitted(ring, timer, 4, g.timed_pass_names(*timer));
+  // Without waiting, the results arrive within some polls (no time limit: the test's own).
+  std::vector<gpu::FrameTimes> later;
+  while (later.empty()) later = gpu::collect_pass_times(*ctx, ring, false);
+  ASSERT_EQ(later.size(), 1u);
+  EXPECT_EQ(later[0].frame, 4u);
+  EXPECT_EQ(names(later[0]), (std::vector<std::string>{"g"}));
+  ctx->check("timer ring");
 }
 
 // `stipple render` runs its point pass on the graph: --dump-graph and per-pass --stats.

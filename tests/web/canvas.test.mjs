@@ -4,7 +4,9 @@
 // SwiftShader) against `stipple render` of the same scene at each size (lavapipe), within the
 // tolerance of common.mjs: the canvas's size follows the window's, a resize redraws exactly once,
 // an idle page's frame counter (window.stipple.stats.frames) stops, a key press draws again,
-// and a tileset's page stops drawing once its tiles are in.
+// and a tileset's page stops drawing once its tiles are in. Frames are not waited for: the stats
+// give the page's thread's time per frame (cpuMs) and, from timestamp queries that come back
+// later, the GPU time of the newest frame timed (gpuMs, gpuFrame).
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import path from 'node:path';
@@ -37,6 +39,26 @@ async function assertIdle(page, what) {
                `${what}: the page drew ${after.frames - before.frames} frames while idle: ` +
                `${JSON.stringify(before)} then ${JSON.stringify(after)}`);
   return after.frames;
+}
+
+// The page's frame times: the page's thread's (cpuMs) and, where the adapter has timestamp
+// queries, the GPU's for the newest frame whose timestamps came back (they do while the page is
+// idle: waited for here), which is one of the frames drawn. Returns the stats.
+async function assertTimes(page, what) {
+  let s = await stats(page);
+  assert.ok(Number.isFinite(s.cpuMs) && s.cpuMs > 0, `${what}: cpuMs ${s.cpuMs}`);
+  assert.equal(s.frameMs, s.cpuMs, `${what}: frameMs is cpuMs's older name`);
+  if (!s.gpuTiming) {
+    console.log(`${what}: no timestamp queries on this adapter: ${JSON.stringify(s)}`);
+    assert.equal(s.gpuMs, null);
+    return s;
+  }
+  await page.waitForFunction((n) => JSON.parse(window.stipple.stats).gpuFrame === n,
+                             { timeout: 60000 }, s.frames);
+  s = await stats(page);
+  console.log(`${what}: CPU ${s.cpuMs} ms, GPU ${s.gpuMs} ms (frame ${s.gpuFrame} of ${s.frames})`);
+  assert.ok(Number.isFinite(s.gpuMs) && s.gpuMs >= 0, `${what}: gpuMs ${s.gpuMs}`);
+  return s;
 }
 
 // The canvas against `stipple render` of the built-in scene at its size. Its pixels are read
@@ -81,6 +103,7 @@ test('the canvas fills the window and follows its resizes and devicePixelRatio, 
   assert.match(first.canvas, /^800x600 (bgra8unorm|rgba8unorm)$/);
   assert.equal(first.frames, 1, 'the first view is one frame');
   await assertIdle(page, 'the first view');
+  await assertTimes(page, 'the first view');
   let frames = await assertMatchesNative(page, 800, 600, 'the window at 800x600');
   // The window's size in CSS pixels, then devicePixelRatio 2: the canvas's drawing buffer follows
   // in device pixels (all 4:3, the first view's framing, so the native renders frame alike).
@@ -91,7 +114,9 @@ test('the canvas fills the window and follows its resizes and devicePixelRatio, 
   // Something that changes the view draws a frame again; then the page is idle again.
   await page.keyboard.press('ArrowLeft');
   await page.waitForFunction((n) => JSON.parse(window.stipple.stats).frames > n, { timeout: 60000 }, frames);
-  await assertIdle(page, 'after a key press');
+  frames = await assertIdle(page, 'after a key press');
+  const timed = await assertTimes(page, 'after a key press');
+  if (timed.gpuTiming) assert.equal(timed.gpuFrame, frames, 'the idle page shows its last frame\'s GPU time');
   assert.deepEqual(log, []);
   await page.close();
 });

@@ -1,5 +1,6 @@
 #include "stipple/engine/render_plugins.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <sstream>
 #include <utility>
@@ -22,7 +23,9 @@ void start_render_frame(Registry& render) {
   auto& stats = render.resource<RenderStats>();
   stats.frame_start = now_seconds();
   stats.points_drawn = 0;
-  render.resource<FrameGraph>().executed = false;
+  auto& fg = render.resource<FrameGraph>();
+  fg.executed = false;
+  fg.timed = false;
 }
 
 // After every Prepare system of every plugin: the target is known.
@@ -42,10 +45,10 @@ void execute_frame_graph(Registry& render) {
   if (!fg.active) return;
   gpu::Context& ctx = *render.resource<GpuContext>();
   const gpu::CompiledGraph& plan = fg.graph.compile();
-  if (fg.timing && !fg.timer_created) {
+  if (fg.timing && !fg.timers_created) {
     // Room for passes that join later (overlays toggled on); extra ones go untimed.
-    fg.timer = gpu::create_pass_timer(ctx, std::max(8u, plan.timed_passes));
-    fg.timer_created = true;
+    fg.timers = gpu::create_pass_timer_ring(ctx, std::max(8u, plan.timed_passes), fg.timer_slots);
+    fg.timers_created = true;
   }
   if (!fg.dump_path.empty()) {
     std::ostringstream dot;
@@ -64,11 +67,19 @@ void execute_frame_graph(Registry& render) {
     }
     fg.graph.bind_imported_texture("color", late.texture, late.view);
   }
-  fg.graph.execute(ctx, fg.pool, fg.timing ? &fg.timer : nullptr);
+  auto& stats = render.resource<RenderStats>();
+  gpu::PassTimer* timer = gpu::acquire_pass_timer(fg.timers);
+  if (!timer && !fg.timers.slots.empty()) ++stats.untimed_frames;
+  fg.graph.execute(ctx, fg.pool, timer);
   fg.executed = true;
   ctx.check("drawing a frame");
+  // Mapped now, so that the results come back while the GPU and the next frames go on.
+  if (timer) {
+    std::vector<std::string> names = fg.graph.timed_pass_names(*timer);
+    fg.timed = std::any_of(names.begin(), names.end(), [](const auto& n) { return !n.empty(); });
+    gpu::pass_timer_submitted(fg.timers, timer, stats.frames + 1, std::move(names));
+  }
 
-  auto& stats = render.resource<RenderStats>();
   const auto& target = render.resource<RenderTarget>();
   auto* requests = render.try_resource<ScreenshotRequests>();
   auto* capture = render.try_resource<FrameCapture>();
@@ -97,24 +108,46 @@ void execute_frame_graph(Registry& render) {
   if (capture && capture->on_frame) capture->on_frame(stats.frames, image);
 }
 
+// Appends to a history, which keeps its last `limit` entries (0: all).
+template <typename T>
+void keep(std::vector<T>& history, T value, uint32_t limit) {
+  if (limit > 0 && history.size() >= limit)
+    history.erase(history.begin(), history.begin() + ptrdiff_t(history.size() - limit + 1));
+  history.push_back(value);
+}
+
+// Arrived frames' times into the stats, in frame order.
+void take_pass_times(RenderStats& stats, std::vector<gpu::FrameTimes> arrived) {
+  for (gpu::FrameTimes& frame : arrived) {
+    if (stats.keep_history) {
+      double total = 0;
+      for (const auto& [name, ms] : frame.pass_ms) {
+        keep(stats.history[name], ms, stats.history_limit);
+        total += ms;
+      }
+      keep(stats.gpu_ms, total, stats.history_limit);
+      keep(stats.gpu_frames, frame.frame, stats.history_limit);
+    }
+    stats.pass_ms = std::move(frame.pass_ms);
+    stats.pass_ms_frame = frame.frame;
+  }
+}
+
 // After every PostDraw system (presentation): waiting for the timestamps does not delay it.
 void finish_render_frame(Registry& render) {
   auto& fg = render.resource<FrameGraph>();
   auto& stats = render.resource<RenderStats>();
-  if (!fg.executed) return;
   gpu::Context& ctx = *render.resource<GpuContext>();
-  std::map<std::string, double> times;
-  if (fg.timing) times = fg.graph.read_pass_times(ctx, fg.timer);
-  if (times.empty()) ctx.wait_idle();  // frames are waited for either way: times are per frame
-  double total = 0;
-  for (const auto& [name, ms] : times) total += ms;
+  // Earlier frames' results are taken even when this one drew nothing.
+  take_pass_times(stats, gpu::collect_pass_times(ctx, fg.timers, fg.wait_for_gpu));
+  if (!fg.executed) return;
+  // A frame waited for has its times by now; one without any is waited for all the same, so
+  // that wall times mean the same either way.
+  if (fg.wait_for_gpu && !fg.timed) ctx.wait_idle();
   if (stats.keep_history) {
     for (uint32_t p : fg.graph.plan().order) stats.history[fg.graph.passes()[p].name];
-    for (const auto& [name, ms] : times) stats.history[name].push_back(ms);
-    if (!times.empty()) stats.gpu_ms.push_back(total);
-    stats.wall_ms.push_back((now_seconds() - stats.frame_start) * 1e3);
+    keep(stats.wall_ms, (now_seconds() - stats.frame_start) * 1e3, stats.history_limit);
   }
-  stats.pass_ms = std::move(times);
   ++stats.frames;
 }
 
@@ -133,6 +166,7 @@ void extract_render_stats(Registry& main) {
   auto& snapshot = main.resource<RenderStatsSnapshot>();
   snapshot.frames = stats.frames;
   snapshot.pass_ms = stats.pass_ms;
+  snapshot.pass_ms_frame = stats.pass_ms_frame;
   snapshot.points_drawn = stats.points_drawn;
   snapshot.points_total = stats.points_total;
 }
@@ -148,10 +182,14 @@ void GpuPlugin::build(Engine& engine) {
 void RenderGraphPlugin::build(Engine& engine) {
   FrameGraph fg;
   fg.timing = timing;
+  fg.wait_for_gpu = wait_for_gpu;
+  // Frames waited for have one timer in use at a time.
+  fg.timer_slots = wait_for_gpu ? 1 : std::max(1u, timer_slots);
   fg.dump_path = dump_graph;
   engine.render().insert_resource(std::move(fg));
   RenderStats stats;
   stats.keep_history = keep_history;
+  stats.history_limit = history_limit;
   engine.render().insert_resource(std::move(stats));
   engine.render().insert_resource(ScreenshotRequests{});
   engine.render().insert_resource(CapturedFrame{});
@@ -177,6 +215,15 @@ struct HeadlessSchedule {
   uint64_t frame = 0;
 };
 }  // namespace
+
+void drain_pass_times(Engine& engine, bool wait) {
+  engine.wait_for_render();
+  Registry& render = engine.render();
+  auto* fg = render.try_resource<FrameGraph>();
+  if (!fg || fg->timers.slots.empty()) return;
+  take_pass_times(render.resource<RenderStats>(),
+                  gpu::collect_pass_times(*render.resource<GpuContext>(), fg->timers, wait));
+}
 
 void HeadlessTargetPlugin::build(Engine& engine) {
   if (width == 0 || height == 0) fail("HeadlessTargetPlugin: the target size must not be 0");

@@ -449,6 +449,14 @@ std::map<std::string, double> RenderGraph::read_pass_times(Context& ctx, PassTim
   return result;
 }
 
+std::vector<std::string> RenderGraph::timed_pass_names(const PassTimer& timer) const {
+  std::vector<std::string> names(timer.enabled ? timer.capacity : 0);
+  for (uint32_t p = 0; p < timer_index_.size(); ++p)
+    if (timer_index_[p] < names.size() && used_timestamps_[p])
+      names[timer_index_[p]] = passes_[p].name;
+  return names;
+}
+
 // ---- Graphviz ------------------------------------------------------------------------------
 
 namespace {

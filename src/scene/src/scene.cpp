@@ -167,6 +167,8 @@ void add_engine_core(Engine& engine, const EngineCore& core) {
   RenderGraphPlugin graph;
   graph.keep_history = core.keep_history;
   graph.dump_graph = core.dump_graph;
+  graph.wait_for_gpu = core.wait_for_gpu;
+  graph.history_limit = core.history_limit;
   engine.add_plugin(std::move(graph));
 }
 

@@ -12,7 +12,10 @@
 //   Queue     scene passes (points)
 //   PreDraw   overlay passes (UI)
 //   Draw      RenderGraphPlugin compiles and executes the graph, then serves capture requests
-//   PostDraw  targets present; then (finish()) pass times are read back into RenderStats
+//   PostDraw  targets present; then (finish()) the pass times that arrived are taken into
+//             RenderStats: this frame's, waiting for the GPU to finish it (the default), or,
+//             with RenderGraphPlugin::wait_for_gpu off, those of earlier frames whose results
+//             have come back (none is waited for; drain_pass_times waits for the rest)
 #include <array>
 #include <functional>
 #include <map>
@@ -68,20 +71,36 @@ struct FrameGraph {
   gpu::RenderGraph graph;
   bool active = false;  // a target was available: passes may be added and the graph runs
   gpu::TransientPool pool;
-  gpu::PassTimer timer;
-  bool timer_created = false;
+  gpu::PassTimerRing timers;  // one slot per frame in flight
+  bool timers_created = false;
   bool timing = true;
+  bool wait_for_gpu = true;  // RenderGraphPlugin's
+  uint32_t timer_slots = 1;
   std::string dump_path;  // write the first frame's graph as DOT
   bool executed = false;  // this frame
+  bool timed = false;     // this frame's passes are being timed
 };
 
 // Render-world resource: statistics of the frames drawn so far.
+// A frame's number is the value `frames` has once that frame is counted (the first drawn is 1).
 struct RenderStats {
-  uint64_t frames = 0;                                 // frames whose graph ran
-  std::map<std::string, double> pass_ms;               // last frame, GPU milliseconds
-  std::map<std::string, std::vector<double>> history;  // per pass, every frame (keep_history)
-  std::vector<double> gpu_ms, wall_ms;                 // per frame
+  uint64_t frames = 0;  // frames whose graph ran
+  // GPU milliseconds per pass of the newest frame whose times arrived (this frame's, when frames
+  // wait for the GPU), and that frame's number (0: none yet).
+  std::map<std::string, double> pass_ms;
+  uint64_t pass_ms_frame = 0;
+  // With keep_history, in frame order: per pass, its time in every timed frame that ran it;
+  // per timed frame its total GPU time (gpu_ms) and number (gpu_frames); per drawn frame the
+  // time from Prepare to the end of PostDraw (wall_ms: with the GPU's share where frames wait
+  // for it, the CPU's alone where they do not).
+  std::map<std::string, std::vector<double>> history;
+  std::vector<double> gpu_ms;
+  std::vector<uint64_t> gpu_frames;
+  std::vector<double> wall_ms;
   bool keep_history = false;
+  uint32_t history_limit = 0;  // each of them keeps its last this many entries (0: all)
+  // Frames drawn without times: every timer slot's results were still on their way.
+  uint64_t untimed_frames = 0;
   uint64_t points_drawn = 0;  // last frame (set by the point passes)
   uint64_t points_total = 0;
   double frame_start = 0;  // internal: when Prepare began
@@ -92,6 +111,7 @@ struct RenderStats {
 struct RenderStatsSnapshot {
   uint64_t frames = 0;
   std::map<std::string, double> pass_ms;
+  uint64_t pass_ms_frame = 0;
   uint64_t points_drawn = 0, points_total = 0;
 };
 
@@ -118,11 +138,25 @@ struct RenderGraphPlugin {
       "per-frame render graph with the target imported as \"color\"; pass timing, screenshots";
   static constexpr std::array<std::string_view, 1> dependencies{"GpuPlugin"};
   bool timing = true;
-  bool keep_history = false;  // every frame's pass times in RenderStats::history
-  std::string dump_graph;     // DOT of the first frame's graph
+  bool keep_history = false;   // every frame's pass times in RenderStats::history
+  uint32_t history_limit = 0;  // RenderStats's: the last this many frames' (0: all)
+  std::string dump_graph;      // DOT of the first frame's graph
+  // Whether a frame ends by waiting for the GPU to finish it, so that RenderStats holds its own
+  // pass times and wall_ms includes the GPU's work (what `stipple render --stats` and the bench
+  // commands report). Off (the web page): a frame ends once submitted; its times are read back
+  // through a ring of `timer_slots` timers and arrive a few frames later (a frame that finds
+  // every slot in flight goes untimed); drain_pass_times waits for those still on their way.
+  bool wait_for_gpu = true;
+  uint32_t timer_slots = 4;
   void build(Engine& engine);
   void finish(Engine& engine);
 };
+
+// Takes the pass times that have arrived into RenderStats, in frame order, after waiting for the
+// render world (a pipelined frame in flight); with `wait`, every timed frame still on its way is
+// waited for first (after N frames and a drain, RenderStats has the times of every timed frame).
+// Without, nothing blocks: a page that stopped drawing still gets its last frames' times.
+void drain_pass_times(Engine& engine, bool wait = true);
 
 // An offscreen RGBA8 target. With `output` set, the last of `frames` is written there as PNG;
 // with `capture`, it is kept in the render world's CapturedFrame; with `frames` > 0 the app

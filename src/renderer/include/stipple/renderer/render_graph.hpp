@@ -208,6 +208,10 @@ class RenderGraph {
   // GPU milliseconds per timed pass of the last execute() (blocks until the frame is done);
   // empty when timing is off. Passes that never used their timestamp writes are left out.
   std::map<std::string, double> read_pass_times(Context& ctx, PassTimer& timer) const;
+  // For the timer of the last execute(): the pass that wrote each of its query pairs ("" where
+  // none did; passes that never used their timestamp writes are left out), for
+  // pass_timer_submitted.
+  std::vector<std::string> timed_pass_names(const PassTimer& timer) const;
 
   // Graphviz DOT of the compiled graph: passes as boxes (culled ones grey and dashed), resources
   // as ellipses (imported ones doubled), edges for create/write (pass -> resource) and read

@@ -130,10 +130,14 @@ double max_sse_for(const SceneOptions& options, const SceneSource& source);
 // rasterizer's features requested, so that the renderer can be chosen once the adapter is known)
 // and the frame graph.
 struct EngineCore {
-  std::string backend;        // "dawn", "wgpu"; empty: $STIPPLE_BACKEND, else wgpu
-  bool pipelined = false;     // the render world on its own thread (PipelinedRenderingPlugin)
-  bool keep_history = false;  // per-pass GPU times of every frame (RenderStats::history)
-  std::string dump_graph;     // write the frame graph as Graphviz DOT
+  std::string backend;         // "dawn", "wgpu"; empty: $STIPPLE_BACKEND, else wgpu
+  bool pipelined = false;      // the render world on its own thread (PipelinedRenderingPlugin)
+  bool keep_history = false;   // per-pass GPU times of every frame (RenderStats::history)
+  std::string dump_graph;      // write the frame graph as Graphviz DOT
+  uint32_t history_limit = 0;  // keep_history: of the last this many frames only (0: all)
+  // Each frame waits for the GPU to finish it (RenderGraphPlugin::wait_for_gpu): off in the web
+  // page, where each wait is a round trip through the browser's GPU process.
+  bool wait_for_gpu = true;
 };
 void add_engine_core(Engine& engine, const EngineCore& core);
 
