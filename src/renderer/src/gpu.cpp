@@ -247,6 +247,12 @@ bool Context::has_feature(WGPUFeatureName feature) const {
 }
 
 void Context::poll(bool wait) {
+#ifdef __EMSCRIPTEN__
+  // In the browser, callbacks come from its event loop, and processing events yields the page's
+  // thread to it (a task, not free): a poll that must not wait leaves them to the page's next
+  // animation frame, when it yields anyway.
+  if (!wait) return;
+#endif
   // wgpu-native fires map and work-done callbacks from wgpuDevicePoll; Dawn from
   // wgpuInstanceProcessEvents. Calling both is harmless where one is a no-op.
   if (device && has_proc("wgpuDevicePoll")) wgpuDevicePoll(device.get(), wait, nullptr);
