@@ -3,8 +3,10 @@
 // draws too; the API's camera round-trips in the data's coordinates, setOptions changes the
 // pixels (a colour mode; the point budget, as `stipple render --budget`), screenshot() is a PNG
 // of the canvas's size and destroy() ends the program and removes its canvas. The stock page
-// keeps its view in the link's hash: a second page opened with that link draws the same pixels.
-// Its point budget control thins a tileset to coarser tiles and back. The TypeScript
+// keeps its view in the link's hash: a second page opened with that link draws the same pixels
+// (every channel of every pixel), and editing the hash changes the view. Its point budget control
+// thins a tileset to coarser tiles and back, and a link with the budget opens the same tiles
+// (streamed, then the budget applied: the same pixels too). The TypeScript
 // declarations check a page's use of the API (tsc, where npm's typescript is installed), and the
 // hash format round-trips (in node). Headless chromium (WebGPU on SwiftShader) as in the other
 // web tests; native renders on lavapipe, compared within common.mjs's tolerance.
@@ -275,6 +277,34 @@ async function setControl(page, id, value) {
   await page.waitForFunction((n) => Number(window.stipple.viewFrames || 0) > n, { timeout: 60000 }, before);
 }
 
+// The stock page's view as a PNG (screenshot(): lossless), base64.
+const viewPng = (page) => page.evaluate(async () => {
+  const png = new Uint8Array(await (await window.stippleViewer.screenshot()).arrayBuffer());
+  let text = '';
+  for (const byte of png) text += String.fromCharCode(byte);
+  return btoa(text);
+});
+
+// The stock page's view against a PNG (base64): the pixels that differ at all, the largest
+// difference (of 255), the fraction lit and both sizes.
+const exactly = (page, png) => page.evaluate(async (png) => {
+  const bytes = Uint8Array.from(atob(png), (ch) => ch.charCodeAt(0));
+  const bitmap = await createImageBitmap(new Blob([bytes], { type: 'image/png' }));
+  const ctx = new OffscreenCanvas(bitmap.width, bitmap.height).getContext('2d');
+  ctx.drawImage(bitmap, 0, 0);
+  const y = ctx.getImageData(0, 0, bitmap.width, bitmap.height);
+  const x = await window.stippleCapture();
+  let differ = 0, lit = 0, max = 0;
+  for (let i = 0; i < x.data.length; i += 4) {
+    let m = 0;
+    for (let k = 0; k < 3; ++k) m = Math.max(m, Math.abs(x.data[i + k] - y.data[i + k]));
+    if (m > 0) ++differ;
+    max = Math.max(max, m);
+    if (x.data[i] + x.data[i + 1] + x.data[i + 2] > 60) ++lit;
+  }
+  return { differ, max, lit: lit / (x.data.length / 4), size: [x.width, x.height, y.width, y.height] };
+}, png);
+
 // The hash once it holds the viewer's view state (it follows at most four times a second).
 async function settledHash(page) {
   await page.waitForFunction(async () => {
@@ -303,12 +333,7 @@ test('a link reopens the view: the same camera, options and pixels', { skip: ski
   const hash = new URL(link).hash;
   assert.match(hash, /^#camera=[-0-9.e,]+&color=classification&edl-strength=150$/);
   // The sender's view as a PNG (screenshot(): lossless), read back in the receiver's page.
-  const sent = await a.page.evaluate(async () => {
-    const png = new Uint8Array(await (await window.stippleViewer.screenshot()).arrayBuffer());
-    let text = '';
-    for (const byte of png) text += String.fromCharCode(byte);
-    return { camera: window.stippleViewer.camera, png: btoa(text) };
-  });
+  const sent = { camera: await a.page.evaluate(() => window.stippleViewer.camera), png: await viewPng(a.page) };
   // The receiver opens the link.
   const b = await c.openPage(suite.browser, link);
   c.assertDone(b.state, b.log);
@@ -323,27 +348,14 @@ test('a link reopens the view: the same camera, options and pixels', { skip: ski
   assert.equal(got.frames, 1, 'the link\'s view is the first frame drawn');
   // The same pixels: the same program, scene, camera bits and options on the same browser draw
   // the same frame. Tolerance: none (every channel of every pixel equal).
-  const d = await b.page.evaluate(async (png) => {
-    const bytes = Uint8Array.from(atob(png), (ch) => ch.charCodeAt(0));
-    const bitmap = await createImageBitmap(new Blob([bytes], { type: 'image/png' }));
-    const ctx = new OffscreenCanvas(bitmap.width, bitmap.height).getContext('2d');
-    ctx.drawImage(bitmap, 0, 0);
-    const y = ctx.getImageData(0, 0, bitmap.width, bitmap.height);
-    const x = await window.stippleCapture();
-    let differ = 0, lit = 0, max = 0;
-    for (let i = 0; i < x.data.length; i += 4) {
-      let m = 0;
-      for (let k = 0; k < 3; ++k) m = Math.max(m, Math.abs(x.data[i + k] - y.data[i + k]));
-      if (m > 0) ++differ;
-      max = Math.max(max, m);
-      if (x.data[i] + x.data[i + 1] + x.data[i + 2] > 60) ++lit;
-    }
-    return { differ, max, lit: lit / (x.data.length / 4), size: [x.width, x.height, y.width, y.height] };
-  }, sent.png);
+  const d = await exactly(b.page, sent.png);
   console.log(`sender vs receiver: ${JSON.stringify(d)}`);
   assert.deepEqual(d.size.slice(0, 2), d.size.slice(2));
   assert.ok(d.lit > 0.05, `only ${d.lit} of the canvas is drawn`);
   assert.equal(d.differ, 0, `${d.differ} pixels differ (by up to ${d.max})`);
+  // Editing the hash changes the view too.
+  await b.page.evaluate(() => { location.hash = '#color=elevation'; });
+  await b.page.waitForFunction(() => window.stippleViewer.options.color === 'elevation', { timeout: 30000 });
   await a.page.close();
   await b.page.close();
 });
@@ -382,7 +394,20 @@ test('the point budget control thins a tileset to coarser tiles and back', { ski
   console.log(`thinned against the full view: ${JSON.stringify(d)}`);
   assert.ok(d.lit > 0.05, `only ${d.lit} of the canvas is drawn`);
   assert.ok(d.meanDiff > 0.5, 'the budget did not change the pixels');
-  assert.match(await settledHash(page), new RegExp(`#budget=${budget}$`));
+  const link = await settledHash(page);
+  assert.match(link, new RegExp(`#budget=${budget}$`));
+  // The link opens the tileset with the budget applied once it is streamed: the same tiles.
+  const b = await c.openPage(suite.browser, link);
+  c.assertDone(b.state, b.log);
+  const got = await b.page.evaluate(() => ({ stats: window.stippleViewer.stats(), options: window.stippleViewer.options }));
+  console.log(`the link's page: ${JSON.stringify(got)}`);
+  assert.equal(got.options.budget, budget);
+  assert.equal(got.stats.pointsDrawn, thin.pointsDrawn);
+  assert.equal(got.stats.tilesDrawn, thin.tilesDrawn);
+  const same = await exactly(b.page, await viewPng(page));
+  console.log(`the link's page against the sender's: ${JSON.stringify(same)}`);
+  assert.equal(same.differ, 0, `${same.differ} pixels differ (by up to ${same.max})`);
+  await b.page.close();
   // 0: every tile the view wants again.
   await setControl(page, 'budget', 0);
   await page.waitForFunction((n) => {
