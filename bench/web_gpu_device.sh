@@ -3,7 +3,7 @@
 # GPU"), from the repository root there, with what bench/device-chromium-pack.sh and
 # bench/device-pack.sh packed here carried over: the three chromium parts kept under /tmp by
 # earlier calls (or chromium already unpacked there), .devpkg/stipple.tar.xz, each page build to
-# measure as .devpkg/web-NAME/ (stipple.html, .js, .wasm), .devpkg/fonts/ (a TrueType font:
+# measure as .devpkg/web-NAME/ (stipple.html, .mjs, .js, .wasm), .devpkg/fonts/ (a TrueType font:
 # Chromium's font manager aborts without one) and the Vulkan loader's .gl/*.deb (device README).
 #   bench/web_gpu_device.sh [QUERY...]     (default: the built-in scene at 1M and 136M points)
 # Writes to $OUT (or /tmp/web-gpu-out): one JSON report a page and query, the Chromium logs, and

@@ -89,10 +89,12 @@ fi
 # Peers for the interop tests (tests/web; each skips without its package), never linked:
 # Khronos glTF-Validator; CesiumJS, driven in Debian's chromium through puppeteer-core (no
 # browser download); loaders.gl; Cesium's 3d-tiles-tools (its optional native sqlite module is
-# not built: --ignore-scripts; the tests use none of it); potree-core with three.js. The Cesium
-# 3d-tiles-validator is not published on the npm registry we reach.
+# not built: --ignore-scripts; the tests use none of it); potree-core with three.js; TypeScript's
+# compiler, which checks a page's use of the web viewer's module against its declarations. The
+# Cesium 3d-tiles-validator is not published on the npm registry we reach.
 node_pkgs=(gltf-validator@2.0.0-dev.3.10 cesium@1.145.0 puppeteer-core@24.43.1
-  @loaders.gl/core@4.5.4 @loaders.gl/3d-tiles@4.5.4 3d-tiles-tools@0.5.4 potree-core@2.0.15)
+  @loaders.gl/core@4.5.4 @loaders.gl/3d-tiles@4.5.4 3d-tiles-tools@0.5.4 potree-core@2.0.15
+  typescript@5.9.3)
 if command -v npm >/dev/null; then
   missing=()
   for p in "${node_pkgs[@]}"; do

@@ -2,20 +2,22 @@
 // browser's WebGPU (a thin front end, as app/ is for the command line). The scene is assembled
 // by libstipple's scene module as `stipple render` assembles it (scene::plan_scene: the same
 // plugins, renderer choice, framing, point size and streaming): the built-in scene, a LAS/LAZ
-// file, or a 3D Tiles tileset, COPC, Potree or EPT source by URL (--url, from the page's ?url=),
-// streamed frame by frame with the camera, one engine frame per animation frame. What is the
-// page's own stays here: it draws straight into the page's WebGPU canvas (CanvasTargetPlugin: no
-// readback), whose drawing buffer follows the size the page asks for (its container and
-// devicePixelRatio), and reports on the page (window.stipple: done, error, tile problems, stats,
-// camera); once drawn, the camera follows the page's pointer (mouse and touch), wheel and keys; a
-// LAS/LAZ file dropped on the page (or chosen with its button) is opened next, as a ?url= of it
-// would be. Once drawn, frames are paced by the page's animation frames and drawn only when
-// something changed (the camera, a control, the canvas's size, a tile arrived): an idle page
-// draws nothing, and the canvas keeps showing the last frame. The points' look comes from
-// `stipple render`'s options of the same names (?color=, ?point-size=, ?no-edl=,
-// ?edl-strength=, ?edl-radius=; ?edl=0 or 1 too), and changes with the page's controls
-// (Module.stippleControls) while the view runs; the stats panel's figures (window.stipple.stats)
-// are those of native `stipple view`'s panel, a few times a second.
+// file, or a 3D Tiles tileset, COPC, Potree or EPT source by URL (--url), streamed frame by frame
+// with the camera, one engine frame per animation frame. It is built as a factory (an ES module,
+// -sEXPORT_ES6): web/stipple.mjs makes one instance per viewer, hands it its arguments and the
+// canvas's selector (--canvas), and talks to it through slots of the instance's Module object
+// (Module.stipple*), which the program polls once per animation frame. What is the page's own
+// stays here: it draws straight into its WebGPU canvas (CanvasTargetPlugin: no readback), whose
+// drawing buffer follows the size the module asks for (its container and devicePixelRatio), and
+// reports what it does (Module.stippleReport: done, error, tile problems, stats, camera, the
+// options it draws with); once drawn, the camera follows the module's pointer, wheel and key
+// input, camera sets (viewer.camera, in the data's coordinates) and option changes
+// (viewer.setOptions: `stipple render`'s options of the same names, changed while the view
+// runs), and a source the module asks for (viewer.open: a URL, or a file in the instance's file
+// system) is opened next. Frames are paced by the page's animation frames and drawn only when
+// something changed (the camera, an option, the canvas's size, a tile arrived): an idle page
+// draws nothing, and the canvas keeps showing the last frame. viewer.destroy() ends main at its
+// next animation frame (Module.stippleQuit), and with it the instance's threads.
 #include <emscripten.h>
 
 #include <algorithm>
@@ -27,11 +29,13 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
@@ -68,18 +72,33 @@ namespace {
 
 using namespace stipple;
 
+// Thrown at an animation frame once the module asked the program to end (viewer.destroy()):
+// unwinds the view (the engine shuts down) up to main, which exits. Not a std::exception, so
+// that no error handler takes it for one.
+struct Quit {};
+
+// Waits for the page's next animation frame; throws Quit once the module asked the program to
+// end.
+void next_frame() {
+  stipple_next_frame();
+  if (EM_ASM_INT({ return Module.stippleQuit ? 1 : 0; })) throw Quit{};
+}
+
 struct Options {
   // Inputs, the built-in scene, the points' look (colour mode, EDL and point size, 0: from the
-  // data's density) and the streaming budgets, as `stipple render`'s options of the same names.
+  // data's density), the point budget and the streaming budgets, as `stipple render`'s options
+  // of the same names.
   scene::SceneOptions scene;
-  // The canvas's first size (the page's: its container's in device pixels, or ?width=&height=);
-  // framed from the default azimuth and elevation.
+  // The canvas's first size (the module's: its container's in device pixels, or ?width=&height=)
+  // and the camera (`stipple render --camera`; else framed from the default azimuth and
+  // elevation).
   scene::SceneView view;
   // A URL to open (the page's ?url=): a LAS/LAZ file is fetched into the page's memory and read
   // whole; anything else (tileset.json, COPC, Potree, EPT) is streamed.
   std::string url;
-  uint64_t frames = 1;          // streamed sources: drawn once streamed (frame times)
-  uint64_t max_frames = 10000;  // then drawn as is, with a warning
+  std::string canvas = "#canvas";  // the canvas's selector (the module gives each its own id)
+  uint64_t frames = 1;             // streamed sources: drawn once streamed (frame times)
+  uint64_t max_frames = 10000;     // then drawn as is, with a warning
   bool interactive =
       true;  // camera controls once drawn (0: the first view only, kept for captures)
 };
@@ -129,10 +148,18 @@ Options parse(int argc, char** argv) {
       o.scene.seed = uint32_t(number(a, v));
     else if (a == "--url")
       o.url = v;
-    else if (a == "--memory-mb")
+    else if (a == "--canvas")
+      o.canvas = v;
+    else if (a == "--camera") {
+      // Checked now, as `stipple render` checks it (used once the scene is loaded).
+      scene::parse_numbers(v, 6, "--camera");
+      o.view.camera = v;
+    } else if (a == "--memory-mb")
       o.scene.memory_mb = number(a, v);
     else if (a == "--max-sse")
       o.scene.max_sse = real_number(a, v);
+    else if (a == "--budget")
+      o.scene.budget = number(a, v);
     else if (a == "--frames")
       o.frames = std::max<uint64_t>(1, number(a, v));
     else if (a == "--max-frames")
@@ -165,9 +192,43 @@ void report(const char* key, const std::string& value) {
   EM_ASM({ Module.stippleReport(UTF8ToString($0), UTF8ToString($1)); }, key, value.c_str());
 }
 
-// Whether the page asked for the canvas's pixels (window.stippleCapture(), for tests): the view
-// is drawn again and that frame read back, the page's only readback (a WebGPU canvas cannot be
-// read through the page everywhere: headless Chromium on SwiftShader reads it blank).
+// What the module left in slot Module[`slot`] for the program (a value: taken, the slot emptied),
+// as JSON; "" where the slot is empty.
+std::string take_slot(const char* slot) {
+  // (No commas outside parentheses in the JS: it is a macro argument.)
+  char* text = static_cast<char*>(EM_ASM_PTR(
+      {
+        const name = UTF8ToString($0);
+        const v = Module[name];
+        if (v == null) return 0;
+        Module[name] = null;
+        return stringToNewUTF8(JSON.stringify(v));
+      },
+      slot));
+  if (!text) return {};
+  std::string value(text);
+  std::free(text);
+  return value;
+}
+
+// The slot's value parsed, or nullopt where it is empty or not what `valid` accepts (a warning
+// naming the slot: the module checks what it puts there).
+template <typename Valid>
+std::optional<nlohmann::json> take_json(const char* slot, Valid valid) {
+  const std::string text = take_slot(slot);
+  if (text.empty()) return std::nullopt;
+  nlohmann::json v = nlohmann::json::parse(text, nullptr, false);
+  if (v.is_discarded() || !valid(v)) {
+    STIPPLE_WARN("Module.{}: not understood: {}", slot, text);
+    return std::nullopt;
+  }
+  return v;
+}
+
+// Whether the page asked for the canvas's pixels (viewer.pixels() and screenshot(), the tests'
+// window.stippleCapture()): the view is drawn again and that frame read back, the page's only
+// readback (a WebGPU canvas cannot be read through the page everywhere: headless Chromium on
+// SwiftShader reads it blank).
 bool take_capture_request() {
   return EM_ASM_INT({
     const c = Module.stippleCapture;
@@ -194,58 +255,77 @@ bool draw_capture(Engine& engine) {
   return true;
 }
 
-// The page's controls as the view now draws (window.stipple.controls, JSON): the colour mode
-// asked for and the one shown (auto, or a mode the data lacks, resolves as in `stipple render`'s
-// summary), EDL and the point size in pixels. The page sets its controls from it.
+// The options the view now draws with (the module's viewer.options, the page's controls; JSON in
+// setOptions' names): the colour mode asked for and the one shown (auto, or a mode the data
+// lacks, resolves as in `stipple render`'s summary), EDL, its strength and radius, the point size
+// in pixels and the point budget; for a streamed source its maximum screen-space error and
+// memory budget.
 void report_controls(Registry& main) {
-  const auto& render = main.resource<pc::PointDrawSettings>().render;
+  const auto& settings = main.resource<pc::PointDrawSettings>();
+  const auto& render = settings.render;
   const char* shown = pc::color_mode_name(
       pc::resolve_color_mode(main.resource<pc::SceneInfo>().attributes, render.color));
-  report("controls",
-         fmt::format(
-             R"({{"color":"{}","shown":"{}","edl":{},"edlStrength":{:.6g},"pointSize":{:.6g}}})",
-             pc::color_mode_name(render.color), shown, render.edl ? 1 : 0,
-             double(render.edl_strength), double(render.point_size)));
+  std::string stream;
+  uint64_t budget = settings.budget;
+  if (const auto* s = main.try_resource<tiles3d::TilesetStream>()) {
+    const auto& t = s->streamer->traversal_options();
+    budget = t.point_budget;
+    stream = fmt::format(R"(,"maxSse":{:.6g},"memoryMb":{})", t.max_sse, t.memory_budget >> 20);
+  }
+  report("controls", fmt::format(R"({{"color":"{}","shown":"{}","edl":{},"edlStrength":{:.6g},)"
+                                 R"("edlRadius":{:.6g},"pointSize":{:.6g},"budget":{}{}}})",
+                                 pc::color_mode_name(render.color), shown, render.edl ? 1 : 0,
+                                 double(render.edl_strength), double(render.edl_radius),
+                                 double(render.point_size), budget, stream));
 }
 
-// The page's controls, when one changed since the last call: applied to the draw settings (the
-// colour mode and its ramps, EDL and the point size are uniforms of the next frame on both
-// renderers, as in native `stipple view`'s panel: nothing is read or uploaded again). Returns
-// whether anything changed (a frame is to be drawn).
-bool take_controls(Registry& main) {
-  double values[3] = {};  // edl on, strength, point size
-  char color[32] = {};
-  // (No commas outside parentheses in the JS: it is a macro argument.)
-  const int changed = EM_ASM_INT(
-      {
-        const c = Module.stippleControls;
-        if (!c || !c.changed) return 0;
-        c.changed = false;
-        HEAPF64[$0 >> 3] = c.edl ? 1 : 0;
-        HEAPF64[($0 >> 3) + 1] = c.edlStrength;
-        HEAPF64[($0 >> 3) + 2] = c.pointSize;
-        stringToUTF8(String(c.color), $1, $2);
-        return 1;
-      },
-      values, color, sizeof(color));
-  if (!changed) return false;
-  auto& render = main.resource<pc::PointDrawSettings>().render;
-  try {
-    render.color = pc::parse_color_mode(color);
-  } catch (const std::exception& e) {
-    STIPPLE_WARN("{}", e.what());
+// The options the module changed since the last call (Module.stippleOptions: any of setOptions'
+// names): applied to the draw settings (the colour mode and its ramps, EDL and the point size are
+// uniforms of the next frame on both renderers, as in native `stipple view`'s panel: nothing is
+// read or uploaded again), the point budget to what the next frame draws (a point cloud's
+// nearest chunks on the point pipeline, as `stipple render --budget`; a streamed source's tile
+// selection, as `stipple view`'s panel changes its traversal), the maximum screen-space error and
+// memory budget to a streamed source's traversal. `stipple render`'s ranges (the module checks
+// them first). Returns whether anything came (a frame is to be drawn).
+bool take_options(Registry& main) {
+  const auto o = take_json("stippleOptions", [](const nlohmann::json& v) { return v.is_object(); });
+  if (!o) return false;
+  auto& settings = main.resource<pc::PointDrawSettings>();
+  auto& render = settings.render;
+  // A finite number under `key`, clamped to [lo, hi].
+  auto real = [&](const char* key, double lo, double hi) -> std::optional<double> {
+    const auto it = o->find(key);
+    if (it == o->end() || !it->is_number() || !std::isfinite(it->get<double>())) return {};
+    return std::clamp(it->get<double>(), lo, hi);
+  };
+  if (const auto it = o->find("color"); it != o->end() && it->is_string()) {
+    try {
+      render.color = pc::parse_color_mode(it->get<std::string>());
+    } catch (const std::exception& e) {
+      STIPPLE_WARN("{}", e.what());
+    }
   }
-  render.edl = values[0] != 0;
-  // The ranges of `stipple render`'s --edl-strength and --point-size (a size stays as it was
-  // where the page sends none).
-  if (std::isfinite(values[1])) render.edl_strength = float(std::clamp(values[1], 0.0, 1e4));
-  if (std::isfinite(values[2]) && values[2] > 0)
-    render.point_size = float(std::clamp(values[2], 0.0, 64.0));
+  if (const auto it = o->find("edl"); it != o->end() && it->is_boolean())
+    render.edl = it->get<bool>();
+  if (const auto v = real("edlStrength", 0.0, 1e4)) render.edl_strength = float(*v);
+  if (const auto v = real("edlRadius", 0.5, 16.0)) render.edl_radius = float(*v);
+  if (const auto v = real("pointSize", 0.0, 64.0); v && *v > 0) render.point_size = float(*v);
+  const auto budget = real("budget", 0.0, 1e18);
+  if (budget) settings.budget = uint64_t(*budget);
+  if (auto* s = main.try_resource<tiles3d::TilesetStream>()) {
+    tiles3d::TraversalOptions t = s->streamer->traversal_options();
+    if (budget) t.point_budget = uint64_t(*budget);
+    if (const auto v = real("maxSse", 1e-3, 1e6)) t.max_sse = *v;
+    if (const auto v = real("memoryMb", 1.0, double(uint64_t(1) << 20)))
+      t.memory_budget = uint64_t(*v) << 20;
+    s->streamer->set_traversal_options(t);
+  }
   report_controls(main);
   return true;
 }
 
-// The stats panel's figures (window.stipple.stats, JSON), those of native `stipple view`'s panel:
+// The stats panel's figures (viewer.stats(), window.stipple.stats, JSON), those of native
+// `stipple view`'s panel:
 // the last drawn frame's time on the page's thread (cpuMs: the engine's update, which records and
 // submits the frame without waiting for the GPU; frameMs, its older name, is the same figure),
 // the GPU time of the newest frame whose timestamps have come back (gpuMs, the sum of its passes'
@@ -316,8 +396,6 @@ class StatsPanel {
   uint32_t window_frames_ = 0;
 };
 
-std::string orbit(Engine& engine, glm::dvec3 target, bool streams, StatsPanel& panel);
-
 // The tile problems so far (failed tiles, content warnings), one line per kind with how many
 // tiles had it: the first tile's message in full (it names the tile's URI).
 std::string tile_problems(const tiles3d::TilesetStream& s) {
@@ -331,7 +409,7 @@ std::string tile_problems(const tiles3d::TilesetStream& s) {
   return text;
 }
 
-// The camera controls' input since the last call (the page's listeners add it up, mouse and
+// The camera controls' input since the last call (the module's listeners add it up, mouse and
 // touch alike): turning drag in pixels, zoom steps (wheel, keys, pinch), panning drag in pixels
 // (two fingers, or the mouse's right button).
 struct Input {
@@ -355,8 +433,8 @@ Input take_input() {
   return in;
 }
 
-// The canvas's drawing-buffer size the page asks for (Module.stippleSize: its container's size
-// in device pixels, times ?scale=), when it changed since the last call: set as the Viewport,
+// The canvas's drawing-buffer size the module asks for (Module.stippleSize: its container's size
+// in device pixels, times its scale), when it changed since the last call: set as the Viewport,
 // which the canvas target configures the surface for before the next frame and the tileset's
 // screen-space error follows. Returns whether the size changed (a frame is to be drawn).
 bool take_resize(Registry& main) {
@@ -384,81 +462,157 @@ bool take_resize(Registry& main) {
   return true;
 }
 
-// The path of a file the page has put in its file system to be opened next (dropped, or chosen
-// with its button), or "" (then none is waiting).
+// What the module asks to open next (Module.stippleOpen: a URL, or the path of a file it put in
+// the instance's file system, dropped or chosen), or "" (then nothing is waiting).
 std::string take_open() {
-  char path[4096] = {};
-  EM_ASM(
-      {
-        const p = Module.stippleOpen;
-        if (!p) return;
-        Module.stippleOpen = null;
-        stringToUTF8(p, $0, $1);
-      },
-      path, sizeof(path));
-  return path;
+  const auto next = take_json("stippleOpen", [](const nlohmann::json& v) { return v.is_string(); });
+  return next ? next->get<std::string>() : std::string();
 }
 
-// The camera for the page (window.stipple.camera, JSON): turn angles in radians, distance and
-// target in world units. Tests read it to see the controls move the camera.
-void report_camera(double yaw, double pitch, double distance, const glm::dvec3& target) {
-  report("camera",
-         fmt::format(
-             R"({{"yaw":{:.6f},"pitch":{:.6f},"distance":{:.6g},"target":[{:.6g},{:.6g},{:.6g}]}})",
-             yaw, pitch, distance, target.x, target.y, target.z));
+// The camera's orbit: the point it turns about and looks at, and the camera's position from it
+// as turn angles (radians, in the engine's Y-up world) and a distance. `moved`: the camera left
+// the view it was framed with (a move or a set).
+struct Orbit {
+  glm::dvec3 target{0.0};
+  double yaw = 0, pitch = 0, distance = 1;
+  bool moved = false;
+};
+
+// The orbit of `camera` about `target`.
+Orbit orbit_about(const Camera& camera, const glm::dvec3& target) {
+  Orbit o;
+  o.target = target;
+  const glm::dvec3 offset = camera.position - target;
+  o.distance = std::max(glm::length(offset), 1e-3);
+  o.yaw = std::atan2(offset.x, offset.z);
+  o.pitch = std::asin(std::clamp(offset.y / o.distance, -1.0, 1.0));
+  return o;
 }
 
-// After the first view: the camera orbits `target` (drag turns it, the wheel, keys and pinch
-// zoom, a two-finger or right-button drag moves the target across the view). One engine frame per
-// animation frame when something changed: the camera, a control, the canvas's size, or, for a
-// tileset streaming for the new view (`streams`), a tile arrived; none otherwise (the canvas keeps
-// the last frame). Returns the path of a file to open next, once the page has one.
-std::string orbit(Engine& engine, glm::dvec3 target, bool streams, StatsPanel& panel) {
-  Registry& main = engine.main();
+// The orbit of the framed camera about the point of its view axis nearest `centre` (the data's):
+// the view turns about the data without first swinging round to face its centre, and the target
+// it reports lies on its view axis (viewer.camera: setting what it reads draws the same view).
+Orbit first_orbit(Registry& main, const glm::dvec3& centre) {
   Camera camera;
   main.view<Camera>().each([&](const Camera& c) { camera = c; });
-  const glm::dvec3 offset = camera.position - target;
-  double distance = std::max(glm::length(offset), 1e-3);
-  double yaw = std::atan2(offset.x, offset.z);
-  double pitch = std::asin(std::clamp(offset.y / distance, -1.0, 1.0));
-  report_camera(yaw, pitch, distance, target);
+  const glm::dvec3 forward = camera.forward();
+  double along = glm::dot(centre - camera.position, forward);
+  if (!(along > 1e-3)) along = std::max(glm::length(centre - camera.position), 1e-3);
+  return orbit_about(camera, camera.position + along * forward);
+}
+
+// The near plane for an eye and target (as `stipple render --camera` sets it).
+double near_plane(const glm::dvec3& eye, const glm::dvec3& target) {
+  return std::max(glm::length(target - eye) * 1e-4, 1e-3);
+}
+
+// The camera for the page (viewer.camera, window.stipple.camera, JSON): its position and target
+// in the data's coordinates (Z up, as `stipple render --camera` takes them, to the last bit) and
+// its vertical field of view in degrees; the orbit's turn angles (radians) and distance, and
+// whether it left its first framing.
+void report_camera(Registry& main, const Orbit& orbit) {
+  Camera camera;
+  main.view<Camera>().each([&](const Camera& c) { camera = c; });
+  const glm::dvec3 p = y_up_to_z_up(camera.position), t = y_up_to_z_up(orbit.target);
+  report("camera", fmt::format(R"({{"position":[{:.17g},{:.17g},{:.17g}],)"
+                               R"("target":[{:.17g},{:.17g},{:.17g}],"fov":{:.17g},)"
+                               R"("yaw":{:.6f},"pitch":{:.6f},"distance":{:.17g},"moved":{}}})",
+                               p.x, p.y, p.z, t.x, t.y, t.z, glm::degrees(camera.fov_y), orbit.yaw,
+                               orbit.pitch, orbit.distance, orbit.moved));
+}
+
+// A camera the module set (Module.stippleCamera: {position, target} in the data's coordinates,
+// Z up, and optionally fov in degrees), since the last call: the camera looks from the position
+// at the target, which the orbit turns about from then on. Returns whether one came.
+bool take_camera(Registry& main, Orbit& orbit) {
+  const auto finite3 = [](const nlohmann::json& v) {
+    if (!v.is_array() || v.size() != 3) return false;
+    for (const auto& x : v)
+      if (!x.is_number() || !std::isfinite(x.get<double>())) return false;
+    return true;
+  };
+  const auto c = take_json("stippleCamera", [&](const nlohmann::json& v) {
+    return v.is_object() && finite3(v.value("position", nlohmann::json())) &&
+           finite3(v.value("target", nlohmann::json()));
+  });
+  if (!c) return false;
+  const auto& p = (*c)["position"];
+  const auto& t = (*c)["target"];
+  const glm::dvec3 eye = z_up_to_y_up({p[0].get<double>(), p[1].get<double>(), p[2].get<double>()});
+  const glm::dvec3 target =
+      z_up_to_y_up({t[0].get<double>(), t[1].get<double>(), t[2].get<double>()});
+  if (glm::length(target - eye) <= 0.0) {
+    STIPPLE_WARN("camera: the position and target are the same point");
+    return false;
+  }
+  Camera camera;
+  main.view<Camera>().each([&](Camera& cam) {
+    cam.look_at(eye, target);
+    cam.near_plane = near_plane(eye, target);
+    if (const auto fov = c->find("fov"); fov != c->end() && fov->is_number()) {
+      const double deg = fov->get<double>();
+      if (std::isfinite(deg) && deg > 0 && deg < 180) cam.fov_y = glm::radians(deg);
+    }
+    camera = cam;
+  });
+  orbit = orbit_about(camera, target);
+  orbit.moved = true;
+  return true;
+}
+
+// Once the view is drawn: the camera orbits `orbit.target` (drag turns it, the wheel, keys and
+// pinch zoom, a two-finger or right-button drag moves the target across the view), or goes where
+// the module sets it. One engine frame per animation frame when something changed: the camera, an
+// option, the canvas's size, or, for a tileset streaming for the new view (`streams`), a tile
+// arrived; none otherwise (the canvas keeps the last frame). Returns what to open next, once the
+// module has something.
+std::string orbit_view(Engine& engine, Orbit orbit, bool streams, StatsPanel& panel) {
+  Registry& main = engine.main();
+  report_camera(main, orbit);
   uint64_t moves = 0, frames = 0;
   bool capture = false;  // asked for and not yet drawn
   for (;;) {
-    stipple_next_frame();
+    next_frame();
     panel.publish(engine);
     if (std::string next = take_open(); !next.empty()) return next;
-    const bool restyled = take_controls(main);
+    const bool restyled = take_options(main);
     const bool resized = take_resize(main);
+    const bool set = take_camera(main, orbit);
     // The tools first: while they hold the pointer (a vertex dragged) the camera stays.
     bool holds_pointer = false;
     const bool tooled = web::take_tool_commands(engine, holds_pointer);
     Input in = take_input();
     if (holds_pointer) in = {};
-    const bool moved = in.dx != 0 || in.dy != 0 || in.zoom != 0 || in.pan_x != 0 || in.pan_y != 0;
-    if (moved) {
-      yaw -= in.dx * 0.005;
-      pitch = std::clamp(pitch + in.dy * 0.005, -1.55, 1.55);
-      distance *= std::exp(in.zoom * 0.1);
-      const glm::dvec3 dir(std::cos(pitch) * std::sin(yaw), std::sin(pitch),
-                           std::cos(pitch) * std::cos(yaw));
+    const bool turned = in.dx != 0 || in.dy != 0 || in.zoom != 0 || in.pan_x != 0 || in.pan_y != 0;
+    if (turned) {
+      Camera camera;
+      main.view<Camera>().each([&](const Camera& c) { camera = c; });
+      orbit.yaw -= in.dx * 0.005;
+      orbit.pitch = std::clamp(orbit.pitch + in.dy * 0.005, -1.55, 1.55);
+      orbit.distance *= std::exp(in.zoom * 0.1);
+      const glm::dvec3 dir(std::cos(orbit.pitch) * std::sin(orbit.yaw), std::sin(orbit.pitch),
+                           std::cos(orbit.pitch) * std::cos(orbit.yaw));
       if (in.pan_x != 0 || in.pan_y != 0) {
         // A pixel at the target's depth, in world units: the points under the fingers follow
         // them. (The view is never straight up or down: pitch stops short of the poles.)
         // (The page sends the drag in the canvas's pixels.)
         const double height = double(main.resource<Viewport>().height);
-        const double pixel = 2.0 * distance * std::tan(camera.fov_y / 2) / height;
+        const double pixel = 2.0 * orbit.distance * std::tan(camera.fov_y / 2) / height;
         const glm::dvec3 right = glm::normalize(glm::cross(-dir, glm::dvec3(0, 1, 0)));
         const glm::dvec3 up = glm::cross(right, -dir);
-        target += (-in.pan_x * right + in.pan_y * up) * pixel;
+        orbit.target += (-in.pan_x * right + in.pan_y * up) * pixel;
       }
-      const glm::dvec3 eye = target + distance * dir;
+      const glm::dvec3 eye = orbit.target + orbit.distance * dir;
       main.view<Camera>().each([&](Camera& c) {
-        c.look_at(eye, target);
-        c.near_plane = std::max(distance * 1e-4, 1e-3);
+        c.look_at(eye, orbit.target);
+        c.near_plane = near_plane(eye, orbit.target);
       });
+      orbit.moved = true;
+    }
+    const bool moved = turned || set;
+    if (moved) {
       report("cameraMoves", std::to_string(++moves));
-      report_camera(yaw, pitch, distance, target);
+      report_camera(main, orbit);
     }
     // Loads under way draw nothing until one finishes (the frame that takes it in).
     const bool arrived = streams && main.resource<tiles3d::TilesetStream>().streamer->has_results();
@@ -484,21 +638,33 @@ std::string orbit(Engine& engine, glm::dvec3 target, bool streams, StatsPanel& p
   }
 }
 
-// Until the page has a file to open (after an error).
+// Until the module has something to open (after an error).
 std::string wait_for_open() {
   for (;;) {
-    stipple_next_frame();
+    next_frame();
     if (std::string next = take_open(); !next.empty()) return next;
   }
+}
+
+// The centre of what a streamed source draws now (else its volume's).
+glm::dvec3 drawn_centre(Registry& main) {
+  Aabb drawn;
+  const auto& s = main.resource<tiles3d::TilesetStream>();
+  for (uint32_t t : s.draw)
+    for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
+  return drawn.empty() ? s.world_bounds.center() : drawn.center();
 }
 
 // The page's view of `o`: the scene assembled as `stipple render` assembles it (scene::
 // plan_scene, add_scene_plugin, place_camera; for a streamed source settle_streamed_scene), drawn
 // on the page's canvas. A point cloud is drawn once; a streamed source one engine frame per
 // animation frame while its tiles stream in, until it has settled and `frames` more frames are
-// drawn. Then it reports done and, when interactive, the camera follows the page's controls;
-// otherwise the view is kept (never returning) to be drawn again for the page's captures.
-// Returns the path of a file to open next (dropped on the page).
+// drawn. What the module asked for before (a link's view state, options set while no view was
+// open: the options and camera slots) applies on top of the scene as loaded, as if changed once
+// it was drawn: so the renderer, framing and automatic point size are those of the plain view,
+// and a link draws what its sender saw. Then it reports done and, when interactive, the camera
+// follows the module's input; otherwise the view is kept (never returning) to be drawn again for
+// the module's captures. Returns what to open next.
 std::string run_view(const Options& o) {
   Engine engine;
   // Frames are not waited for (each wait would be a round trip through the browser's GPU
@@ -513,8 +679,8 @@ std::string run_view(const Options& o) {
   const double load_start = emscripten_get_now();
   scene::add_scene_plugin(engine, plan);
   const double load_ms = emscripten_get_now() - load_start;
-  // Drawn into the page's canvas, sized as the page asks (take_resize).
-  engine.add_plugin(web::CanvasTargetPlugin{"#canvas", o.view.width, o.view.height});
+  // Drawn into the page's canvas, sized as the module asks (take_resize).
+  engine.add_plugin(web::CanvasTargetPlugin{o.canvas, o.view.width, o.view.height});
   scene::place_camera(engine, plan, o.view, true);
   // The tools (tools_bridge.cpp is the page's layer over them); exports on the page's thread.
   tools::ToolsCorePlugin tools_plugin;
@@ -528,7 +694,13 @@ std::string run_view(const Options& o) {
     report("adapter", fmt::format("{} {} ({})", d.vendor, d.architecture, d.backend));
   };
   const double start = emscripten_get_now();
+  Orbit orbit;
   if (!streamed) {
+    // The renderer, camera and point size are chosen: the module's options and camera apply
+    // before the first frame.
+    orbit = first_orbit(main, main.resource<pc::SceneInfo>().world_bounds.center());
+    take_options(main);
+    take_camera(main, orbit);
     engine.run(1);
     const double ms = emscripten_get_now() - start;
     if (engine.render().resource<RenderStats>().frames == 0) fail("no frame was drawn");
@@ -544,6 +716,11 @@ std::string run_view(const Options& o) {
     std::vector<double> settled_ms;  // frame times once streamed (the engine's update)
     uint64_t first_settled = 0;      // the number of the first frame drawn once streamed
     size_t problems = 0;
+    // Frames until streamed and `frames` more drawn; then once more where the module's options
+    // or camera came (they apply once streamed: the refitted camera and the point size fitted to
+    // the tiles are the plain view's), until streamed for them.
+    uint64_t until = o.frames;
+    bool applied = false;
     for (;;) {
       take_resize(main);  // the canvas follows the page while the tiles stream in
       const double frame_start = emscripten_get_now();
@@ -566,8 +743,16 @@ std::string run_view(const Options& o) {
       }
       report("progress", fmt::format("{} tiles, {} points{}", stats.drawn_tiles, stats.drawn_points,
                                      stats.idle ? "" : ", loading"));
-      if (settle.settled >= o.frames) break;
-      stipple_next_frame();
+      if (settle.settled >= until) {
+        if (applied) break;
+        applied = true;
+        orbit = first_orbit(main, drawn_centre(main));
+        const bool restyled = take_options(main);
+        if (!take_camera(main, orbit) && !restyled) break;
+        until = settle.settled + o.frames;
+      }
+      next_frame();
+      if (std::string next = take_open(); !next.empty()) return next;
     }
     drain_pass_times(engine);  // the settled frames' GPU times
     const auto& stats = main.resource<tiles3d::TilesetStats>();
@@ -600,19 +785,12 @@ std::string run_view(const Options& o) {
   report("done", "1");
   std::string next;
   if (o.interactive) {
-    glm::dvec3 target = main.resource<pc::SceneInfo>().world_bounds.center();
-    if (streamed) {
-      Aabb drawn;
-      const auto& s = main.resource<tiles3d::TilesetStream>();
-      for (uint32_t t : s.draw)
-        for (const auto& chunk : s.chunks[t]->chunks) drawn.extend(chunk.bounds);
-      target = drawn.empty() ? s.world_bounds.center() : drawn.center();
-    }
-    next = orbit(engine, target, streamed, panel);
+    next = orbit_view(engine, orbit, streamed, panel);
   } else {
-    // The view stays as drawn, kept only to be drawn again for the page's captures.
+    // The view stays as drawn, kept only to be drawn again for the module's captures.
+    report_camera(main, orbit);
     for (bool capture = false;;) {
-      stipple_next_frame();
+      next_frame();
       capture = capture || take_capture_request();
       if (capture && draw_capture(engine)) {
         capture = false;
@@ -632,6 +810,11 @@ bool is_las_url(const std::string& url) {
   return (path.ends_with(".las") || path.ends_with(".laz")) && !path.ends_with(".copc.laz");
 }
 
+// Whether what the module asks to open is a URL (else a path in the instance's file system).
+bool is_url(const std::string& s) {
+  return s.starts_with("http://") || s.starts_with("https://") || s.starts_with("blob:");
+}
+
 // Fetches `url` (the browser's fetch) into a file of the page's in-memory file system, which
 // the LAS reader opens like any file; returns its path.
 std::string fetch_to_memory(const std::string& url) {
@@ -648,6 +831,41 @@ std::string fetch_to_memory(const std::string& url) {
   return path;
 }
 
+// One view after another: the first source (--url, or the built-in scene), then each the module
+// asks for. An error is shown and the program waits for something to open instead. Returns once
+// the module asked it to end (Quit), or where it cannot go on.
+int run(Options& o) {
+  for (;;) {
+    std::string next;
+    try {
+      // A LAS/LAZ URL is fetched into the page's file system first and read whole there, as
+      // `stipple render file.laz` reads it; what is streamed is opened by its URL.
+      if (!o.url.empty()) o.scene.inputs = {is_las_url(o.url) ? fetch_to_memory(o.url) : o.url};
+      o.url.clear();
+      next = run_view(o);
+    } catch (const Quit&) {
+      return 0;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "stipple: %s\n", e.what());
+      report("error", e.what());
+      if (!o.interactive) return 1;
+      try {
+        next = wait_for_open();
+      } catch (const Quit&) {
+        return 0;
+      }
+    }
+    if (next.empty()) return 0;
+    // A URL in place of --url; a file of the instance's file system in place of the inputs.
+    if (is_url(next))
+      o.url = next;
+    else
+      o.scene.inputs = {next};
+    // --camera was the first source's: the next is framed (or gets the module's camera).
+    o.view.camera.clear();
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -659,24 +877,9 @@ int main(int argc, char** argv) {
     report("error", e.what());
     return 1;
   }
-  // One view after another: the page's ?url= (or the built-in scene), then each file dropped on
-  // the page. An error is shown and the page waits for a file to open instead.
-  for (;;) {
-    std::string next;
-    try {
-      // A LAS/LAZ URL is fetched into the page's file system first and read whole there, as
-      // `stipple render file.laz` reads it; what is streamed is opened by its URL.
-      if (!o.url.empty()) o.scene.inputs = {is_las_url(o.url) ? fetch_to_memory(o.url) : o.url};
-      o.url.clear();
-      next = run_view(o);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "stipple: %s\n", e.what());
-      report("error", e.what());
-      if (!o.interactive) return 1;
-      next = wait_for_open();
-    }
-    if (next.empty()) return 0;
-    // The file the page put in its file system: the page's view, the file instead of its ?url=.
-    o.scene.inputs = {next};
-  }
+  const int status = run(o);
+  // The runtime exits even where a browser callback still holds it (a request in flight): the
+  // instance's threads end with it.
+  emscripten_force_exit(status);
+  return status;
 }

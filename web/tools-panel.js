@@ -4,10 +4,12 @@
 // overlay (lines, dots and labels in canvas pixels, after every drawn frame) and the profile
 // image it sends, and turns the page's clicks, keys and pointer into its commands.
 //
-//   const tools = StippleToolsPanel({ panel, view, canvas, send, readFile, download });
-//   tools.onReport(key, value)   // the program's reports: tools, overlay, export, toolError
-//   tools.pointer(kind, event)   // 'down' | 'move' | 'up' | 'cancel' (canvas pointer events)
+//   const tools = StippleToolsPanel({ panel, view, canvas, send, download });
+//   viewer.on('tools', tools.showState); viewer.on('overlay', tools.showOverlay);
+//   viewer.on('profile', ({ frame, image }) => tools.showProfile(frame, image));
+//   viewer.on('export', tools.showExport);
 //   tools.key(event)             // true where a tool's key was taken
+// (The viewer passes the canvas's pointer to the tools itself: clicks, vertex drags.)
 //
 // Keys: 1 inspect, 2 distance, 3 height, 4 area, 5 angle, 6 circle, 7 volume, 8 profile,
 // 9 annotation, B clip box, G clip polygon, 0 no tool; Enter finishes a polyline or polygon (or
@@ -48,7 +50,6 @@
     const { panel, view, canvas, send } = opts;
     let state = null;        // the last "tools" report
     let legend = [];
-    const pressed = new Set();  // pointers down on the canvas
 
     // ---- the panel -------------------------------------------------------------------------
     const root = el('details', { id: 'tools', open: '' }, el('summary', {}, 'measure, filter, clip'));
@@ -274,33 +275,13 @@
       if (frame.item < 0) { profile.hidden = true; return; }
       profileCanvas.width = image.width;
       profileCanvas.height = image.height;
-      profileCanvas.getContext('2d').putImageData(new ImageData(image.data, image.width, image.height), 0, 0);
+      profileCanvas.getContext('2d').putImageData(image, 0, 0);
       profileText.textContent = `length ${frame.length.toFixed(3)}, width ${frame.width.toFixed(3)}; ` +
         `heights ${frame.zRange[0].toFixed(3)} to ${frame.zRange[1].toFixed(3)}; ${frame.points} points`;
       profile.hidden = false;
     }
 
-    // ---- input -----------------------------------------------------------------------------
-    function canvasPoint(e) {
-      const r = canvas.getBoundingClientRect();
-      const kx = r.width > 0 ? canvas.width / r.width : 1, ky = r.height > 0 ? canvas.height / r.height : 1;
-      return { x: (e.clientX - r.left) * kx, y: (e.clientY - r.top) * ky };
-    }
-    function pointer(kind, e) {
-      if (e.pointerType === 'touch' && kind !== 'up' && pressed.size > 1) return;  // a pinch
-      if (kind === 'down') {
-        pressed.add(e.pointerId);
-        send({ op: 'down', ...canvasPoint(e), button: e.button === 2 ? 2 : 0 });
-      } else if (kind === 'move') {
-        if (pressed.has(e.pointerId)) send({ op: 'move', ...canvasPoint(e) });
-      } else if (kind === 'up') {
-        if (!pressed.delete(e.pointerId)) return;
-        send({ op: 'up', ...canvasPoint(e), button: e.button === 2 ? 2 : 0 });
-      } else {
-        pressed.delete(e.pointerId);
-        send({ op: 'pointerCancel' });
-      }
-    }
+    // ---- keys -------------------------------------------------------------------------------
     function key(e) {
       const k = e.key.toLowerCase();
       const tool = TOOLS.find(([, key]) => key === k);
@@ -313,21 +294,13 @@
       return true;
     }
 
-    function onReport(k, value) {
-      if (k === 'tools') showState(JSON.parse(value));
-      else if (k === 'overlay') drawOverlay(JSON.parse(value));
-      else if (k === 'toolError') message.textContent = value;
-      else if (k === 'export') {
-        const e = JSON.parse(value);
-        message.textContent = e.result;
-        // Every file the export wrote, offered for download (and removed from the page's memory).
-        for (const name of opts.listFiles(e.dir)) {
-          const bytes = opts.readFile(`${e.dir}/${name}`);
-          opts.download(name, bytes, name.endsWith('.csv') ? 'text/csv' : 'application/octet-stream');
-          opts.removeFile(`${e.dir}/${name}`);
-        }
-      }
+    // An export's files (the viewer read them from the program's memory): offered for download.
+    function showExport(e) {
+      message.textContent = e.result;
+      for (const f of e.files)
+        opts.download(f.name, f.data, f.name.endsWith('.csv') ? 'text/csv' : 'application/octet-stream');
     }
-    return { onReport, pointer, key, showProfile, get state() { return state; } };
+    return { showState, showOverlay: drawOverlay, showProfile, showExport, key,
+             get state() { return state; } };
   };
 })();

@@ -105,7 +105,8 @@ export async function startNginx(root, { headers = {} } = {}) {
       ` client_body_temp_path ${dir}/tmp;\n proxy_temp_path ${dir}/tmp;\n` +
       ` fastcgi_temp_path ${dir}/tmp;\n uwsgi_temp_path ${dir}/tmp;\n scgi_temp_path ${dir}/tmp;\n` +
       ` include /etc/nginx/mime.types;\n` +
-      ` types { application/octet-stream pnts glb subtree bin laz zst hrc; application/wasm wasm; }\n` +
+      ` types { application/octet-stream pnts glb subtree bin laz zst hrc; application/wasm wasm;` +
+      ` text/javascript mjs; }\n` +
       ` server {\n  listen 127.0.0.1:${port};\n  root ${root};\n` +
       Object.entries(headers).map(([k, v]) => `  add_header ${k} "${v}" always;\n`).join('') +
       ` }\n}\n`,

@@ -61,10 +61,10 @@ async function touchDrag(cdp, from, to, steps = 6) {
   await cdp.send('Input.dispatchTouchEvent', { type: 'touchEnd', touchPoints: [] });
 }
 
-// The camera once the program has taken the gesture's input (it zeroes the page's sums).
+// The camera once the program has taken the gesture's input (it zeroes the viewer's sums).
 async function moved(page) {
   await page.waitForFunction(() => {
-    const i = Module.stippleInput;
+    const i = window.stippleViewer._program.stippleInput;
     return !i.dx && !i.dy && !i.zoom && !i.panX && !i.panY;
   }, { timeout: 30000 });
   return camera(page);

@@ -260,3 +260,52 @@ test('the tools on the built-in scene: records made again by index, values from 
   assert.equal(s.canExport, false);
   await page.close();
 });
+
+test('a link reopens the tools\' filters, clip and measurements: the same pixels and values',
+     { skip: skip || false, timeout: 600000 }, async () => {
+  const url = suite.server.url(`viewer/stipple.html?url=../cloud.las&width=${W}&height=${H}`);
+  const { page, log, state } = await c.openPage(suite.browser, url);
+  c.assertDone(state, log);
+  await until(page, (s) => s.legend, 'the tools state');
+  // A clip polygon (outside: a hole), a height and an annotation, classes 1 and 2, a turn.
+  await chooseTool(page, 'g', 'clip_polygon');
+  for (const [x, y] of [[150, 130], [250, 125], [230, 165], [140, 160]]) await clickAt(page, x, y);
+  await press(page, 'Enter');
+  // Outside: the hole's surroundings are drawn (and picked).
+  await page.evaluate(() => window.stippleViewer.tools.setClipMode('outside'));
+  await until(page, (s) => s.clipMode === 'outside' && s.items.length === 1, 'a hole');
+  await chooseTool(page, '3', 'height');
+  await clickAt(page, 100, 150);
+  await clickAt(page, 300, 135);
+  await chooseTool(page, '9', 'annotation');
+  await clickAt(page, 120, 145);
+  await until(page, (s) => s.items.length === 3 && s.items.every((m) => m.complete), 'three items');
+  await page.evaluate(() => {
+    const v = window.stippleViewer;
+    v.tools.setFilter({ classes: [1, 2] });
+    const c = v.camera;
+    v.camera = { position: c.position.map((x, i) => x + (i === 2 ? 50 : 20)), target: c.target };
+  });
+  const s1 = await until(page, (s) => s.clipMode === 'outside' && s.filter.classes, 'clip mode and filter');
+  await page.waitForFunction(() => /measurements=.*clip-mode=outside|clip-mode=outside.*measurements=/.test(location.hash) &&
+                                   location.hash.includes('classes=1,2') && location.hash.includes('camera='),
+                             { timeout: 30000 });
+  const link = await page.evaluate(() => location.href);
+  const first = await page.evaluate(async () => Array.from((await window.stippleViewer.pixels()).data));
+  // The link in a new page: the same view once its tools took the link's state.
+  const second = await c.openPage(suite.browser, link);
+  c.assertDone(second.state, second.log);
+  const s2 = await until(second.page, (s) => s.items.length === 3 && s.clipMode === 'outside' &&
+                                             s.filter.classes, 'the link\'s tools state');
+  assert.deepEqual(s2.items.map((m) => [m.tool, m.points, m.text]), s1.items.map((m) => [m.tool, m.points, m.text]));
+  assert.deepEqual(s2.filter, s1.filter);
+  const again = await second.page.evaluate(async () => Array.from((await window.stippleViewer.pixels()).data));
+  assert.equal(again.length, first.length);
+  let differ = 0;
+  for (let i = 0; i < first.length; i += 4)
+    differ += first[i] !== again[i] || first[i + 1] !== again[i + 1] || first[i + 2] !== again[i + 2];
+  // The same renderer on the same device with the same inputs: no pixel may differ.
+  assert.equal(differ, 0, `${differ} pixels differ`);
+  await second.page.close();
+  await page.close();
+});

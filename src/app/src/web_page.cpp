@@ -20,15 +20,22 @@ bool holds_viewer(const fs::path& dir) {
   return true;
 }
 
+// "stipple.html, stipple.mjs, ..." for the messages.
+std::string viewer_files() {
+  std::string names;
+  for (const auto& f : kWebViewerFiles) names += (names.empty() ? "" : ", ") + f;
+  return names;
+}
+
 }  // namespace
 
 fs::path find_web_viewer() {
   if (const char* env = std::getenv("STIPPLE_WEB_DIR"); env && *env) {
     if (!holds_viewer(env))
       fail(
-          "STIPPLE_WEB_DIR={} does not hold the web viewer (stipple.html, stipple.js, "
-          "stipple.wasm): build it with scripts/build-web.sh",
-          env);
+          "STIPPLE_WEB_DIR={} does not hold the web viewer ({}): build it with "
+          "scripts/build-web.sh",
+          env, viewer_files());
     return env;
   }
   std::vector<fs::path> places;
@@ -47,9 +54,9 @@ fs::path find_web_viewer() {
     looked += (looked.empty() ? "" : ", ") + p.lexically_normal().string();
   }
   fail(
-      "--page: the web viewer (stipple.html, stipple.js, stipple.wasm) is not built: looked in "
-      "{}; build it with scripts/build-web.sh, or name its folder with STIPPLE_WEB_DIR",
-      looked.empty() ? std::string("no place") : looked);
+      "--page: the web viewer ({}) is not built: looked in {}; build it with "
+      "scripts/build-web.sh, or name its folder with STIPPLE_WEB_DIR",
+      viewer_files(), looked.empty() ? std::string("no place") : looked);
 }
 
 fs::path write_web_page(const fs::path& dir) {

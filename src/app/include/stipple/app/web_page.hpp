@@ -1,18 +1,20 @@
 #pragma once
-// `stipple tile --page`: the web viewer (scripts/build-web.sh's stipple.html, .js, .wasm) copied
-// next to a tileset's tileset.json, with an index.html that opens it, so the folder can be
-// served by any static web server and opened by link.
+// `stipple tile --page`: the web viewer (scripts/build-web.sh's stipple.html, the viewer's module
+// stipple.mjs and the program it runs, stipple.js and .wasm) copied next to a tileset's
+// tileset.json, with an index.html that opens it, so the folder can be served by any static web
+// server and opened by link (or the viewer embedded in another page through stipple.mjs).
 #include <filesystem>
 #include <string>
 #include <vector>
 
 namespace stipple::app {
 
-// The viewer's files, needed and optional.
-inline const std::vector<std::string> kWebViewerFiles = {"stipple.html", "stipple.js",
-                                                         "stipple.wasm", "stipple-tools.js"};
-inline const std::vector<std::string> kWebViewerOptionalFiles = {"stipple.worker.js",
-                                                                 "stipple-isolation.js"};
+// The viewer's files, needed and optional (the module's TypeScript declarations, for pages that
+// embed it).
+inline const std::vector<std::string> kWebViewerFiles = {
+    "stipple.html", "stipple.mjs", "stipple.js", "stipple.wasm", "stipple-tools.js"};
+inline const std::vector<std::string> kWebViewerOptionalFiles = {
+    "stipple.worker.js", "stipple-isolation.js", "stipple.d.ts", "stipple.d.mts"};
 
 // The folder holding the web viewer, searched in this order: $STIPPLE_WEB_DIR (when set, it must
 // hold the viewer); share/stipple/web beside the binary's bin/ (an install); build-web/ beside
