@@ -8,6 +8,10 @@ and the report printed as JSON (and written to --out).
 
   bench/web_gpu.py --chromium CMD [--web build-web] [--data DIR] [--query 'url=/data/t/tileset.json&frames=20']
                    [--window 1280x720] [--timeout-s 600] [--out report.json] [--swiftshader] [--moves N]
+                   [--flight N]
+
+--moves N: N camera turns once drawn, the page's CPU and GPU ms per frame (timestamp queries in the
+page); --flight N: N steps of a flight down over a streamed set (tiles stream in meanwhile).
 
 On the GPU machine (bench/RESULTS.md, "The page on a GPU"): CMD is the runner that
 bench/device-chromium-pack.sh packs, VK_ICD_FILENAMES names the NVIDIA driver's manifest.
@@ -25,31 +29,83 @@ p.add_argument('--out', default=None)
 p.add_argument('--swiftshader', action='store_true', help="the tests' flags: WebGPU on SwiftShader")
 p.add_argument('--flags', default='', help='more Chromium flags')
 p.add_argument('--moves', type=int, default=0, help='camera turns after the view is done (frames to time)')
+p.add_argument('--flight', type=int, default=0, help='steps of a flight down over the data (streamed sets)')
 p.add_argument('--retry-adapter', action='store_true', help='ask again where requestAdapter gives null')
 a = p.parse_args()
 
 # Polls the page's report; posts it with the adapter's description once done or failed.
 REPORTER = b"""<script>
 const stippleMoves = MOVES;
+const stippleFlight = FLIGHT;
+const stippleStats = () => JSON.parse(window.stipple.stats || '{}');
+const stippleFrame = () => new Promise((r) => requestAnimationFrame(() => r()));
+const stippleMedian = (v) => { const s = [...v].sort((a, b) => a - b); return s.length ? s[s.length >> 1] : null; };
+const stippleP90 = (v) => { const s = [...v].sort((a, b) => a - b); return s.length ? s[Math.floor(s.length * 0.9)] : null; };
+// Per drawn frame: the page's CPU time (its engine update: recording and submitting the frame,
+// no GPU wait) and the GPU time from timestamp queries of each frame whose times came back.
+function stippleSampler() {
+  const cpu = [], gpu = new Map();
+  let lastFrames = stippleStats().frames;
+  return {
+    sample() {
+      const s = stippleStats();
+      if (s.frames !== lastFrames) { cpu.push(s.cpuMs); lastFrames = s.frames; }
+      if (s.gpuFrame && s.gpuMs !== null) gpu.set(s.gpuFrame, s.gpuMs);
+    },
+    result() {
+      const g = [...gpu.values()];
+      return { cpuMsMedian: stippleMedian(cpu), cpuMsP90: stippleP90(cpu), gpuMsMedian: stippleMedian(g),
+               gpuMsP90: stippleP90(g), cpuSamples: cpu.length, gpuSamples: g.length };
+    },
+  };
+}
 // After the view is done: `stippleMoves` turns of the camera (ArrowLeft, one an animation frame),
-// so that the page draws that many frames; the page's own time per frame (engine update and
-// render submitted: its CPU work) and the frames drawn per second of them.
+// so that the page draws that many frames; the page's own time per frame (CPU and GPU) and the
+// frames drawn per second of them.
 async function stippleMeasureMoves() {
-  const stats = () => JSON.parse(window.stipple.stats || '{}');
-  const frame = () => new Promise((r) => requestAnimationFrame(() => r()));
-  const f0 = stats().frames, t0 = performance.now(), ms = [];
+  const f0 = stippleStats().frames, t0 = performance.now(), ms = [];
+  const sampler = stippleSampler();
   for (let i = 0; i < stippleMoves; ++i) {
     window.dispatchEvent(new KeyboardEvent('keydown', { key: 'ArrowLeft', code: 'ArrowLeft' }));
-    await frame();
-    await frame();
-    ms.push(stats().frameMs);
+    await stippleFrame();
+    await stippleFrame();
+    ms.push(stippleStats().frameMs);
+    sampler.sample();
   }
   const seconds = (performance.now() - t0) / 1000;
-  await new Promise((r) => setTimeout(r, 300));
-  const frames = stats().frames - f0;
-  const sorted = [...ms].sort((a, b) => a - b);
+  for (let i = 0; i < 10; ++i) { await stippleFrame(); sampler.sample(); }
+  const frames = stippleStats().frames - f0;
   return { moves: stippleMoves, framesDrawn: frames, seconds, fps: frames / seconds,
-           pageFrameMsMedian: sorted[sorted.length >> 1], pageFrameMsSamples: ms };
+           pageFrameMsMedian: stippleMedian(ms), pageFrameMsSamples: ms, ...sampler.result(),
+           camera: window.stippleViewer && window.stippleViewer.camera };
+}
+// A flight over a streamed set: the camera goes from the first framing down to a low oblique
+// view over the data's centre and along it, one step an animation frame, `stippleFlight` steps;
+// per frame the page's CPU and GPU time, the tiles loading; the last camera (to draw natively).
+async function stippleFly() {
+  const v = window.stippleViewer;
+  const c0 = v.camera, t0c = c0.target;
+  const d = c0.position.map((x, i) => x - t0c[i]);
+  const sampler = stippleSampler();
+  const loading = [];
+  const start = performance.now(), f0 = stippleStats().frames;
+  for (let i = 1; i <= stippleFlight; ++i) {
+    const k = i / stippleFlight;
+    // Down to a fifth of the distance and a third of the height, sliding the target along x.
+    const target = [t0c[0] + d[0] * 0.3 * k, t0c[1] + d[1] * 0.3 * k, t0c[2]];
+    const scale = 1 - 0.8 * k;
+    const position = [target[0] + d[0] * scale, target[1] + d[1] * scale, target[2] + d[2] * scale * (1 - 0.4 * k)];
+    v.camera = { position, target };
+    await stippleFrame();
+    sampler.sample();
+    loading.push(stippleStats().tilesLoading || 0);
+  }
+  const seconds = (performance.now() - start) / 1000;
+  for (let i = 0; i < 10; ++i) { await stippleFrame(); sampler.sample(); }
+  const frames = stippleStats().frames - f0;
+  return { steps: stippleFlight, framesDrawn: frames, seconds, fps: frames / seconds,
+           ...sampler.result(), tilesLoadingMax: Math.max(...loading), last: v.camera,
+           stats: stippleStats() };
 }
 (function poll() {
   const s = window.stipple;
@@ -62,10 +118,11 @@ async function stippleMeasureMoves() {
       adapter = i ? { vendor: i.vendor, architecture: i.architecture, device: i.device,
                       description: i.description } : null;
     } catch (e) { adapter = String(e); }
-    let moves = null;
+    let moves = null, flight = null;
     try { if (stippleMoves > 0 && !s.error) moves = await stippleMeasureMoves(); } catch (e) { moves = String(e); }
+    try { if (stippleFlight > 0 && !s.error) flight = await stippleFly(); } catch (e) { flight = String(e); }
     await fetch('/__report', { method: 'POST', body: JSON.stringify({ stipple: { ...window.stipple }, adapter,
-      moves, devicePixelRatio: window.devicePixelRatio, inner: [innerWidth, innerHeight] }) });
+      moves, flight, devicePixelRatio: window.devicePixelRatio, inner: [innerWidth, innerHeight] }) });
   })();
 })();
 </script>
@@ -113,7 +170,7 @@ class Handler(http.server.SimpleHTTPRequestHandler):
     def do_GET(self):
         if self.path.split('?', 1)[0] == '/viewer/stipple.html':
             with open(os.path.join(a.web, 'stipple.html'), 'rb') as f:
-                body = f.read().replace(b'</body>', REPORTER.replace(b'MOVES', str(a.moves).encode()) + b'</body>')
+                body = f.read().replace(b'</body>', REPORTER.replace(b'MOVES', str(a.moves).encode()).replace(b'FLIGHT', str(a.flight).encode()) + b'</body>')
             if a.retry_adapter:
                 body = body.replace(b'<head>', b'<head>' + RETRY, 1)
             self.send_response(200)

@@ -23,7 +23,8 @@ printf '<?xml version="1.0"?><fontconfig><dir>%s</dir><cachedir>/tmp/fc</cachedi
 export FONTCONFIG_FILE=/tmp/fonts.conf
 # WebGPU on the NVIDIA driver: ANGLE on Vulkan, no Vulkan surface (no display). With Chromium's
 # Vulkan alone (the tests' flags) it offers SwiftShader.
-flags="--use-angle=vulkan --enable-features=Vulkan,VulkanFromANGLE,DefaultANGLEVulkan --disable-vulkan-surface"
+# Frames not paced by a display (none here): rAF unthrottled, so a frame's time is the page's.
+flags="--use-angle=vulkan --enable-features=Vulkan,VulkanFromANGLE,DefaultANGLEVulkan --disable-vulkan-surface --disable-gpu-vsync --disable-frame-rate-limit"
 queries=("$@")
 [ ${#queries[@]} -gt 0 ] || queries=("width=1280&height=720&scene-points=1000000"
                                     "width=1280&height=720&scene-points=136000000")
@@ -35,7 +36,7 @@ for web in ${WEB_DIRS:-.devpkg/web-*}; do
     echo "== $name: $q"
     python3 bench/web_gpu.py --chromium /tmp/chromium-pkg/run --web "$web" --flags "$flags" \
       ${RETRY_ADAPTER:+--retry-adapter} --moves 30 --query "$q" --out "$out/$name-$i.json" --timeout-s 240 |
-      grep -E '"(renderer|adapter|points|ms|loadMs|stats|error|vendor|wallS|timeout|fps|framesDrawn|pageFrameMsMedian)"'
+      grep -E '"(renderer|adapter|points|ms|loadMs|error|vendor|wallS|timeout|fps|framesDrawn|pageFrameMsMedian|cpuMsMedian|cpuMsP90|gpuMsMedian|gpuMsP90|gpuSamples)"'
   done
 done
 for q in "${queries[@]}"; do
@@ -43,6 +44,7 @@ for q in "${queries[@]}"; do
   for backend in dawn wgpu; do
     echo "== native $backend: $pts points"
     /tmp/stipple-pkg/run render --scene-points "${pts:-1000000}" --width 1280 --height 720 \
-      --backend $backend --frames 20 -o /tmp/native.png 2>&1 | tail -3
+      --backend $backend --frames 20 --stats /tmp/native.json -o /tmp/native.png 2>&1 | tail -3
+    python3 -c "import json,sys;d=json.load(open(sys.argv[1]));print({k:d[k] for k in ('renderer','points','frame_gpu_ms_median','frame_wall_ms_median')})" /tmp/native.json
   done
 done | tee "$out/native.txt"
