@@ -79,9 +79,10 @@ async function stippleMeasureMoves() {
            pageFrameMsMedian: stippleMedian(ms), pageFrameMsSamples: ms, ...sampler.result(),
            camera: window.stippleViewer && window.stippleViewer.camera };
 }
-// A flight over a streamed set: the camera goes from the first framing down to a low oblique
-// view over the data's centre and along it, one step an animation frame, `stippleFlight` steps;
-// per frame the page's CPU and GPU time, the tiles loading; the last camera (to draw natively).
+// A flight over a streamed set: the camera dollies from the first framing down towards the
+// data's centre (to a twentieth of the distance, where the finest tiles are wanted), one step an
+// animation frame, `stippleFlight` steps; per frame the page's CPU and GPU time, the tiles
+// loading; the last camera (to draw natively).
 async function stippleFly() {
   const v = window.stippleViewer;
   const c0 = v.camera, t0c = c0.target;
@@ -91,10 +92,9 @@ async function stippleFly() {
   const start = performance.now(), f0 = stippleStats().frames;
   for (let i = 1; i <= stippleFlight; ++i) {
     const k = i / stippleFlight;
-    // Down to a fifth of the distance and a third of the height, sliding the target along x.
-    const target = [t0c[0] + d[0] * 0.3 * k, t0c[1] + d[1] * 0.3 * k, t0c[2]];
-    const scale = 1 - 0.8 * k;
-    const position = [target[0] + d[0] * scale, target[1] + d[1] * scale, target[2] + d[2] * scale * (1 - 0.4 * k)];
+    const target = t0c;
+    const scale = 1 - 0.95 * k;
+    const position = [target[0] + d[0] * scale, target[1] + d[1] * scale, target[2] + d[2] * scale];
     v.camera = { position, target };
     await stippleFrame();
     sampler.sample();

@@ -2,7 +2,8 @@
 # The web viewer on the GPU machine streaming tiled sets of the built-in scene along a flight,
 # beside native stipple drawing the same tileset from the flight's last view (bench/RESULTS.md,
 # "The page on a GPU"). From the repository root there, after bench/web_gpu_device.sh's setup
-# (Chromium unpacked under /tmp by earlier calls, .devpkg/stipple.tar.xz, .devpkg/fonts, .gl).
+# (Chromium unpacked under /tmp by earlier calls, .devpkg/stipple.tar.xz, .devpkg/fonts, .gl,
+# and .devpkg/proj/proj.db: Debian's PROJ database, which the tiler needs and the machine lacks).
 #   bench/web_gpu_stream_device.sh POINTS...        e.g. 136000000 1000000000
 # For each POINTS: `stipple generate` (LAS, point format 2: positions, classes, colours) and
 # `stipple tile` into /tmp/data/tPOINTS (kept for later calls while the machine stays warm; the
@@ -21,6 +22,9 @@ export VK_ICD_FILENAMES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
 printf '<?xml version="1.0"?><fontconfig><dir>%s</dir><cachedir>/tmp/fc</cachedir></fontconfig>' \
   "$PWD/.devpkg/fonts" >/tmp/fonts.conf
 export FONTCONFIG_FILE=/tmp/fonts.conf
+# The tiler turns the generated scene's CRS (EPSG:32633) to ECEF through PROJ, whose database the
+# machine lacks: .devpkg/proj/proj.db (Debian's proj-data) carried.
+[ -f .devpkg/proj/proj.db ] && export PROJ_DATA=$PWD/.devpkg/proj PROJ_LIB=$PWD/.devpkg/proj
 flags="--use-angle=vulkan --enable-features=Vulkan,VulkanFromANGLE,DefaultANGLEVulkan --disable-vulkan-surface --disable-gpu-vsync --disable-frame-rate-limit"
 stipple=/tmp/stipple-pkg/run
 for n in "$@"; do
@@ -28,9 +32,12 @@ for n in "$@"; do
   if [ ! -f "$set_dir/tileset.json" ]; then
     echo "== generating and tiling $n points"
     start=$(date +%s)
-    $stipple generate -n "$n" --point-format 2 -o /tmp/gen.las 2>&1 | tail -1
-    $stipple tile /tmp/gen.las -o "$set_dir" 2>&1 | tail -2
-    rm -f /tmp/gen.las
+    # LAZ from 500M points: the LAS, the tiler's chunks and the tiles do not fit the disk.
+    gen=/tmp/gen.las
+    [ "$n" -ge 500000000 ] && gen=/tmp/gen.laz
+    $stipple generate -n "$n" --point-format 2 -o $gen 2>&1 | tail -1
+    $stipple tile $gen -o "$set_dir" 2>&1 | tail -2
+    rm -f $gen
     echo "   $(( $(date +%s) - start )) s; $(du -sh "$set_dir" | cut -f1) of tiles; $(df -h /tmp | tail -1)"
   fi
   for web in ${WEB_DIRS:-.devpkg/web}; do
