@@ -93,9 +93,10 @@ struct Options {
   // and the camera (`stipple render --camera`; else framed from the default azimuth and
   // elevation).
   scene::SceneView view;
-  // A URL to open (the page's ?url=): a LAS/LAZ file is fetched into the page's memory and read
-  // whole; anything else (tileset.json, COPC, Potree, EPT) is streamed.
-  std::string url;
+  // URLs to open (the page's ?url=, repeated for several clouds at once): a LAS/LAZ file is
+  // fetched into the page's memory and read whole (several are drawn together, as `stipple render
+  // a.laz b.laz`); anything else (tileset.json, COPC, Potree, EPT) is streamed, one at a time.
+  std::vector<std::string> urls;
   std::string canvas = "#canvas";  // the canvas's selector (the module gives each its own id)
   uint64_t frames = 1;             // streamed sources: drawn once streamed (frame times)
   uint64_t max_frames = 10000;     // then drawn as is, with a warning
@@ -147,7 +148,7 @@ Options parse(int argc, char** argv) {
     else if (a == "--seed")
       o.scene.seed = uint32_t(number(a, v));
     else if (a == "--url")
-      o.url = v;
+      o.urls.push_back(v);
     else if (a == "--canvas")
       o.canvas = v;
     else if (a == "--camera") {
@@ -178,6 +179,37 @@ Options parse(int argc, char** argv) {
       render.edl_strength = ranged_number(a, v, 0.0, 10000.0);
     else if (a == "--edl-radius")
       render.edl_radius = ranged_number(a, v, 0.5, 16.0);
+    // The rest of `stipple render`'s point options, by the same names and ranges: the renderer,
+    // high-quality shading, hole filling and the occlusion check, how points are sized, the
+    // filters (the tools' panel changes them afterwards).
+    else if (a == "--renderer") {
+      const std::string r = v;
+      if (r == "auto")
+        o.scene.renderer = scene::Renderer::Auto;
+      else if (r == "billboard")
+        o.scene.renderer = scene::Renderer::Billboard;
+      else if (r == "compute")
+        o.scene.renderer = scene::Renderer::Compute;
+      else
+        fail("--renderer: auto, billboard or compute: '{}'", r);
+    } else if (a == "--hqs")
+      o.scene.hqs = number(a, v) != 0;
+    else if (a == "--fill-radius")
+      o.scene.fill_radius = int(ranged_number(a, v, 0.0, 8.0));
+    else if (a == "--occlusion-beta")
+      o.scene.occlusion_beta = ranged_number(a, v, 0.0, 1.5);
+    else if (a == "--point-size-mode")
+      render.size_mode = pc::parse_point_size_mode(v);
+    else if (a == "--size-scale")
+      render.size_scale = ranged_number(a, v, 0.01, 100.0);
+    else if (a == "--classes")
+      o.scene.filters.filter.classes = pc::parse_classes(v, "--classes");
+    else if (a == "--returns")
+      o.scene.filters.filter.returns = pc::parse_returns(v, "--returns");
+    else if (a == "--intensity-filter")
+      o.scene.filters.filter.intensity = pc::parse_range(v, "--intensity-filter");
+    else if (a == "--clip-mode")
+      o.scene.filters.mode = pc::parse_clip_mode(v);
     else
       fail("unknown option '{}'", a);
   }
@@ -824,7 +856,10 @@ std::string fetch_to_memory(const std::string& url) {
   std::string name = io::uri_path(url);
   name = name.substr(name.find_last_of('/') + 1);
   std::filesystem::create_directories("/input");
-  const std::string path = "/input/" + (name.empty() ? std::string("input.las") : name);
+  if (name.empty()) name = "input.las";
+  // Several files of one name (from different folders) each keep theirs.
+  std::string path = "/input/" + name;
+  for (int n = 2; std::filesystem::exists(path); ++n) path = fmt::format("/input/{}-{}", n, name);
   std::ofstream out(path, std::ios::binary);
   out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
   if (!out) fail("{}: cannot be kept in the page's memory ({} bytes)", url, bytes.size());
@@ -840,8 +875,21 @@ int run(Options& o) {
     try {
       // A LAS/LAZ URL is fetched into the page's file system first and read whole there, as
       // `stipple render file.laz` reads it; what is streamed is opened by its URL.
-      if (!o.url.empty()) o.scene.inputs = {is_las_url(o.url) ? fetch_to_memory(o.url) : o.url};
-      o.url.clear();
+      if (!o.urls.empty()) {
+        o.scene.inputs.clear();
+        // The files fetched for the view before go (the page's memory holds one view's).
+        std::error_code ec;
+        std::filesystem::remove_all("/input", ec);
+        for (const std::string& url : o.urls) {
+          if (o.urls.size() > 1 && !is_las_url(url))
+            fail(
+                "{}: several sources at once are LAS/LAZ files (a tileset, COPC, EPT or Potree "
+                "source streams alone)",
+                url);
+          o.scene.inputs.push_back(is_las_url(url) ? fetch_to_memory(url) : url);
+        }
+      }
+      o.urls.clear();
       next = run_view(o);
     } catch (const Quit&) {
       return 0;
@@ -858,7 +906,7 @@ int run(Options& o) {
     if (next.empty()) return 0;
     // A URL in place of --url; a file of the instance's file system in place of the inputs.
     if (is_url(next))
-      o.url = next;
+      o.urls = {next};
     else
       o.scene.inputs = {next};
     // --camera was the first source's: the next is framed (or gets the module's camera).

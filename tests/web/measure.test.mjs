@@ -309,3 +309,29 @@ test('a link reopens the tools\' filters, clip and measurements: the same pixels
   await second.page.close();
   await page.close();
 });
+
+test('render\'s options by the same names in the page, and several clouds at once',
+     { skip: skip || false, timeout: 600000 }, async () => {
+  // The compute rasterizer with a class filter, as `stipple render --renderer compute --classes 2`.
+  let { page, log, state } = await c.openPage(suite.browser, suite.server.url(
+    `viewer/stipple.html?url=../cloud.las&width=${W}&height=${H}&renderer=compute&classes=2`));
+  c.assertDone(state, log);
+  assert.equal(state.renderer, 'compute');
+  const ref = path.join(suite.work, 'compute-ground.png');
+  h.stipple(['render', input, '-o', ref, '--width', String(W), '--height', String(H),
+             '--renderer', 'compute', '--classes', '2']);
+  await c.assertCanvasMatches(page, ref, { what: 'compute, classes 2', minLit: 0.01 });
+  await page.close();
+  // Two LAS files drawn together, as `stipple render a.las b.las`.
+  const second = path.join(suite.work, 'second.las');
+  h.stipple(['generate', '-n', '50000', '-o', second]);
+  fs.symlinkSync(second, path.join(suite.work, 'www', 'second.las'));
+  ({ page, log, state } = await c.openPage(suite.browser, suite.server.url(
+    `viewer/stipple.html?url=../cloud.las&url=../second.las&width=${W}&height=${H}`)));
+  c.assertDone(state, log);
+  const both = path.join(suite.work, 'both.png');
+  const native = h.stipple(['render', input, second, '-o', both, '--width', String(W), '--height', String(H)]);
+  c.assertNativeAgrees(native, state, { points: true });
+  await c.assertCanvasMatches(page, both, { what: 'two clouds', minLit: 0.005 });
+  await page.close();
+});
