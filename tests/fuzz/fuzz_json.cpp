@@ -34,7 +34,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   } catch (const stipple::Error&) {
   }
   try {
-    (void)stipple::tools::parse_input_script(text, "fuzz.json");
+    (void)stipple::viewer::parse_input_script(text, "fuzz.json");
   } catch (const stipple::Error&) {
   }
   return 0;
