@@ -2,9 +2,10 @@
 """bench/web_gpu.py: the web viewer in headless Chromium on whatever GPU the machine has, without
 node or nginx (the GPU machine has neither): a Python server on loopback serves the viewer
 (build-web/) under /viewer/ and a data folder under /data/ (byte ranges too: the Potree, COPC and
-EPT readers ask for them), cross-origin isolated (COOP/COEP), and adds to stipple.html a script that, once the page reports done or an error, posts what it reports
-(window.stipple) and the WebGPU adapter the page was given to /__report; then Chromium is closed
-and the report printed as JSON (and written to --out).
+EPT readers ask for them), cross-origin isolated (COOP/COEP), and adds to stipple.html a script
+that, once the page reports done or an error, posts what it reports (window.stipple) and the
+WebGPU adapter the page was given to /__report; then Chromium is closed and the report printed
+as JSON (and written to --out).
 
   bench/web_gpu.py --chromium CMD [--web build-web] [--data DIR] [--query 'url=/data/t/tileset.json&frames=20']
                    [--window 1280x720] [--timeout-s 600] [--out report.json] [--swiftshader] [--moves N]
