@@ -1,17 +1,23 @@
 #!/usr/bin/env python3
 """bench/web_gpu.py: the web viewer in headless Chromium on whatever GPU the machine has, without
 node or nginx (the GPU machine has neither): a Python server on loopback serves the viewer
-(build-web/) under /viewer/ and a data folder under /data/, cross-origin isolated (COOP/COEP), and
-adds to stipple.html a script that, once the page reports done or an error, posts what it reports
-(window.stipple) and the WebGPU adapter the page was given to /__report; then Chromium is closed
-and the report printed as JSON (and written to --out).
+(build-web/) under /viewer/ and a data folder under /data/ (byte ranges too: the Potree, COPC and
+EPT readers ask for them), cross-origin isolated (COOP/COEP), and adds to stipple.html a script
+that, once the page reports done or an error, posts what it reports (window.stipple) and the
+WebGPU adapter the page was given to /__report; then Chromium is closed and the report printed
+as JSON (and written to --out).
 
   bench/web_gpu.py --chromium CMD [--web build-web] [--data DIR] [--query 'url=/data/t/tileset.json&frames=20']
                    [--window 1280x720] [--timeout-s 600] [--out report.json] [--swiftshader] [--moves N]
-                   [--flight N]
+                   [--flight N] [--page stipple|potree] [--modules DIR] [--bench K]
 
 --moves N: N camera turns once drawn, the page's CPU and GPU ms per frame (timestamp queries in the
 page); --flight N: N steps of a flight down over a streamed set (tiles stream in meanwhile).
+--bench K (bench/web_vs_potree.mjs's measurement, for bench/web_vs_potree_device.sh): once the
+page is ready bench/web_vs_potree.js (served with the rest of bench/ under /bench/) turns the
+camera K frames and the report holds what it measured (`bench`): the page is stipple.html, or with
+--page potree the potree-core page bench/web_vs_potree.html, whose three and potree-core come from
+--modules DIR (DIR/three, DIR/potree-core) under /modules/.
 
 On the GPU machine (bench/RESULTS.md, "The page on a GPU"): CMD is the runner that
 bench/device-chromium-pack.sh packs, VK_ICD_FILENAMES names the NVIDIA driver's manifest.
@@ -31,7 +37,13 @@ p.add_argument('--flags', default='', help='more Chromium flags')
 p.add_argument('--moves', type=int, default=0, help='camera turns after the view is done (frames to time)')
 p.add_argument('--flight', type=int, default=0, help='steps of a flight down over the data (streamed sets)')
 p.add_argument('--retry-adapter', action='store_true', help='ask again where requestAdapter gives null')
+p.add_argument('--page', choices=['stipple', 'potree'], default='stipple')
+p.add_argument('--modules', default=None, help='a folder with three/ and potree-core/ (--page potree)')
+p.add_argument('--bench', type=int, default=0, help="bench/web_vs_potree.js's frames to time once ready")
+p.add_argument('--bench-warmup', type=int, default=5)
+p.add_argument('--bench-dx', type=float, default=2)
 a = p.parse_args()
+bench_dir = os.path.dirname(os.path.abspath(__file__))
 
 # Polls the page's report; posts it with the adapter's description once done or failed.
 REPORTER = b"""<script>
@@ -127,6 +139,41 @@ async function stippleFly() {
 })();
 </script>
 """
+# With --bench: bench/web_vs_potree.js once the page (stipple's or potree-core's) is ready; its
+# result posted with the adapter and what the page reports.
+BENCH = b"""<script src="/bench/web_vs_potree.js"></script>
+<script>
+(function poll() {
+  if (!window.vsPotree || !window.vsPotree.ready()) { setTimeout(poll, 250); return; }
+  (async () => {
+    const timing = { ready: performance.now() };
+    let adapter = null;
+    try {
+      const ad = navigator.gpu && await navigator.gpu.requestAdapter({ powerPreference: 'high-performance' });
+      const i = ad && (ad.info || (ad.requestAdapterInfo && await ad.requestAdapterInfo()));
+      adapter = i ? { vendor: i.vendor, architecture: i.architecture, device: i.device,
+                      description: i.description } : null;
+    } catch (e) { adapter = String(e); }
+    let webgl = null;
+    try {
+      const gl = document.createElement('canvas').getContext('webgl2');
+      const x = gl && gl.getExtension('WEBGL_debug_renderer_info');
+      webgl = x ? gl.getParameter(x.UNMASKED_RENDERER_WEBGL) : gl && gl.getParameter(gl.RENDERER);
+    } catch (e) { webgl = String(e); }
+    timing.described = performance.now();
+    const error = window.vsPotree.error();
+    let bench = null;
+    try { if (!error) bench = await window.vsPotree.measure(FRAMES, { dx: DX, warmup: WARMUP }); } catch (e) { bench = String(e); }
+    timing.measured = performance.now();
+    const page = window.potreePage ? { error: window.potreePage.error, material: window.potreePage.material }
+                                   : { ...window.stipple };
+    await fetch('/__report', { method: 'POST', body: JSON.stringify({ bench, adapter, webgl, error, timing,
+      [window.potreePage ? 'potree' : 'stipple']: page, devicePixelRatio: window.devicePixelRatio,
+      inner: [innerWidth, innerHeight] }) });
+  })();
+})();
+</script>
+"""
 # With --retry-adapter: requestAdapter asked again (5 times, 200 ms apart) where it returns null.
 # Chromium 156 with ANGLE on Vulkan answered the page's first request with null ("A valid
 # external Instance reference no longer exists.") and a later one with the NVIDIA adapter.
@@ -162,15 +209,24 @@ class Handler(http.server.SimpleHTTPRequestHandler):
 
     def translate_path(self, path):
         path = path.split('?', 1)[0]
-        for prefix, root in (('/viewer/', a.web), ('/data/', a.data)):
+        for prefix, root in (('/viewer/', a.web), ('/data/', a.data), ('/bench/', bench_dir),
+                             ('/modules/', a.modules)):
             if root and path.startswith(prefix):
                 return os.path.join(os.path.abspath(root), path[len(prefix):])
         return '/nonexistent'
 
     def do_GET(self):
-        if self.path.split('?', 1)[0] == '/viewer/stipple.html':
-            with open(os.path.join(a.web, 'stipple.html'), 'rb') as f:
-                body = f.read().replace(b'</body>', REPORTER.replace(b'MOVES', str(a.moves).encode()).replace(b'FLIGHT', str(a.flight).encode()) + b'</body>')
+        path = self.path.split('?', 1)[0]
+        if path in ('/viewer/stipple.html', '/bench/web_vs_potree.html'):
+            with open(os.path.join(a.web, 'stipple.html') if path.startswith('/viewer/')
+                      else os.path.join(bench_dir, 'web_vs_potree.html'), 'rb') as f:
+                body = f.read()
+            if a.bench > 0:
+                script = (BENCH.replace(b'FRAMES', str(a.bench).encode()).replace(b'WARMUP', str(a.bench_warmup).encode())
+                          .replace(b'DX', str(a.bench_dx).encode()))
+            else:
+                script = REPORTER.replace(b'MOVES', str(a.moves).encode()).replace(b'FLIGHT', str(a.flight).encode())
+            body = body.replace(b'</body>', script + b'</body>')
             if a.retry_adapter:
                 body = body.replace(b'<head>', b'<head>' + RETRY, 1)
             self.send_response(200)
@@ -179,7 +235,43 @@ class Handler(http.server.SimpleHTTPRequestHandler):
             self.end_headers()
             self.wfile.write(body)
             return
+        rng = self.headers.get('Range')
+        file = self.translate_path(self.path)
+        if rng and os.path.isfile(file):
+            self.send_range(file, rng)
+            return
         super().do_GET()
+
+    # Byte ranges (bytes=a-b, a-, -n): the Potree, COPC and EPT readers read parts of files.
+    def send_range(self, file, rng):
+        size = os.path.getsize(file)
+        try:
+            unit, spec = rng.split('=', 1)
+            first, last = spec.split(',')[0].strip().split('-')
+            if unit.strip() != 'bytes':
+                raise ValueError(unit)
+            if first == '':
+                start, end = max(0, size - int(last)), size - 1
+            else:
+                start, end = int(first), min(size - 1, int(last)) if last else size - 1
+        except ValueError:
+            self.send_error(400, 'bad Range')
+            return
+        if start > end or start >= size:
+            self.send_response(416)
+            self.send_header('Content-Range', f'bytes */{size}')
+            self.end_headers()
+            return
+        with open(file, 'rb') as f:
+            f.seek(start)
+            body = f.read(end - start + 1)
+        self.send_response(206)
+        self.send_header('Content-Type', self.guess_type(file))
+        self.send_header('Content-Range', f'bytes {start}-{end}/{size}')
+        self.send_header('Content-Length', str(len(body)))
+        self.send_header('Accept-Ranges', 'bytes')
+        self.end_headers()
+        self.wfile.write(body)
 
     def do_POST(self):
         body = self.rfile.read(int(self.headers.get('Content-Length', '0')))
@@ -194,7 +286,8 @@ Handler.extensions_map = {**http.server.SimpleHTTPRequestHandler.extensions_map,
                           '.mjs': 'text/javascript', '.json': 'application/json'}
 server = http.server.ThreadingHTTPServer(('127.0.0.1', 0), Handler)
 threading.Thread(target=server.serve_forever, daemon=True).start()
-url = f'http://127.0.0.1:{server.server_address[1]}/viewer/stipple.html?{a.query}'
+page = '/bench/web_vs_potree.html' if a.page == 'potree' else '/viewer/stipple.html'
+url = f'http://127.0.0.1:{server.server_address[1]}{page}?{a.query}'
 w, h = a.window.split('x')
 flags = ['--headless=new', '--no-sandbox', '--enable-unsafe-webgpu', '--ignore-gpu-blocklist',
          f'--window-size={w},{h}', '--user-data-dir=/tmp/web-gpu-profile', '--enable-logging=stderr',
@@ -219,4 +312,4 @@ print(out)
 if a.out:
     with open(a.out, 'w') as f:
         f.write(out)
-sys.exit(0 if ok and 'error' not in report.get('stipple', {}) else 1)
+sys.exit(0 if ok and 'error' not in report.get('stipple', {}) and not report.get('error') else 1)

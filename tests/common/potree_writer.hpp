@@ -2,7 +2,9 @@
 // A small Potree 2.0 writer for tests, written from the format's description (PotreeConverter 2's
 // metadata.json, hierarchy.bin of 22-byte records in breadth-first chunks with proxy nodes, and
 // octree.bin, encoding DEFAULT): the readers are checked against independently built files.
-// Every attribute type Potree defines is written (int8 ... uint64, float, double).
+// Every attribute type Potree defines is written (int8 ... uint64, float, double); or, for a real
+// cloud (a LAS file's points, bench/web_vs_potree.mjs), the attributes PotreeConverter writes for
+// LAS (potree_las_attributes).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -30,6 +32,10 @@ struct PotreePoint {
   uint32_t u32;
   uint64_t u64;
   float f32;
+  // LAS fields the test attributes leave out (potree_las_attributes writes them).
+  int16_t scan_angle;  // degrees: the rank of formats 0-5, the 0.006-degree count of 6-10
+  uint8_t user_data;
+  uint16_t point_source_id;
 };
 
 // n points on a jittered grid in [0, 100]^2 x [0, 20] around `origin`, every field varying.
@@ -81,8 +87,10 @@ inline std::vector<PotreeTestNode> potree_octree(const std::vector<PotreePoint>&
     const double side = size / std::ldexp(1.0, nodes[at].level);
     std::vector<uint32_t> keep, rest[8];
     const size_t stride = std::max<size_t>(1, mine.size() / node_cap);
+    // (A real cloud may hold more than node_cap points at one spot: kept at depth 24.)
+    const bool last = nodes[at].level >= 24;
     for (size_t k = 0; k < mine.size(); ++k) {
-      if (mine.size() <= node_cap || (k % stride == 0 && keep.size() < node_cap)) {
+      if (last || mine.size() <= node_cap || (k % stride == 0 && keep.size() < node_cap)) {
         keep.push_back(mine[k]);
         continue;
       }
@@ -118,18 +126,112 @@ inline uint64_t potree_morton(uint32_t x, uint32_t y, uint32_t z) {
   return code;
 }
 
-// Writes metadata.json, hierarchy.bin and octree.bin into `dir`. A node keeps every k-th of its
-// points up to `node_cap` and passes the rest to its octants; hierarchy chunks of `step` levels.
-// `int64`: with the int64 and uint64 attributes (potree-core's decoder has no 64-bit integers).
+// An attribute after the position, as metadata.json names it: its bytes in a point's record
+// (`put`) and its elements' values for the ranges metadata.json gives.
+struct PotreeAttributeSpec {
+  std::string name, type;
+  int elements = 1, element_size = 1;
+  std::function<void(const PotreePoint&, std::vector<uint8_t>&)> put;
+  std::function<double(const PotreePoint&, int)> value;
+};
+
+// A scalar attribute of type T read from a point by `get`.
+template <class T, class Get>
+PotreeAttributeSpec potree_scalar(const char* name, const char* type, Get get) {
+  return {name,
+          type,
+          1,
+          int(sizeof(T)),
+          [get](const PotreePoint& p, std::vector<uint8_t>& out) {
+            const T v = T(get(p));
+            const auto* b = reinterpret_cast<const uint8_t*>(&v);
+            out.insert(out.end(), b, b + sizeof(T));
+          },
+          [get](const PotreePoint& p, int) { return double(T(get(p))); }};
+}
+
+inline PotreeAttributeSpec potree_rgb() {
+  return {"rgb",
+          "uint16",
+          3,
+          2,
+          [](const PotreePoint& p, std::vector<uint8_t>& out) {
+            for (uint16_t v : {p.r, p.g, p.b}) {
+              out.push_back(uint8_t(v & 0xff));
+              out.push_back(uint8_t(v >> 8));
+            }
+          },
+          [](const PotreePoint& p, int k) {
+            return double(k == 0 ? p.r : k == 1 ? p.g : p.b);
+          }};
+}
+
+// The tests' attributes: every type Potree defines. `int64`: with the int64 and uint64 ones
+// (potree-core's decoder has no 64-bit integers).
+inline std::vector<PotreeAttributeSpec> potree_test_attributes(bool int64 = true) {
+  using P = PotreePoint;
+  std::vector<PotreeAttributeSpec> a{
+      potree_rgb(),
+      potree_scalar<uint16_t>("intensity", "uint16", [](const P& p) { return p.intensity; }),
+      potree_scalar<uint8_t>("classification", "uint8",
+                             [](const P& p) { return p.classification; }),
+      potree_scalar<uint8_t>("return number", "uint8", [](const P& p) { return p.return_number; }),
+      potree_scalar<uint8_t>("number of returns", "uint8",
+                             [](const P& p) { return p.number_of_returns; }),
+      potree_scalar<double>("gps-time", "double", [](const P& p) { return p.gps_time; }),
+      potree_scalar<int8_t>("extra int8", "int8", [](const P& p) { return p.i8; }),
+      potree_scalar<int16_t>("extra int16", "int16", [](const P& p) { return p.i16; }),
+      potree_scalar<int32_t>("extra int32", "int32", [](const P& p) { return p.i32; })};
+  if (int64)
+    a.push_back(potree_scalar<int64_t>("extra int64", "int64", [](const P& p) { return p.i64; }));
+  a.push_back(potree_scalar<uint32_t>("extra uint32", "uint32", [](const P& p) { return p.u32; }));
+  if (int64)
+    a.push_back(
+        potree_scalar<uint64_t>("extra uint64", "uint64", [](const P& p) { return p.u64; }));
+  a.push_back(potree_scalar<float>("extra float", "float", [](const P& p) { return p.f32; }));
+  return a;
+}
+
+// The attributes PotreeConverter 2 writes for a LAS file's points, in its order: rgb and GPS time
+// where the file has them; the scan angle as formats 0-5 give it (an int8 rank) or as 6-10 do (an
+// int16 count of 0.006 degrees).
+inline std::vector<PotreeAttributeSpec> potree_las_attributes(bool rgb, bool gps_time,
+                                                              bool extended) {
+  using P = PotreePoint;
+  std::vector<PotreeAttributeSpec> a{
+      potree_scalar<uint16_t>("intensity", "uint16", [](const P& p) { return p.intensity; }),
+      potree_scalar<uint8_t>("return number", "uint8", [](const P& p) { return p.return_number; }),
+      potree_scalar<uint8_t>("number of returns", "uint8",
+                             [](const P& p) { return p.number_of_returns; }),
+      potree_scalar<uint8_t>("classification", "uint8",
+                             [](const P& p) { return p.classification; })};
+  if (extended)
+    a.push_back(
+        potree_scalar<int16_t>("scan angle", "int16", [](const P& p) { return p.scan_angle; }));
+  else
+    a.push_back(
+        potree_scalar<int8_t>("scan angle rank", "int8", [](const P& p) { return p.scan_angle; }));
+  a.push_back(potree_scalar<uint8_t>("user data", "uint8", [](const P& p) { return p.user_data; }));
+  a.push_back(potree_scalar<uint16_t>("point source id", "uint16",
+                                      [](const P& p) { return p.point_source_id; }));
+  if (gps_time)
+    a.push_back(potree_scalar<double>("gps-time", "double", [](const P& p) { return p.gps_time; }));
+  if (rgb) a.push_back(potree_rgb());
+  return a;
+}
+
+// Writes metadata.json, hierarchy.bin and octree.bin into `dir`: the position (int32 at `scale`
+// from the points' lower corner) and then `attributes`. A node keeps every k-th of its points up
+// to `node_cap` and passes the rest to its octants; hierarchy chunks of `step` levels.
 // `brotli`: a function compressing a node's bytes, for the BROTLI encoding (the attributes one
 // after the other, position and rgb as Morton codes); empty: DEFAULT.
-inline PotreeWriteResult write_potree(
-    const std::filesystem::path& dir, const std::vector<PotreePoint>& points, size_t node_cap = 500,
-    int step = 2, bool int64 = true,
-    const std::function<std::vector<uint8_t>(const std::vector<uint8_t>&)>& brotli = {}) {
+inline PotreeWriteResult write_potree_attributes(
+    const std::filesystem::path& dir, const std::vector<PotreePoint>& points,
+    const std::vector<PotreeAttributeSpec>& attributes, size_t node_cap = 500, int step = 2,
+    const std::function<std::vector<uint8_t>(const std::vector<uint8_t>&)>& brotli = {},
+    double scale = 0.001, const std::string& name = "stipple-test") {
   namespace fs = std::filesystem;
   fs::create_directories(dir);
-  const double scale = 0.001;
   double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
   for (const auto& p : points) {
     const double c[3] = {p.x, p.y, p.z};
@@ -146,11 +248,8 @@ inline PotreeWriteResult write_potree(
     octree.insert(octree.end(), b, b + sizeof(v));
   };
   // Attribute sizes in record order, for BROTLI's attribute-after-attribute layout.
-  std::vector<int> sizes{12, 6, 2, 1, 1, 1, 8, 1, 2, 4};
-  if (int64) sizes.push_back(8);
-  sizes.push_back(4);
-  if (int64) sizes.push_back(8);
-  sizes.push_back(4);
+  std::vector<int> sizes{12};
+  for (const auto& a : attributes) sizes.push_back(a.elements * a.element_size);
   size_t record = 0;
   for (int sz : sizes) record += size_t(sz);
   for (Node& n : nodes) {
@@ -161,32 +260,27 @@ inline PotreeWriteResult write_potree(
       put(int32_t(std::lround((p.x - offset[0]) / scale)));
       put(int32_t(std::lround((p.y - offset[1]) / scale)));
       put(int32_t(std::lround((p.z - offset[2]) / scale)));
-      put(p.r), put(p.g), put(p.b), put(p.intensity), put(p.classification);
-      put(p.return_number), put(p.number_of_returns), put(p.gps_time), put(p.i8), put(p.i16);
-      put(p.i32);
-      if (int64) put(p.i64);
-      put(p.u32);
-      if (int64) put(p.u64);
-      put(p.f32);
+      for (const auto& a : attributes) a.put(p, octree);
     }
     if (brotli && !n.points.empty()) {
       const size_t count = n.points.size();
       std::vector<uint8_t> packed;
       size_t in_record = 0;
       for (size_t a = 0; a < sizes.size(); ++a) {
+        const bool position = a == 0, rgb = a > 0 && attributes[a - 1].name == "rgb";
         for (size_t i = 0; i < count; ++i) {
           const uint8_t* r = octree.data() + start + i * record + in_record;
-          if (a == 0 || a == 1) {
+          if (position || rgb) {
             uint32_t v[3] = {0, 0, 0};
             for (int k = 0; k < 3; ++k) {
-              if (a == 0) std::memcpy(&v[k], r + 4 * k, 4);
-              if (a == 1) v[k] = uint32_t(r[2 * k] | r[2 * k + 1] << 8);
+              if (position) std::memcpy(&v[k], r + 4 * k, 4);
+              if (rgb) v[k] = uint32_t(r[2 * k] | r[2 * k + 1] << 8);
             }
             const uint64_t lower = potree_morton(v[0] & 0xffff, v[1] & 0xffff, v[2] & 0xffff);
             const uint64_t upper = potree_morton(v[0] >> 16, v[1] >> 16, v[2] >> 16);
             const auto* l = reinterpret_cast<const uint8_t*>(&lower);
             const auto* u = reinterpret_cast<const uint8_t*>(&upper);
-            if (a == 0) packed.insert(packed.end(), u, u + 8);  // upper 64 bits first
+            if (position) packed.insert(packed.end(), u, u + 8);  // upper 64 bits first
             packed.insert(packed.end(), l, l + 8);
           } else {
             packed.insert(packed.end(), r, r + sizes[a]);
@@ -263,44 +357,31 @@ inline PotreeWriteResult write_potree(
       .write(reinterpret_cast<const char*>(ordered.data()), std::streamsize(ordered.size()));
   using nlohmann::json;
   // Every attribute with its range, as PotreeConverter writes them (Potree's reader needs them).
-  auto attr = [&](const char* name, int n, int size, const char* type, auto value) {
+  auto ranges = [&](int n, auto value) {
     std::vector<double> mn(size_t(n), 1e300), mx(size_t(n), -1e300);
     for (const auto& p : points)
       for (int k = 0; k < n; ++k) {
         const double v = double(value(p, k));
         mn[size_t(k)] = std::min(mn[size_t(k)], v), mx[size_t(k)] = std::max(mx[size_t(k)], v);
       }
-    return json{{"name", name},        {"description", ""}, {"size", n * size}, {"numElements", n},
-                {"elementSize", size}, {"type", type},      {"min", mn},        {"max", mx}};
+    return std::pair{mn, mx};
   };
-  using P = PotreePoint;
-  json pos = attr("position", 3, 4, "int32", [](const P& p, int k) {
-    return k == 0 ? p.x : k == 1 ? p.y : p.z;
-  });
-  json attributes = {
-      pos,
-      attr("rgb", 3, 2, "uint16",
-           [](const P& p, int k) { return k == 0   ? p.r
-                                          : k == 1 ? p.g
-                                                   : p.b; }),
-      attr("intensity", 1, 2, "uint16", [](const P& p, int) { return p.intensity; }),
-      attr("classification", 1, 1, "uint8", [](const P& p, int) { return p.classification; }),
-      attr("return number", 1, 1, "uint8", [](const P& p, int) { return p.return_number; }),
-      attr("number of returns", 1, 1, "uint8", [](const P& p, int) { return p.number_of_returns; }),
-      attr("gps-time", 1, 8, "double", [](const P& p, int) { return p.gps_time; }),
-      attr("extra int8", 1, 1, "int8", [](const P& p, int) { return p.i8; }),
-      attr("extra int16", 1, 2, "int16", [](const P& p, int) { return p.i16; }),
-      attr("extra int32", 1, 4, "int32", [](const P& p, int) { return p.i32; })};
-  if (int64)
-    attributes.push_back(attr("extra int64", 1, 8, "int64", [](const P& p, int) { return p.i64; }));
-  attributes.push_back(attr("extra uint32", 1, 4, "uint32", [](const P& p, int) { return p.u32; }));
-  if (int64)
-    attributes.push_back(
-        attr("extra uint64", 1, 8, "uint64", [](const P& p, int) { return p.u64; }));
-  attributes.push_back(attr("extra float", 1, 4, "float", [](const P& p, int) { return p.f32; }));
+  auto attr = [](const std::string& a_name, int n, int a_size, const std::string& type,
+                 const std::pair<std::vector<double>, std::vector<double>>& range) {
+    return json{{"name", a_name},     {"description", ""},     {"size", n * a_size},
+                {"numElements", n},   {"elementSize", a_size}, {"type", type},
+                {"min", range.first}, {"max", range.second}};
+  };
+  json meta_attributes = {
+      attr("position", 3, 4, "int32", ranges(3, [](const PotreePoint& p, int k) {
+             return k == 0 ? p.x : k == 1 ? p.y : p.z;
+           }))};
+  for (const auto& a : attributes)
+    meta_attributes.push_back(
+        attr(a.name, a.elements, a.element_size, a.type, ranges(a.elements, a.value)));
   json meta = {
       {"version", "2.0"},
-      {"name", "stipple-test"},
+      {"name", name},
       {"description", ""},
       {"points", points.size()},
       {"projection", ""},
@@ -311,9 +392,18 @@ inline PotreeWriteResult write_potree(
       {"boundingBox",
        {{"min", {lo[0], lo[1], lo[2]}}, {"max", {lo[0] + size, lo[1] + size, lo[2] + size}}}},
       {"encoding", brotli ? "BROTLI" : "DEFAULT"},
-      {"attributes", attributes}};
+      {"attributes", meta_attributes}};
   std::ofstream(dir / "metadata.json") << meta.dump(1);
   return result;
+}
+
+// The tests' cloud: every attribute type (`int64`: with the int64 and uint64 ones).
+inline PotreeWriteResult write_potree(
+    const std::filesystem::path& dir, const std::vector<PotreePoint>& points, size_t node_cap = 500,
+    int step = 2, bool int64 = true,
+    const std::function<std::vector<uint8_t>(const std::vector<uint8_t>&)>& brotli = {}) {
+  return write_potree_attributes(dir, points, potree_test_attributes(int64), node_cap, step,
+                                 brotli);
 }
 
 }  // namespace stipple::test

@@ -132,7 +132,10 @@ export async function startNginx(root, { headers = {} } = {}) {
 // (Chromium 156 runs it headless with these flags). The compositor is on SwiftShader too
 // (ANGLE): without it a WebGPU canvas has no shared image to present through and its device is
 // lost at the first frame ("Could not find SharedImageBackingFactory" in the GPU process's log).
-export async function launchBrowser({ webgpu = false } = {}) {
+// `args`: more flags (the benches' --disable-gpu-vsync --disable-frame-rate-limit);
+// `protocolTimeout`: ms a call into the page may take (puppeteer's default is 180 s; a bench's
+// page on SwiftShader can be busy longer).
+export async function launchBrowser({ webgpu = false, args: more = [], protocolTimeout = undefined } = {}) {
   const puppeteer = require('puppeteer-core');
   const args = webgpu
     ? ['--no-sandbox', '--enable-unsafe-webgpu', '--enable-features=Vulkan', '--use-vulkan=native',
@@ -140,7 +143,7 @@ export async function launchBrowser({ webgpu = false } = {}) {
        '--window-size=800,600']
     : ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
        '--ignore-gpu-blocklist', '--window-size=800,600'];
-  return puppeteer.launch({ executablePath: chromiumPath, headless: true, args });
+  return puppeteer.launch({ executablePath: chromiumPath, headless: true, args: [...args, ...more], protocolTimeout });
 }
 
 // The fraction of the page's canvas (#canvas) that is lit (brighter than the dark background).
