@@ -10,7 +10,11 @@
 # that `node bench/web_vs_potree.mjs --pack .devpkg/vs-potree` writes here:
 #   bench/web_vs_potree_device.sh [FRAMES]      (default 60)
 # WEB_DIR picks the page build (default: the first .devpkg/web-*), PACK the packed folder (default
-# .devpkg/vs-potree). Writes to $OUT (or /tmp/web-vs-potree-out): a JSON report a page and
+# .devpkg/vs-potree). A cloud too large to carry: pack it here from a generated LAS
+# (`stipple generate -n N --point-format 2 -o g.las`, then `web_vs_potree.mjs --input g.las --pack
+# DIR`), remove DIR/cloud, and run with GENERATE=N: the same LAS is generated there (the generator
+# is deterministic) and converted by the carried writer (.devpkg/write_potree.tar.xz,
+# `bench/device-pack.sh build/tests/stipple_write_potree write_potree`). Writes to $OUT (or /tmp/web-vs-potree-out): a JSON report a page and
 # budget, the Chromium logs, and table.md (a row per budget, as bench/web_vs_potree.mjs prints).
 set -uo pipefail
 out=${OUT:-/tmp/web-vs-potree-out}
@@ -22,6 +26,13 @@ for f in .gl/*.deb; do dpkg -x "$f" /; done
 ldconfig
 [ -x /tmp/chromium-pkg/run ] || (cat /tmp/chromium-part-0?.xz | xz -d | tar x -C /tmp) || exit 1
 export VK_ICD_FILENAMES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+if [ -n "${GENERATE:-}" ] && [ ! -f "$pack/cloud/metadata.json" ]; then
+  [ -x /tmp/stipple-pkg/run ] || tar xf .devpkg/stipple.tar.xz -C /tmp || exit 1
+  [ -x /tmp/write_potree-pkg/run ] || tar xf .devpkg/write_potree.tar.xz -C /tmp || exit 1
+  /tmp/stipple-pkg/run generate -n "$GENERATE" --point-format 2 -o /tmp/vs-potree.las | tail -1
+  /tmp/write_potree-pkg/run "$pack/cloud" /tmp/vs-potree.las 10000 3 || exit 1
+  rm -f /tmp/vs-potree.las
+fi
 printf '<?xml version="1.0"?><fontconfig><dir>%s</dir><cachedir>/tmp/fc</cachedir></fontconfig>' \
   "$PWD/.devpkg/fonts" >/tmp/fonts.conf
 export FONTCONFIG_FILE=/tmp/fonts.conf

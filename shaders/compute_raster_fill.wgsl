@@ -11,6 +11,12 @@
 //   dilate_main: depth-aware dilation of the visibility buffer. Every drawn pixel stands for a
 //     disc of the point size (offsets with dx^2 + dy^2 <= radius2); a pixel takes the nearest
 //     of the discs that cover it, colour and depth, as a depth test of splats would.
+//   dilate_depth_main, dilate_offset_main, dilate_resolve_main: the same result by scatter, in
+//     three dispatches: each drawn pixel writes its depth into every pixel of its disc
+//     (atomic), then its offset where its depth is the nearest there (atomic: the first in
+//     dilate_main's scan order wins a tie, as there), then each pixel copies the winner's colour
+//     and depth. Work follows the drawn pixels, not the window over every pixel: points larger
+//     than a pixel leave most pixels empty before dilation.
 struct FillParams {
   width: u32,
   height: u32,
@@ -143,5 +149,98 @@ fn dilate_main(@builtin(global_invocation_id) id: vec3<u32>) {
   accum_out[pixel] = accum_in[best];
   for (var w = 0u; w < fp.depth_stride; w++) {
     depth_out[pixel * fp.depth_stride + w] = depth_buffer[best * fp.depth_stride + w];
+  }
+}
+
+
+// The scatter's per-pixel words, cleared to 0 before the first dispatch: [2p] the nearest
+// covering depth and [2p + 1] the winner's offset code, each stored complemented so that
+// atomicMax keeps the least and 0 stands for none.
+@group(0) @binding(5) var<storage, read_write> dilate_winner: array<atomic<u32>>;
+
+// dilate_main's scan order over the window of radius r, the pixel itself first: the offset of
+// the covering pixel from the covered one.
+fn dilate_offset_code(dx: i32, dy: i32, r: i32) -> u32 {
+  if (dx == 0 && dy == 0) {
+    return 0u;
+  }
+  return u32((dy + r) * (2 * r + 1) + dx + r) + 1u;
+}
+
+// The drawn pixel at `id` (or none), as its depth bits; the caller's work follows from it.
+fn dilate_source_depth(id: vec3<u32>) -> u32 {
+  if (id.x >= fp.width || id.y >= fp.height) {
+    return 0xffffffffu;
+  }
+  let pixel = id.y * fp.width + id.x;
+  if (accum_in[pixel].w == 0u) {
+    return 0xffffffffu;
+  }
+  return depth_buffer[pixel * fp.depth_stride + fp.depth_word];
+}
+
+@compute @workgroup_size(16, 16)
+fn dilate_depth_main(@builtin(global_invocation_id) id: vec3<u32>) {
+  let d = dilate_source_depth(id);
+  if (d == 0xffffffffu) {
+    return;
+  }
+  let r = i32(fp.radius);
+  for (var dy = -r; dy <= r; dy++) {
+    for (var dx = -r; dx <= r; dx++) {
+      // The covered pixel is this one less the offset (dx, dy) of dilate_main's scan.
+      let x = i32(id.x) - dx;
+      let y = i32(id.y) - dy;
+      if (f32(dx * dx + dy * dy) > fp.radius2 || x < 0 || y < 0 || x >= i32(fp.width) ||
+          y >= i32(fp.height)) {
+        continue;
+      }
+      atomicMax(&dilate_winner[2u * (u32(y) * fp.width + u32(x))], ~d);
+    }
+  }
+}
+
+@compute @workgroup_size(16, 16)
+fn dilate_offset_main(@builtin(global_invocation_id) id: vec3<u32>) {
+  let d = dilate_source_depth(id);
+  if (d == 0xffffffffu) {
+    return;
+  }
+  let r = i32(fp.radius);
+  for (var dy = -r; dy <= r; dy++) {
+    for (var dx = -r; dx <= r; dx++) {
+      let x = i32(id.x) - dx;
+      let y = i32(id.y) - dy;
+      if (f32(dx * dx + dy * dy) > fp.radius2 || x < 0 || y < 0 || x >= i32(fp.width) ||
+          y >= i32(fp.height)) {
+        continue;
+      }
+      let covered = u32(y) * fp.width + u32(x);
+      if (atomicLoad(&dilate_winner[2u * covered]) == ~d) {
+        atomicMax(&dilate_winner[2u * covered + 1u], ~dilate_offset_code(dx, dy, r));
+      }
+    }
+  }
+}
+
+@compute @workgroup_size(16, 16)
+fn dilate_resolve_main(@builtin(global_invocation_id) id: vec3<u32>) {
+  if (id.x >= fp.width || id.y >= fp.height) {
+    return;
+  }
+  let pixel = id.y * fp.width + id.x;
+  var source = pixel;  // covered by none: the pixel as it is, as in dilate_main
+  if (atomicLoad(&dilate_winner[2u * pixel]) != 0u) {
+    let code = ~atomicLoad(&dilate_winner[2u * pixel + 1u]);
+    if (code != 0u) {
+      let side = 2u * fp.radius + 1u;
+      let dx = i32((code - 1u) % side) - i32(fp.radius);
+      let dy = i32((code - 1u) / side) - i32(fp.radius);
+      source = u32(i32(id.y) + dy) * fp.width + u32(i32(id.x) + dx);
+    }
+  }
+  accum_out[pixel] = accum_in[source];
+  for (var w = 0u; w < fp.depth_stride; w++) {
+    depth_out[pixel * fp.depth_stride + w] = depth_buffer[source * fp.depth_stride + w];
   }
 }

@@ -356,18 +356,17 @@ bool take_options(Registry& main) {
   return true;
 }
 
-// The stats panel's figures (viewer.stats(), window.stipple.stats, JSON), those of native
-// `stipple view`'s panel:
-// the last drawn frame's time on the page's thread (cpuMs: the engine's update, which records and
-// submits the frame without waiting for the GPU; frameMs, its older name, is the same figure),
-// the GPU time of the newest frame whose timestamps have come back (gpuMs, the sum of its passes'
-// times from timestamp queries, and gpuFrame, that frame's number; null where the adapter has no
-// timestamp queries (gpuTiming false) or none came back yet), frames per second (over the last half
-// second of drawn frames: 0 while the view is idle), frames drawn so far (engine frames whose graph
-// ran, a capture's included: it stops while the page is idle), points drawn of the scene's, for a
-// tileset its tiles resident, loading and failed, resident bytes against the memory budget and
-// the tiles' GPU bytes; the renderer and adapter, the canvas's size and format. Reported at most
-// every 250 ms (`force`: now).
+// The stats panel's figures (viewer.stats(), window.stipple.stats, JSON), those of native `stipple
+// view`'s panel: the last drawn frame's time on the page's thread (cpuMs: the engine's update,
+// which records and submits the frame without waiting for the GPU; frameMs, its older name, is the
+// same figure), the GPU time of the newest frame whose timestamps have come back (gpuMs, the sum of
+// its passes' times from timestamp queries, gpuPasses each pass's, and gpuFrame, that frame's
+// number; null where the adapter has no timestamp queries (gpuTiming false) or none came back yet),
+// frames per second (over the last half second of drawn frames: 0 while the view is idle), frames
+// drawn so far (engine frames whose graph ran, a capture's included: it stops while the page is
+// idle), points drawn of the scene's, for a tileset its tiles resident, loading and failed,
+// resident bytes against the memory budget and the tiles' GPU bytes; the renderer and adapter, the
+// canvas's size and format. Reported at most every 250 ms (`force`: now).
 class StatsPanel {
  public:
   explicit StatsPanel(std::string renderer) : renderer_(std::move(renderer)) {}
@@ -407,9 +406,13 @@ class StatsPanel {
     std::string gpu = fmt::format(R"("gpuTiming":{},"gpuMs":null,"gpuFrame":null)", timing);
     if (render_stats.pass_ms_frame > 0) {
       double gpu_ms = 0;
-      for (const auto& [pass, ms] : render_stats.pass_ms) gpu_ms += ms;
-      gpu = fmt::format(R"("gpuTiming":{},"gpuMs":{:.3f},"gpuFrame":{})", timing, gpu_ms,
-                        render_stats.pass_ms_frame);
+      std::string passes;
+      for (const auto& [pass, ms] : render_stats.pass_ms) {
+        gpu_ms += ms;
+        passes += fmt::format(R"({}"{}":{:.3f})", passes.empty() ? "" : ",", pass, ms);
+      }
+      gpu = fmt::format(R"("gpuTiming":{},"gpuMs":{:.3f},"gpuFrame":{},"gpuPasses":{{{}}})", timing,
+                        gpu_ms, render_stats.pass_ms_frame, passes);
     }
     const auto& canvas = engine.render().resource<web::CanvasInfo>();
     report("stats",

@@ -403,11 +403,18 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
     p.occlusion_params = gpu::create_buffer(ctx, 32, uniform, "raster-occlusion-params");
     p.fill_params = gpu::create_buffer(ctx, 32, uniform, "raster-fill-params");
     p.dilate_layout = gpu::create_compute_layout(
-        ctx, {B::Uniform, B::ReadOnlyStorage, B::ReadOnlyStorage, B::Storage, B::Storage},
+        ctx,
+        {B::Uniform, B::ReadOnlyStorage, B::ReadOnlyStorage, B::Storage, B::Storage, B::Storage},
         "raster-dilate");
     p.dilate_pipeline_layout = gpu::create_pipeline_layout(ctx, {p.dilate_layout.get()});
     p.dilate = gpu::create_compute_pipeline(ctx, fill.get(), "dilate_main",
                                             p.dilate_pipeline_layout.get(), "raster-dilate");
+    p.dilate_depth = gpu::create_compute_pipeline(ctx, fill.get(), "dilate_depth_main",
+                                                  p.dilate_pipeline_layout.get(), "raster-dilate");
+    p.dilate_offset = gpu::create_compute_pipeline(ctx, fill.get(), "dilate_offset_main",
+                                                   p.dilate_pipeline_layout.get(), "raster-dilate");
+    p.dilate_resolve = gpu::create_compute_pipeline(
+        ctx, fill.get(), "dilate_resolve_main", p.dilate_pipeline_layout.get(), "raster-dilate");
     p.dilate_params = gpu::create_buffer(ctx, 32, uniform, "raster-dilate-params");
   }
   p.filter_uniforms =
@@ -740,20 +747,36 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
             [&p, fp, depth_name, in = shown, groups_x, groups_y](gpu::PassContext& pc) {
               gpu::Context& ctx = pc.gpu();
               gpu::write_buffer(ctx, p.dilate_params.get(), 0, fp);
+              const WGPUBuffer winner = pc.buffer("raster-dilate-winner");
               auto group = gpu::create_bind_group(
                   ctx, p.dilate_layout.get(),
                   {gpu::bind_buffer(0, p.dilate_params.get()),
                    gpu::bind_buffer(1, pc.buffer(depth_name)), gpu::bind_buffer(2, pc.buffer(in)),
                    gpu::bind_buffer(3, pc.buffer("raster-dilated")),
-                   gpu::bind_buffer(4, pc.buffer("raster-dilated-depth"))});
+                   gpu::bind_buffer(4, pc.buffer("raster-dilated-depth")),
+                   gpu::bind_buffer(5, winner)});
+              // By scatter (from the drawn pixels) unless STIPPLE_DILATE=gather asks for the
+              // window over every pixel (the same image; bench/RESULTS.md compares them).
+              static const bool gather = [] {
+                const char* v = std::getenv("STIPPLE_DILATE");
+                return v && std::string_view(v) == "gather";
+              }();
+              if (!gather) wgpuCommandEncoderClearBuffer(pc.encoder(), winner, 0, WGPU_WHOLE_SIZE);
               auto pass = pc.begin_compute_pass();
-              gpu::dispatch(pass.get(), p.dilate.get(), {group.get()}, groups_x, groups_y);
+              if (gather) {
+                gpu::dispatch(pass.get(), p.dilate.get(), {group.get()}, groups_x, groups_y);
+              } else {
+                for (const auto* pipeline : {&p.dilate_depth, &p.dilate_offset, &p.dilate_resolve})
+                  gpu::dispatch(pass.get(), pipeline->get(), {group.get()}, groups_x, groups_y);
+              }
               wgpuComputePassEncoderEnd(pass.get());
             })
         .read(depth_name)
         .read(shown)
         .create_buffer("raster-dilated", {pixels * 16, WGPUBufferUsage_Storage})
-        .create_buffer("raster-dilated-depth", {depth_bytes, WGPUBufferUsage_Storage});
+        .create_buffer("raster-dilated-depth", {depth_bytes, WGPUBufferUsage_Storage})
+        .create_buffer("raster-dilate-winner",
+                       {pixels * 8, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst});
     shown = "raster-dilated";
     depth_shown = "raster-dilated-depth";
   }

@@ -167,7 +167,8 @@ struct ComputeRasterPipeline {
   // Points larger than one pixel: depth-aware dilation (its layout adds the output depth).
   gpu::BindGroupLayout dilate_layout;
   gpu::PipelineLayout dilate_pipeline_layout;
-  gpu::ComputePipeline dilate;
+  gpu::ComputePipeline dilate;  // by the window over every pixel (STIPPLE_DILATE=gather)
+  gpu::ComputePipeline dilate_depth, dilate_offset, dilate_resolve;  // by scatter (default)
   gpu::Buffer dilate_params;
   // Filters and clip region (point_filter.wgsl), rewritten each frame.
   gpu::Buffer filter_uniforms, polygon_vertices;
