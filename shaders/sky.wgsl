@@ -1,8 +1,10 @@
 // The Nishita sky (Nishita et al. 1993, seed 000's future work) as a background: where no point
 // was drawn, the single-scattered Rayleigh and Mie light of a spherical atmosphere along the
 // pixel's view ray, for the sun's direction, instead of the plain background colour. The
-// primary ray is marched in SKY_STEPS samples (denser near the observer) to the top of the atmosphere, each sample's light
-// ray to the sun in SKY_LIGHT_STEPS (samples whose light ray meets the earth are in its shadow).
+// primary ray is marched in SKY_STEPS samples (denser near the observer) to the top of the
+// atmosphere, each sample's light ray to the sun in SKY_LIGHT_STEPS (samples whose light ray
+// meets the earth are in its shadow). Evaluated per background pixel and frame (no look-up
+// table): 16 x 8 samples.
 // Constants are the commonly used ones: earth radius 6360 km, atmosphere 6420 km, Rayleigh scale
 // height 8 km and coefficients (5.8, 13.5, 33.1) x 1e-6 / m, Mie scale height 1.2 km,
 // scattering 21e-6 / m (extinction 1.1 times that) and g = 0.76. Directions below the horizon
