@@ -155,6 +155,22 @@ TEST_P(SkyRender, SunDiscIsVisible) {
   EXPECT_GE(p[2], 200);
 }
 
+TEST_P(SkyRender, TilesetWithNothingInViewShowsTheSky) {
+  // A streamed tileset whose tiles are all out of view still draws the sky (the billboard path
+  // runs its passes over no chunks rather than clearing to the background).
+  STIPPLE_REQUIRE_DATA(laz, "laz/autzen_trim.laz");
+  const fs::path tiles = dir_ / (GetParam() + "-tiles");
+  const auto t = test::run_stipple(fmt::format("tile {} -o {}", laz.string(), tiles.string()));
+  ASSERT_EQ(t.exit_code, 0) << t.output;
+  // 1 km above the data (local east-north-up metres), looking up.
+  const gpu::Image up = render("tileset-up", "--camera 0,0,1000,0,10,2000 --max-frames 20",
+                               "--sun 270,30 " + (tiles / "tileset.json").string());
+  ASSERT_EQ(up.width, kWidth);
+  const uint8_t* p = pixel(up, kWidth / 2, kHeight / 2);
+  EXPECT_FALSE(is_black(p));
+  EXPECT_GT(int(p[2]), int(p[0]) + 20);  // blue sky
+}
+
 INSTANTIATE_TEST_SUITE_P(Renderers, SkyRender, ::testing::Values("billboard", "compute"));
 
 TEST(SkyOptions, SunTimePlacesTheSunAtTheData) {

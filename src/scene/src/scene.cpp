@@ -378,6 +378,7 @@ void settle_streamed_scene(Engine& engine, const ScenePlan& plan, const SceneVie
       [max_frames, view, auto_size, reframe = view.camera.empty(),
        memory_mb = plan.options.memory_mb, point_budget = plan.options.budget,
        max_sse = max_sse_for(plan.options, plan.source),
+       backdrop = plan.options.render.sky.enabled ? "sky" : "background",
        uri = plan.options.inputs[0]](Registry& r) mutable {
         StreamSettle& settle = r.resource<StreamSettle>();
         auto& s = r.resource<tiles3d::TilesetStream>();
@@ -415,8 +416,8 @@ void settle_streamed_scene(Engine& engine, const ScenePlan& plan, const SceneVie
           if ((stats.loads_completed > 0 || stats.errors > 0) && stats.resident_points == 0)
             fail("{}: nothing to render: the tiles in view hold no points{}", uri,
                  s.first_problem.empty() ? "" : fmt::format(" ({})", s.first_problem));
-          STIPPLE_WARN("{}: no tile with points is in view: the image shows the background only",
-                       uri);
+          STIPPLE_WARN("{}: no tile with points is in view: the image shows the {} only", uri,
+                       backdrop);
         }
         if (settle.settled++ == 0 && auto_size && stats.drawn_points > 0) {
           Aabb drawn;
