@@ -1,6 +1,7 @@
 // Shared by the compute rasterizer's passes (seed 001, sections 3.2-3.3): per-segment
 // parameters, the batch table, workgroup-wise frustum culling and precision choice, and the
 // reconstruction of positions from the coarse/medium/fine words.
+#include "sky.wgsl"
 
 struct Params {
   view_proj: mat4x4<f32>,  // rotation-only view times projection (camera-relative)
@@ -17,6 +18,7 @@ struct Params {
   edl_strength: f32,       // eye-dome lighting in the display pass; 0: off
   edl_radius: f32,         // its neighbour distance in pixels
   background: vec4<f32>,
+  sky: Sky,  // the display pass's background where nothing was drawn, when on (sky.wgsl)
 }
 
 // The translucent points' coverage sums (compute_raster_translucent.wgsl): -ln(1 - alpha) in

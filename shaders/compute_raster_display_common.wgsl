@@ -27,7 +27,7 @@ fn display_color(xy: vec2<i32>) -> vec4<f32> {
 fn opaque_color(xy: vec2<i32>, pixel: u32) -> vec3<f32> {
   let a = accum[pixel];
   if (a.w == 0u) {
-    return params.background.rgb;
+    return background_at(params.sky, params.background.rgb, vec2<f32>(xy) + 0.5);
   }
   var color = vec3<f32>(a.xyz) / (f32(a.w) * 255.0);
   let own = depth_word_of(pixel);

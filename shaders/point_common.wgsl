@@ -2,6 +2,7 @@
 // size modes and the CLOD filter (seed 000, eqs. 6-9).
 #include "point_colors.wgsl"
 #include "point_filter.wgsl"
+#include "sky.wgsl"
 
 struct Frame {
   view_proj: mat4x4<f32>,  // projection * rotation-only view (camera at the origin)
@@ -27,6 +28,7 @@ struct Frame {
   constant_color: vec4<f32>,
   background: vec4<f32>,
   palette: array<vec4<f32>, 32>,  // ASPRS classes
+  sky: Sky,  // the background where nothing was drawn, when on (sky.wgsl)
 }
 
 struct Chunk {

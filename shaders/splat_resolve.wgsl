@@ -22,7 +22,8 @@ fn fs_resolve(@builtin(position) position: vec4<f32>) -> @location(0) vec4<f32> 
   let sum = textureLoad(accumulated, p, 0);
   let d = textureLoad(depth, p, 0);
   if (sum.a <= 0.0 || d <= 0.0) {
-    return vec4<f32>(frame.background.rgb, 1.0);  // background stays background
+    // Background stays background: the plain colour, or the sky.
+    return vec4<f32>(background_at(frame.sky, frame.background.rgb, position.xy), 1.0);
   }
   var color = sum.rgb / sum.a;
   if (frame.edl_enabled != 0u) {

@@ -202,7 +202,17 @@ Options parse(int argc, char** argv) {
       render.size_mode = pc::parse_point_size_mode(v);
     else if (a == "--size-scale")
       render.size_scale = ranged_number(a, v, 0.01, 100.0);
-    else if (a == "--classes")
+    // The Nishita sky: ?sky=1, and its sun as ?sun=AZ,EL (degrees; the page has no PROJ to
+    // place the data, so render's --sun-time is not taken here).
+    else if (a == "--sky")
+      render.sky.enabled = number(a, v) != 0;
+    else if (a == "--sun") {
+      const std::vector<double> sun = scene::parse_numbers(v, 2, "--sun");
+      if (sun[1] < -90 || sun[1] > 90) fail("--sun: elevation must be in -90..90");
+      render.sky.enabled = true;
+      render.sky.sun_azimuth_deg = sun[0];
+      render.sky.sun_elevation_deg = sun[1];
+    } else if (a == "--classes")
       o.scene.filters.filter.classes = pc::parse_classes(v, "--classes");
     else if (a == "--returns")
       o.scene.filters.filter.returns = pc::parse_returns(v, "--returns");

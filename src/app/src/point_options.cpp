@@ -56,6 +56,24 @@ void add_point_render_options(CLI::App* cmd, pc::PointRenderSettings& s) {
                   [&s](const std::vector<double>& v) {
                     s.background = glm::vec3(float(v[0]), float(v[1]), float(v[2]));
                   });
+  cmd->add_flag_callback(
+      "--sky", [&s] { s.sky.enabled = true; },
+      "Draw a Nishita sky (single-scattered Rayleigh and Mie light) behind the points instead of "
+      "the background colour; the sun from --sun or --sun-time (default azimuth 180, "
+      "elevation 45)");
+  add_list_option(cmd, "--sun", 2,
+                  "The sky's sun as 'azimuth,elevation' in degrees (azimuth clockwise from north "
+                  "in the data's frame, elevation above the horizon); implies --sky",
+                  "180,45", [&s](const std::vector<double>& v) {
+                    if (v[1] < -90 || v[1] > 90) fail("--sun: elevation must be in -90..90");
+                    s.sky.enabled = true;
+                    s.sky.sun_azimuth_deg = v[0];
+                    s.sky.sun_elevation_deg = v[1];
+                  });
+  cmd->add_option("--sky-exposure", s.sky.exposure,
+                  "The sky's exposure (tone mapping 1 - exp(-exposure * radiance))")
+      ->check(CLI::Range(0.01f, 100.0f))
+      ->capture_default_str();
   cmd->add_option("--point-size", s.point_size,
                   "Fixed point size in pixels (default: from the data's density)")
       ->check(CLI::Range(0.0f, 64.0f));

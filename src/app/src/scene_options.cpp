@@ -59,6 +59,16 @@ void add_scene_options(CLI::App* cmd, SceneOptions& options) {
                   "Tilesets: resident tile memory budget in MiB (least recently used evicted)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 20))
       ->capture_default_str();
+  auto* sun_time = cmd->add_option_function<std::string>(
+      "--sun-time",
+      [&options](const std::string& v) {
+        options.sun_time = v;
+        options.render.sky.enabled = true;
+      },
+      "The sky's sun at this date and time at the data's location (from its CRS), e.g. "
+      "2026-06-21T06:00: local mean solar time at the data's longitude, or with Z or +HH:MM "
+      "civil time at that offset from UTC; implies --sky. Data without a CRS need --sun");
+  if (CLI::Option* sun = cmd->get_option_no_throw("--sun")) sun_time->excludes(sun);
   add_filter_options(cmd, options.filters, FilterFlags::Render);
 }
 

@@ -32,8 +32,9 @@ struct Params {
   uint32_t segment_points;
   float edl_strength, edl_radius;
   float background[4];
+  SkyUniforms sky;
 };
-static_assert(sizeof(Params) == 128);
+static_assert(sizeof(Params) == 240);
 
 // Mirrors GpuBatch.
 struct GpuBatch {
@@ -489,6 +490,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
     params.background[1] = options.background.g;
     params.background[2] = options.background.b;
     params.background[3] = 1.0f;
+    params.sky = sky_uniforms(options.sky, glm::dmat4(vp), width, height);
     if (cloud.shading)
       gpu::write_buffer(ctx, cloud.shading.get(), 0, shading_uniforms(options.shading, camera));
     thread_local std::vector<GpuBatch> table;  // every frame: keep the capacity

@@ -157,6 +157,7 @@ void queue_point_clouds(Registry& render) {
       options.fill_radius = settings.fill_radius;
       options.occlusion_beta = settings.occlusion_beta;
       options.background = settings.render.background;
+      options.sky = settings.render.sky;
       options.edl_strength = settings.render.edl ? settings.render.edl_strength : 0.0f;
       options.edl_radius = settings.render.edl_radius;
       options.point_size = compute_point_size(settings.render);

@@ -57,8 +57,9 @@ struct FrameUniforms {
   float constant_color[4];
   float background[4];
   float palette[32][4];
+  SkyUniforms sky;
 };
-static_assert(sizeof(FrameUniforms) == 688);
+static_assert(sizeof(FrameUniforms) == 800);
 
 // Mirrors `Chunk` in point_common.wgsl.
 struct ChunkUniforms {
@@ -434,9 +435,10 @@ FrameSetup make_frame(const GpuPointCloud& cloud, const Camera& camera,
   f.clod = settings.clod_k > 0.0f;
   FrameUniforms& u = f.frame;
   // Rotation-only view: the camera is at the origin of what the GPU sees.
-  glm::mat4 view_proj =
-      glm::mat4(camera.projection(double(width) / height) * camera.view_rotation());
+  const glm::dmat4 view_proj_d = camera.projection(double(width) / height) * camera.view_rotation();
+  glm::mat4 view_proj = glm::mat4(view_proj_d);
   std::memcpy(u.view_proj, glm::value_ptr(view_proj), sizeof(u.view_proj));
+  u.sky = sky_uniforms(settings.sky, view_proj_d, width, height);
   u.viewport[0] = float(width);
   u.viewport[1] = float(height);
   u.focal_px = float(height / (2.0 * std::tan(camera.fov_y * 0.5)));
@@ -590,7 +592,7 @@ std::vector<std::string> point_pass_names(const PointRenderSettings& s, bool tra
     names.push_back("splat-depth");
     names.push_back("splat-accumulate");
   }
-  if (s.splat == SplatMode::Blend || s.edl) names.push_back("resolve");
+  if (s.splat == SplatMode::Blend || s.edl || s.sky.enabled) names.push_back("resolve");
   if (translucent) {
     names.push_back("points-translucent");
     names.push_back("points-composite");
@@ -604,7 +606,8 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
   auto setup = std::make_shared<FrameSetup>(make_frame(cloud, camera, settings, width, height));
   const bool clod = setup->clod;
   const bool blend = settings.splat == SplatMode::Blend;
-  const bool resolve = blend || settings.edl;
+  // The sky is drawn by the resolve, where nothing was drawn.
+  const bool resolve = blend || settings.edl || settings.sky.enabled;
   const glm::vec3 bg = settings.background;
   PointPipelines* pp = &p;
   GpuPointCloud* cp = &cloud;

@@ -407,6 +407,7 @@ void queue_virtual_cloud(Registry& render) {
   options.fill_radius = v.options.fill_radius;
   options.occlusion_beta = v.options.occlusion_beta;
   options.background = style.background;
+  options.sky = style.sky;
   options.edl_strength = style.edl ? style.edl_strength : 0.0f;
   options.edl_radius = style.edl_radius;
   options.point_size = compute_point_size(style);

@@ -16,8 +16,13 @@
 #include "stipple/engine/plugins.hpp"
 #include "stipple/engine/render_plugins.hpp"
 #include "stipple/io/copc.hpp"
+#include "stipple/io/ept.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
+#include "stipple/io/procedural.hpp"
+#include "stipple/io/tileset.hpp"
+#include "stipple/math/geo.hpp"
+#include "stipple/math/sun.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/scene.hpp"
@@ -143,12 +148,83 @@ Renderer resolve_renderer(const SceneOptions& options, const SceneSource& source
                                               source.points, kComputeFrom));
 }
 
+std::optional<glm::dvec3> scene_lon_lat(const SceneOptions& options, const SceneSource& source,
+                                        std::string* why) {
+  auto none = [why](std::string reason) -> std::optional<glm::dvec3> {
+    if (why) *why = std::move(reason);
+    return std::nullopt;
+  };
+  // A point at the centre of `min`..`max` in `crs` to longitude and latitude.
+  auto through = [&none](const io::Crs& crs, const glm::dvec3& min, const glm::dvec3& max,
+                         const std::string& what) -> std::optional<glm::dvec3> {
+    if (crs.empty()) return none(what + " has no CRS");
+    const io::LonLatTransform to_lon_lat(crs);
+    if (!to_lon_lat.valid())
+      return none(fmt::format("PROJ cannot place {} ({})", what, crs.describe()));
+    auto p = to_lon_lat((min + max) * 0.5);
+    if (!p) return none(fmt::format("PROJ cannot place the centre of {}", what));
+    return p;
+  };
+  switch (source.kind) {
+    case SourceKind::Memory:
+      return none("points in memory have no CRS");
+    case SourceKind::BuiltIn: {
+      io::SceneParams params;
+      params.point_count = options.scene_points;
+      io::Crs crs;
+      crs.epsg = params.epsg;
+      const Aabb box = io::scene_bounds(params);
+      return through(crs, box.min, box.max, "the built-in scene");
+    }
+    case SourceKind::PointFiles: {
+      const io::LasHeader h = io::read_las_header(options.inputs[0]);
+      return through(h.crs, h.min, h.max, options.inputs[0]);
+    }
+    case SourceKind::Streamed: {
+      const io::Tileset ts = io::load_tileset(options.inputs[0]);
+      if (ts.copc)
+        return through(ts.copc->header.crs, ts.copc->header.min, ts.copc->header.max,
+                       options.inputs[0]);
+      if (ts.ept) {
+        io::Crs crs;
+        crs.wkt = ts.ept->wkt;
+        return through(crs, ts.ept->data_min, ts.ept->data_max, options.inputs[0]);
+      }
+      if (ts.potree || ts.tiles.empty()) return none(options.inputs[0] + " has no CRS");
+      // 3D Tiles are geocentric (ECEF) when geo-referenced; a local frame has no location.
+      const glm::dvec3 c = ts.tiles[0].box.center;
+      if (glm::length(c) < 1e6) return none(options.inputs[0] + " is in a local frame, not ECEF");
+      return geo::ecef_to_geodetic(c);
+    }
+  }
+  return none("unknown source");
+}
+
+void resolve_sun(SceneOptions& options, const SceneSource& source) {
+  if (options.sun_time.empty()) return;
+  const solar::SunTime time = solar::parse_sun_time(options.sun_time);
+  std::string why;
+  const auto where = scene_lon_lat(options, source, &why);
+  if (!where)
+    fail("--sun-time needs the data's location, but {}: give the sun as --sun AZIMUTH,ELEVATION",
+         why);
+  const solar::SolarPosition sun =
+      solar::solar_position(solar::julian_day_utc(time, where->x), where->y, where->x);
+  options.render.sky.enabled = true;
+  options.render.sky.sun_azimuth_deg = sun.azimuth_deg;
+  options.render.sky.sun_elevation_deg = sun.elevation_deg;
+  STIPPLE_INFO("sun at {} ({}) at lon {:.4f}, lat {:.4f}: azimuth {:.2f}, elevation {:.2f} deg",
+               options.sun_time, time.local ? "local mean solar time" : "civil time", where->x,
+               where->y, sun.azimuth_deg, sun.elevation_deg);
+}
+
 ScenePlan plan_scene(const SceneOptions& options, const gpu::Context& ctx) {
   ScenePlan plan;
   plan.options = options;
   plan.renderer_auto = options.renderer == Renderer::Auto;
   apply_filters(plan.options);
   plan.source = classify_scene(plan.options);
+  resolve_sun(plan.options, plan.source);
   plan.options.renderer = resolve_renderer(plan.options, plan.source, ctx, &plan.renderer_reason);
   // Blending's form on the compute rasterizer is HQS: a streamed source auto-drawn there keeps
   // it.
@@ -302,6 +378,7 @@ void settle_streamed_scene(Engine& engine, const ScenePlan& plan, const SceneVie
       [max_frames, view, auto_size, reframe = view.camera.empty(),
        memory_mb = plan.options.memory_mb, point_budget = plan.options.budget,
        max_sse = max_sse_for(plan.options, plan.source),
+       backdrop = plan.options.render.sky.enabled ? "sky" : "background",
        uri = plan.options.inputs[0]](Registry& r) mutable {
         StreamSettle& settle = r.resource<StreamSettle>();
         auto& s = r.resource<tiles3d::TilesetStream>();
@@ -339,8 +416,8 @@ void settle_streamed_scene(Engine& engine, const ScenePlan& plan, const SceneVie
           if ((stats.loads_completed > 0 || stats.errors > 0) && stats.resident_points == 0)
             fail("{}: nothing to render: the tiles in view hold no points{}", uri,
                  s.first_problem.empty() ? "" : fmt::format(" ({})", s.first_problem));
-          STIPPLE_WARN("{}: no tile with points is in view: the image shows the background only",
-                       uri);
+          STIPPLE_WARN("{}: no tile with points is in view: the image shows the {} only", uri,
+                       backdrop);
         }
         if (settle.settled++ == 0 && auto_size && stats.drawn_points > 0) {
           Aabb drawn;

@@ -383,6 +383,7 @@ void queue_tileset(Registry& render) {
     pc::GpuBatchedCloud& drawn = pc::select_lod_batches(ctx, *c->store, c->keys);
     pc::ComputeRasterOptions options = c->raster;
     options.background = settings.render.background;
+    options.sky = settings.render.sky;
     options.edl_strength = settings.render.edl ? settings.render.edl_strength : 0.0f;
     options.edl_radius = settings.render.edl_radius;
     options.point_size = pc::compute_point_size(settings.render);
@@ -435,8 +436,9 @@ void queue_tileset(Registry& render) {
   drawn.attributes = list->attributes;
   auto& stats = render.resource<RenderStats>();
   stats.points_total = render.resource<TilesetGpuStats>().gpu_points;
-  if (drawn.chunks.empty()) {
-    // Nothing resident (yet), or nothing in view: the frame is the background.
+  if (drawn.chunks.empty() && !settings.render.sky.enabled) {
+    // Nothing resident (yet), or nothing in view: the frame is the background. (With the sky
+    // the point passes run over no chunks: their resolve draws the sky.)
     const glm::vec3 bg = settings.render.background;
     fg.graph
         .add_pass("clear", gpu::PassKind::Render,

@@ -14,8 +14,9 @@ namespace stipple::app {
 
 // Registers --color, --constant-color, --elevation-range, --intensity-range, --point-size,
 // --point-size-mode, --size-scale, --clod-k, --splat, --blend-depth, --no-edl, --edl-radius,
-// --edl-strength, --background on `cmd`; parsed values land in `settings` (which must outlive
-// the parse). Malformed lists ("r,g,b") throw CLI::ValidationError naming the flag.
+// --edl-strength, --background, --sky, --sun, --sky-exposure on `cmd`; parsed values land in
+// `settings` (which must outlive the parse). Malformed lists ("r,g,b") throw CLI::ValidationError
+// naming the flag.
 void add_point_render_options(CLI::App* cmd, pc::PointRenderSettings& settings);
 
 // "1,2,3" -> {1, 2, 3} (stipple::Error naming `what` unless exactly `expected` finite numbers).

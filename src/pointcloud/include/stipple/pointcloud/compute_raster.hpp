@@ -44,6 +44,7 @@
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/batches.hpp"
 #include "stipple/pointcloud/filters.hpp"
+#include "stipple/pointcloud/sky.hpp"
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/renderer/render_graph.hpp"
 
@@ -190,6 +191,7 @@ struct ComputeRasterOptions {
   int force_bits = 0;           // debug: 10, 20 or 30 for every batch
   float min_batch_px = 0.0f;    // LOD: skip batches smaller than this on screen
   glm::vec3 background{0.07f, 0.08f, 0.1f};
+  SkySettings sky;  // the Nishita sky instead of the background colour, when on
   // Seed 002, III-D: empty pixels with a drawn pixel within this radius take their mean colour
   // (0: off); points a nearer neighbour within the radius sees at an angle of at most
   // occlusion_beta radians (eq. 4) are dropped first (0: off; the seed uses 0.1).

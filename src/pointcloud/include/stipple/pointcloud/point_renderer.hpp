@@ -40,6 +40,7 @@
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/filters.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
+#include "stipple/pointcloud/sky.hpp"
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/renderer/gpu_timer.hpp"
 #include "stipple/renderer/render_graph.hpp"
@@ -78,6 +79,9 @@ struct PointRenderSettings {
   float edl_radius = 1.4f;     // pixels
   float edl_strength = 60.0f;  // k of eq. 11
   glm::vec3 background{0.07f, 0.08f, 0.1f};
+  // The Nishita sky instead of the background colour (sky.hpp); off by default. The billboard
+  // path then always runs its resolve, where the sky is drawn.
+  SkySettings sky;
   // Filters and clipping (filters.hpp), tested per point in the vertex shader: changing them
   // re-uploads nothing. GPS-time and point-source filters read the chunks' extras (uploaded by
   // upload_point_extras), the others the packed attribute word.

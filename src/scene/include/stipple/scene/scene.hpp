@@ -13,6 +13,7 @@
 // its own: its target (PNG, window, the page's canvas) and its event loop.
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -60,6 +61,10 @@ struct SceneOptions {
   std::string gpu_memory;        // virtualized: device memory budget; empty: what B needs
   // --classes, --returns, --clip-box ...: apply_filters() moves them into `render`.
   FilterArgs filters;
+  // --sun-time: the date and time whose sun lights the sky (render.sky), at the data's location
+  // (scene_lon_lat); solar::parse_sun_time says how it reads. plan_scene turns it into the sun's
+  // azimuth and elevation. Empty: render.sky's own azimuth and elevation.
+  std::string sun_time;
   // Point clouds: keep the per-point extras (GPS time, point source) so that filters on them
   // can be turned on later (the viewer); render keeps them only when its filters need them.
   bool keep_extras = false;
@@ -102,7 +107,19 @@ struct ScenePlan {
   bool compute() const { return options.renderer == Renderer::Compute || source.virtualized; }
 };
 
-// classify_scene + apply_filters + resolve_renderer for `ctx`.
+// The longitude, latitude and height (degrees, WGS 84) of the centre of the scene's data, from
+// its CRS through PROJ (io::LonLatTransform): the first point file's header, a COPC header, an
+// EPT's WKT, the built-in scene's UTM zone, or the centre of a geocentric 3D Tiles root volume.
+// nullopt (and `why` says so) where the data has no CRS or is not geo-referenced.
+std::optional<glm::dvec3> scene_lon_lat(const SceneOptions& options, const SceneSource& source,
+                                        std::string* why = nullptr);
+
+// For options.sun_time: the sun's azimuth and elevation at the scene's location
+// (scene_lon_lat) into options.render.sky. Throws stipple::Error when the location is unknown
+// (then --sun AZ,EL is needed). Logs where and when.
+void resolve_sun(SceneOptions& options, const SceneSource& source);
+
+// classify_scene + apply_filters + resolve_renderer for `ctx` (and resolve_sun).
 ScenePlan plan_scene(const SceneOptions& options, const gpu::Context& ctx);
 
 // Reads the clip polygons and puts the filters and clip region into options.render; throws
