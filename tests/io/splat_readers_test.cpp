@@ -1,0 +1,334 @@
+// The splat readers against real files written by other software (../shared/data/splats, whose
+// README gives the counts, SH degrees and the fixtures' expected values), synthetic files with
+// known values, the same scene in two formats, and damaged input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "stipple/core/error.hpp"
+#include "stipple/io/splat_readers.hpp"
+
+namespace fs = std::filesystem;
+using stipple::Error;
+using namespace stipple::io;
+
+namespace {
+
+constexpr float kC0 = 0.28209479177387814f;
+
+fs::path data_dir() {
+  if (const char* env = std::getenv("STIPPLE_DATA_DIR")) return env;
+#ifdef STIPPLE_SOURCE_DIR
+  return fs::path(STIPPLE_SOURCE_DIR "/../shared/data");
+#else
+  return {};
+#endif
+}
+
+#define REQUIRE_SPLATS(rel)                                                      \
+  const fs::path file = data_dir() / "splats" / (rel);                           \
+  if (data_dir().empty() || !fs::exists(file)) {                                 \
+    GTEST_SKIP() << "test data " << file << " not found (set STIPPLE_DATA_DIR)"; \
+  }
+
+std::vector<uint8_t> bytes_of(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+glm::vec3 colour(const SplatSet& s, size_t i) {
+  return 0.5f + kC0 * s.sh_dc[i];
+}
+
+// Every array sized for the count, every value finite, rotations unit, opacities in [0, 1].
+void expect_well_formed(const SplatSet& s) {
+  const size_t n = s.size();
+  ASSERT_EQ(s.scales.size(), n);
+  ASSERT_EQ(s.rotations.size(), n);
+  ASSERT_EQ(s.opacities.size(), n);
+  ASSERT_EQ(s.sh_dc.size(), n);
+  ASSERT_EQ(s.sh_rest.size(), n * s.rest_count());
+  for (size_t i = 0; i < n; ++i) {
+    ASSERT_TRUE(std::isfinite(s.positions[i].x + s.positions[i].y + s.positions[i].z)) << i;
+    ASSERT_NEAR(glm::length(s.rotations[i]), 1.0f, 1e-4f) << i;
+    ASSERT_GE(s.opacities[i], 0.0f);
+    ASSERT_LE(s.opacities[i], 1.0f);
+    ASSERT_GE(std::min({s.scales[i].x, s.scales[i].y, s.scales[i].z}), 0.0f) << i;
+  }
+}
+
+// The four splats of splat-transform's minimal.* fixtures, on the 2x2 grid of the README.
+const glm::vec3 kGrid[4] = {{-1, 0, -1}, {0, 0, -1}, {-1, 0, 0}, {0, 0, 0}};
+const glm::vec3 kGridColour[4] = {{1 / 3.f, 1 / 3.f, 0.5f},
+                                  {2 / 3.f, 1 / 3.f, 0.5f},
+                                  {1 / 3.f, 2 / 3.f, 0.5f},
+                                  {2 / 3.f, 2 / 3.f, 0.5f}};
+
+// Quaternions q and -q are the same rotation.
+void expect_rotation(const glm::vec4& q, const glm::vec4& expected, float tol) {
+  const float d = std::min(glm::length(q - expected), glm::length(q + expected));
+  EXPECT_LT(d, tol) << q.x << " " << q.y << " " << q.z << " " << q.w;
+}
+
+struct FileCase {
+  const char* path;
+  size_t count;
+  int degree;
+  const char* format;
+};
+
+}  // namespace
+
+TEST(SplatReaders, EveryFileDecodesToItsCountAndDegree) {
+  const FileCase cases[] = {
+      {"playcanvas-engine/biker.spz", 152746, 0, "SPZ v4"},
+      {"playcanvas-engine/biker.compressed.ply", 152746, 0, "PlayCanvas compressed PLY"},
+      {"playcanvas-engine/guitar.compressed.ply", 90854, 0, "PlayCanvas compressed PLY"},
+      {"playcanvas-engine/test.ply", 64, 3, "PlayCanvas compressed PLY"},
+      {"playcanvas-engine/wave_0001.sog", 4225, 0, "SOG v2"},
+      {"splat-transform/minimal.splat", 4, 0, "antimatter15 .splat"},
+      {"splat-transform/minimal.ksplat", 4, 0, ".ksplat (compression level 0)"},
+      {"splat-transform/minimal-raw.spz", 4, 0, "SPZ v2 (not gzipped)"},
+      {"splat-transform/minimal-v2.spz", 4, 0, "SPZ v2"},
+      {"splat-transform/minimal-v3.spz", 4, 0, "SPZ v3"},
+      {"splat-transform/minimal-v4.spz", 4, 0, "SPZ v4"},
+      {"cesium-native/basic.glb", 1, 0, "glTF KHR_gaussian_splatting (SPZ)"},
+      {"v3dg/donut_fused.ply", 45624, 0, "INRIA PLY"},
+      {"gaussiansplats3d-pr477/lod5_tile_0.ply", 111, 3, "INRIA PLY"},
+  };
+  if (data_dir().empty() || !fs::exists(data_dir() / "splats"))
+    GTEST_SKIP() << "test data " << data_dir() / "splats"
+                 << " not found (set STIPPLE_DATA_DIR)";
+  for (const FileCase& c : cases) {
+    SCOPED_TRACE(c.path);
+    const fs::path file = data_dir() / "splats" / c.path;
+    // A .glb is content, not a splat file by its name (3D Tiles content decides).
+    if (file.extension() != ".glb") {
+      EXPECT_TRUE(is_splat_path(file.string()));
+    }
+    SplatSet s = read_splats(file.string());
+    EXPECT_EQ(s.size(), c.count);
+    EXPECT_EQ(s.sh_degree, c.degree);
+    EXPECT_EQ(s.format, c.format);
+    expect_well_formed(s);
+    // The same bytes through decode_splats.
+    auto bytes = bytes_of(file);
+    EXPECT_EQ(decode_splats(bytes, file.string()).size(), c.count);
+  }
+}
+
+TEST(SplatReaders, IsSplatPathByExtensionAndPlyHeader) {
+  EXPECT_TRUE(is_splat_path("scene.SPZ"));
+  EXPECT_TRUE(is_splat_path("https://example.com/a/scene.splat?x=1"));
+  EXPECT_TRUE(is_splat_path("scene.ksplat"));
+  EXPECT_TRUE(is_splat_path("scene.sog"));
+  EXPECT_TRUE(is_splat_path("dir/meta.json"));
+  EXPECT_FALSE(is_splat_path("tileset.json"));
+  EXPECT_FALSE(is_splat_path("cloud.laz"));
+  EXPECT_FALSE(is_splat_path("missing-file.ply"));
+  // A point-cloud PLY is not a splat file.
+  const fs::path ply = fs::temp_directory_path() / "stipple_points_only.ply";
+  {
+    std::ofstream out(ply, std::ios::binary);
+    out << "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
+           "property float y\nproperty float z\nend_header\n";
+    float xyz[3] = {1, 2, 3};
+    out.write(reinterpret_cast<const char*>(xyz), sizeof xyz);
+  }
+  EXPECT_FALSE(is_splat_path(ply.string()));
+  EXPECT_THROW(read_splats(ply.string()), Error);
+  fs::remove(ply);
+}
+
+// A synthetic INRIA PLY with known values: activations, rotation order and normalisation, and
+// f_rest's channel-major order turned coefficient-major.
+TEST(SplatReaders, InriaPlyActivationsAndShOrder) {
+  std::string header =
+      "ply\nformat binary_little_endian 1.0\ncomment synthetic\nelement vertex 2\n"
+      "property float x\nproperty float y\nproperty float z\n"
+      "property float nx\nproperty float ny\nproperty float nz\n"
+      "property float f_dc_0\nproperty float f_dc_1\nproperty float f_dc_2\n";
+  for (int k = 0; k < 9; ++k) header += "property float f_rest_" + std::to_string(k) + "\n";
+  header +=
+      "property float opacity\nproperty float scale_0\nproperty float scale_1\n"
+      "property float scale_2\nproperty float rot_0\nproperty float rot_1\nproperty float rot_2\n"
+      "property float rot_3\nend_header\n";
+  std::vector<uint8_t> bytes(header.begin(), header.end());
+  auto put = [&](float v) {
+    uint8_t b[4];
+    std::memcpy(b, &v, 4);
+    bytes.insert(bytes.end(), b, b + 4);
+  };
+  for (int i = 0; i < 2; ++i) {
+    put(1.0f + i), put(2.0f), put(3.0f);                 // position
+    put(0), put(0), put(1);                              // normal, ignored
+    put(0.5f), put(-0.5f), put(1.0f);                    // f_dc
+    for (int k = 0; k < 9; ++k) put(float(10 * i + k));  // f_rest R0 R1 R2 G0 G1 G2 B0 B1 B2
+    put(0.0f);                                           // opacity logit: sigmoid 0.5
+    put(0.0f), put(std::log(2.0f)), put(-1.0f);          // log scales
+    put(2.0f), put(0.0f), put(0.0f), put(2.0f);          // w x y z, unnormalised
+  }
+  SplatSet s = decode_splats(bytes, "synthetic.ply");
+  ASSERT_EQ(s.size(), 2u);
+  EXPECT_EQ(s.sh_degree, 1);
+  ASSERT_EQ(s.rest_count(), 3u);
+  EXPECT_EQ(s.positions[1], glm::vec3(2, 2, 3));
+  EXPECT_EQ(s.sh_dc[0], glm::vec3(0.5f, -0.5f, 1.0f));
+  EXPECT_FLOAT_EQ(s.opacities[0], 0.5f);
+  EXPECT_NEAR(s.scales[0].x, 1.0f, 1e-6f);
+  EXPECT_NEAR(s.scales[0].y, 2.0f, 1e-6f);
+  EXPECT_NEAR(s.scales[0].z, std::exp(-1.0f), 1e-6f);
+  // rot_0 is w: (w, x, y, z) = (2, 0, 0, 2) -> (x, y, z, w) = (0, 0, 1, 1)/sqrt2.
+  expect_rotation(s.rotations[0], glm::vec4(0, 0, 1, 1) / std::sqrt(2.0f), 1e-6f);
+  // Coefficient k of splat i is (f_rest_k, f_rest_{3+k}, f_rest_{6+k}).
+  for (int i = 0; i < 2; ++i)
+    for (int k = 0; k < 3; ++k)
+      EXPECT_EQ(s.sh_rest[size_t(i) * 3 + size_t(k)],
+                glm::vec3(float(10 * i + k), float(10 * i + 3 + k), float(10 * i + 6 + k)));
+}
+
+TEST(SplatReaders, InriaPlyRealValues) {
+  REQUIRE_SPLATS("v3dg/donut_fused.ply");
+  SplatSet s = read_splats(file.string());
+  // Splat 0 as Python's struct reads the file: x y z f_dc opacity scale rot.
+  EXPECT_NEAR(s.positions[0].x, 0.018263084813952446, 1e-7);
+  EXPECT_NEAR(s.positions[0].z, 0.040593795478343964, 1e-7);
+  EXPECT_NEAR(s.sh_dc[0].y, 1.3836876153945923, 1e-6);
+  EXPECT_NEAR(s.opacities[0], 1.0 / (1.0 + std::exp(-6.068385601043701)), 1e-6);
+  EXPECT_NEAR(s.scales[0].x, std::exp(-4.831232070922852), 1e-7);
+  const glm::vec4 q(0.2471696138381958f, -0.13596948981285095f, 0.25336384773254395f,
+                    0.7263771891593933f);
+  expect_rotation(s.rotations[0], q / glm::length(q), 1e-6f);
+  // Its bounds (numpy over the file's x y z).
+  glm::vec3 lo(INFINITY), hi(-INFINITY);
+  for (const auto& p : s.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+  EXPECT_NEAR(lo.x, -0.10316952, 1e-6);
+  EXPECT_NEAR(hi.y, 0.1095402, 1e-6);
+  EXPECT_NEAR(lo.z, -0.00906719, 1e-6);
+}
+
+TEST(SplatReaders, PlyAsciiAndUnknownLayoutsAreErrors) {
+  std::string ascii =
+      "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float f_dc_0\n"
+      "property float opacity\nproperty float scale_0\nproperty float rot_0\nend_header\n"
+      "1 2 3 4 5\n";
+  std::vector<uint8_t> bytes(ascii.begin(), ascii.end());
+  try {
+    decode_splats(bytes, "ascii.ply");
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("ascii.ply"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("binary_little_endian"), std::string::npos);
+  }
+}
+
+TEST(SplatReaders, MinimalSplatAndKsplat) {
+  REQUIRE_SPLATS("splat-transform/minimal.splat");
+  for (const char* f : {"splat-transform/minimal.splat", "splat-transform/minimal.ksplat"}) {
+    SCOPED_TRACE(f);
+    SplatSet s = read_splats((data_dir() / "splats" / f).string());
+    ASSERT_EQ(s.size(), 4u);
+    const uint8_t bytes[4][2] = {{85, 85}, {170, 85}, {85, 170}, {170, 170}};
+    for (size_t i = 0; i < 4; ++i) {
+      EXPECT_EQ(s.positions[i], kGrid[i]);
+      EXPECT_NEAR(s.scales[i].x, 0.1f, 1e-6f);
+      EXPECT_NEAR(s.scales[i].z, 0.1f, 1e-6f);
+      EXPECT_NEAR(s.opacities[i], 230 / 255.0f, 1e-6f);
+      // The colour bytes come back exactly (colour = byte / 255).
+      EXPECT_NEAR(colour(s, i).r, bytes[i][0] / 255.0f, 1e-6f);
+      EXPECT_NEAR(colour(s, i).g, bytes[i][1] / 255.0f, 1e-6f);
+      EXPECT_NEAR(colour(s, i).b, 128 / 255.0f, 1e-6f);
+      // Both files store (0,0,0,1) in the w-first order: a half turn about z (README).
+      expect_rotation(s.rotations[i], glm::vec4(0, 0, 1, 0), 1e-2f);
+    }
+  }
+}
+
+TEST(SplatReaders, MinimalSpzV2AndRaw) {
+  REQUIRE_SPLATS("splat-transform/minimal-v2.spz");
+  for (const char* f : {"splat-transform/minimal-v2.spz", "splat-transform/minimal-raw.spz"}) {
+    SCOPED_TRACE(f);
+    SplatSet s = read_splats((data_dir() / "splats" / f).string());
+    ASSERT_EQ(s.size(), 4u);
+    const uint8_t bytes[4][2] = {{85, 85}, {170, 85}, {85, 170}, {170, 170}};
+    for (size_t i = 0; i < 4; ++i) {
+      EXPECT_EQ(s.positions[i], kGrid[i]);
+      EXPECT_NEAR(s.scales[i].y, std::exp(123 / 16.0f - 10.0f), 1e-6f);
+      EXPECT_NEAR(s.opacities[i], 230 / 255.0f, 1e-6f);
+      // The writer stored colour bytes directly; SPZ's encoding reads them as such.
+      EXPECT_NEAR(s.sh_dc[i].r, (bytes[i][0] / 255.0f - 0.5f) / 0.15f, 1e-5f);
+      EXPECT_NEAR(s.sh_dc[i].g, (bytes[i][1] / 255.0f - 0.5f) / 0.15f, 1e-5f);
+      expect_rotation(s.rotations[i], glm::vec4(0, 0, 0, 1), 1e-2f);
+    }
+  }
+}
+
+TEST(SplatReaders, MinimalSpzV3AndV4) {
+  REQUIRE_SPLATS("splat-transform/minimal-v3.spz");
+  for (const char* f : {"splat-transform/minimal-v3.spz", "splat-transform/minimal-v4.spz"}) {
+    SCOPED_TRACE(f);
+    SplatSet s = read_splats((data_dir() / "splats" / f).string());
+    ASSERT_EQ(s.size(), 4u);
+    for (size_t i = 0; i < 4; ++i) {
+      // The writer stored SPZ's internal axes: z negated.
+      EXPECT_EQ(s.positions[i], glm::vec3(kGrid[i].x, kGrid[i].y, -kGrid[i].z));
+      EXPECT_NEAR(s.scales[i].x, 0.1f, 0.002f);
+      EXPECT_NEAR(s.opacities[i], 0.9f, 0.003f);
+      // Colour within SPZ's quantisation (one step: C0 / (0.15 * 255) = 0.0074).
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(colour(s, i)[c], kGridColour[i][c], 0.0074f);
+      expect_rotation(s.rotations[i], glm::vec4(0, 0, 0, 1), 1e-6f);
+    }
+    // splat-transform's own check of splat 0.
+    EXPECT_NEAR(s.sh_dc[0].r, (1 / 3.f - 0.5f) / kC0, 0.03f);
+    EXPECT_NEAR(s.sh_dc[0].b, 0.0f, 0.03f);
+  }
+}
+
+TEST(SplatReaders, CesiumBasicGlb) {
+  REQUIRE_SPLATS("cesium-native/basic.glb");
+  auto bytes = bytes_of(file);
+  SplatSet s = decode_splats_glb(bytes, file.string());
+  ASSERT_EQ(s.size(), 1u);
+  EXPECT_EQ(s.positions[0], glm::vec3(1, 2, 3));
+  const glm::vec3 c = colour(s, 0);
+  EXPECT_NEAR(c.r, 0.570062876f, 1e-6f);
+  EXPECT_NEAR(c.g, 0.643813193f, 1e-6f);
+  EXPECT_NEAR(c.b, 0.710188448f, 1e-6f);
+  EXPECT_NEAR(s.opacities[0], 0.501960814f, 1e-6f);
+  // cesium-native keeps the decoded quaternion as is; SplatSet's is normalised.
+  const glm::vec4 q(0.003921628f, -0.709803939f, 0.709804058f, 0.0f);
+  expect_rotation(s.rotations[0], q / glm::length(q), 1e-6f);
+  EXPECT_NEAR(s.scales[0].x, 20.085537f, 1e-4f);
+  EXPECT_NEAR(s.scales[0].y, 7.38905621f, 1e-5f);
+  EXPECT_NEAR(s.scales[0].z, 2.71828175f, 1e-5f);
+  // The node's matrix, column-major [1,0,0,0, 0,0,-1,0, 0,1,0,0, 0,0,0,1].
+  EXPECT_EQ(s.transform[1], glm::dvec4(0, 0, -1, 0));
+  EXPECT_EQ(s.transform[2], glm::dvec4(0, 1, 0, 0));
+  EXPECT_EQ(s.transform[0], glm::dvec4(1, 0, 0, 0));
+}
+
+// The same four splats as .splat, .ksplat and SPZ v4 agree within SPZ's quantisation (v4's
+// writer negated z, see above).
+TEST(SplatReaders, MinimalFormatsAgree) {
+  REQUIRE_SPLATS("splat-transform/minimal-v4.spz");
+  auto a = read_splats((data_dir() / "splats/splat-transform/minimal.splat").string());
+  auto b = read_splats((data_dir() / "splats/splat-transform/minimal.ksplat").string());
+  auto c = read_splats((data_dir() / "splats/splat-transform/minimal-v4.spz").string());
+  for (size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(a.positions[i], b.positions[i]);
+    EXPECT_EQ(a.positions[i] * glm::vec3(1, 1, -1), c.positions[i]);
+    EXPECT_EQ(a.sh_dc[i], b.sh_dc[i]);
+    EXPECT_EQ(a.opacities[i], b.opacities[i]);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(colour(a, i)[k], colour(c, i)[k], 0.008f);
+      EXPECT_NEAR(a.scales[i][k], c.scales[i][k], 0.002f);
+    }
+    EXPECT_NEAR(a.opacities[i], c.opacities[i], 0.003f);
+  }
+}
