@@ -48,6 +48,9 @@ inline float sigmoid(float x) {
 // Sizes every array for n splats of SH degree `degree` (0..3), after checking n against limits.
 void resize_splats(SplatSet& s, size_t n, int degree, const SplatLimits& limits,
                    std::string_view name);
+// Every value finite (else an Error), linear scales made non-negative, opacities clamped to
+// [0, 1]: what every reader returns.
+void check_values(SplatSet& s, std::string_view name);
 // Normalises a quaternion given (x, y, z, w); a zero or non-finite one becomes the identity.
 glm::vec4 unit_quaternion(float x, float y, float z, float w);
 

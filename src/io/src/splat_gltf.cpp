@@ -417,7 +417,9 @@ SplatSet decode_glb_unchecked(std::span<const uint8_t> data, std::string_view na
 SplatSet decode_splats_glb(std::span<const uint8_t> glb, std::string_view name,
                            const SplatLimits& limits) {
   try {
-    return decode_glb_unchecked(glb, name, limits);
+    SplatSet s = decode_glb_unchecked(glb, name, limits);
+    check_values(s, name);
+    return s;
   } catch (const nlohmann::json::exception& e) {
     fail("{}: malformed glTF JSON: {}", name, e.what());
   }

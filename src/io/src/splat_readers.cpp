@@ -52,6 +52,21 @@ glm::vec4 unit_quaternion(float x, float y, float z, float w) {
   return {x / len, y / len, z / len, w / len};
 }
 
+void check_values(SplatSet& s, std::string_view name) {
+  for (size_t i = 0; i < s.size(); ++i) {
+    const glm::vec3 p = s.positions[i], sc = s.scales[i], dc = s.sh_dc[i];
+    if (!std::isfinite(p.x + p.y + p.z + sc.x + sc.y + sc.z + dc.x + dc.y + dc.z) ||
+        !std::isfinite(s.opacities[i]))
+      fail("{}: splat {} has a value that is not finite", name, i);
+    // Linear scales stored as such (.splat, .ksplat, glTF) may carry a sign the covariance
+    // ignores; opacity stored linearly may leave [0, 1].
+    s.scales[i] = glm::abs(sc);
+    s.opacities[i] = std::clamp(s.opacities[i], 0.0f, 1.0f);
+  }
+  for (const glm::vec3& c : s.sh_rest)
+    if (!std::isfinite(c.x + c.y + c.z)) fail("{}: an SH coefficient is not finite", name);
+}
+
 }  // namespace splat_detail
 
 namespace {
@@ -110,8 +125,10 @@ bool is_splat_path(std::string_view path_or_url) {
   }
 }
 
-SplatSet decode_splats(std::span<const uint8_t> bytes, std::string_view name,
-                       const SplatLimits& limits) {
+namespace {
+
+SplatSet decode_unchecked(std::span<const uint8_t> bytes, std::string_view name,
+                          const SplatLimits& limits) {
   const std::string ext = lower_extension(name);
   auto starts = [&](const char* magic, size_t n) {
     return bytes.size() >= n && std::memcmp(bytes.data(), magic, n) == 0;
@@ -133,6 +150,15 @@ SplatSet decode_splats(std::span<const uint8_t> bytes, std::string_view name,
   fail("{}: not a splat file this reader knows (PLY, SPZ, .splat, .ksplat, SOG or glTF)", name);
 }
 
+}  // namespace
+
+SplatSet decode_splats(std::span<const uint8_t> bytes, std::string_view name,
+                       const SplatLimits& limits) {
+  SplatSet s = decode_unchecked(bytes, name, limits);
+  check_values(s, name);
+  return s;
+}
+
 SplatSet read_splats(const std::string& path_or_url, const SplatLimits& limits) {
   FetchOptions options;
   options.max_bytes = std::max<uint64_t>(options.max_bytes, 4ull << 30);
@@ -141,10 +167,12 @@ SplatSet read_splats(const std::string& path_or_url, const SplatLimits& limits) 
   const std::string ext = lower_extension(path_or_url);
   if (ext == ".json") {
     if (!sog_supported()) fail("{}: SOG files need libwebp, which this build lacks", path_or_url);
-    return decode_sog_meta(
+    SplatSet s = decode_sog_meta(
         bytes, path_or_url,
         [&](const std::string& file) { return fetch(resolve_uri(path_or_url, file), options); },
         limits);
+    check_values(s, path_or_url);
+    return s;
   }
   return decode_splats(bytes, path_or_url, limits);
 }

@@ -4,6 +4,13 @@
 // glTF KHR_gaussian_splatting (with its SPZ compression), all decoded to SplatSet's one form
 // (splats.hpp says its conventions). Every size and offset a file states is checked before use:
 // a damaged or hostile file is a stipple::Error naming the file and the defect, never a crash.
+// Values are returned finite (a non-finite one is an error), scales non-negative.
+//
+// Axes are the file's own: no reader converts frames. SPZ's specification puts its data in
+// its own axes (x right, y up, z back) where INRIA and PlayCanvas files keep the trainer's
+// (x right, y down, z forward), and converting writers negate y and z: PlayCanvas's biker.spz
+// is its biker.compressed.ply with y and z negated (the quaternion conjugated by the half turn
+// about x). .splat and .ksplat store rotations real part first, as INRIA PLY does.
 #include <cstddef>
 #include <cstdint>
 #include <span>
