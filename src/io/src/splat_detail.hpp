@@ -55,10 +55,14 @@ void check_values(SplatSet& s, std::string_view name);
 glm::vec4 unit_quaternion(float x, float y, float z, float w);
 
 // Whole-stream decompression into at most `cap` bytes (more is an error naming `name`).
-// gzip or zlib framing (told apart by the header). Not in the web build (no zlib there).
+// gzip or zlib framing (told apart by the header).
 std::vector<uint8_t> inflate_all(std::span<const uint8_t> in, size_t cap, std::string_view name);
 // Raw deflate (zip entries), exactly `size` bytes expected.
 std::vector<uint8_t> inflate_raw(std::span<const uint8_t> in, size_t size, std::string_view name);
+// The same without zlib (splat_deflate.cpp): gzip/zlib-wrapped, or raw when `raw`. The web
+// build's inflate_all and inflate_raw.
+std::vector<uint8_t> inflate_portable(std::span<const uint8_t> in, bool raw, size_t cap,
+                                      std::string_view name);
 // One zstd frame (or several) decompressing to exactly `size` bytes.
 std::vector<uint8_t> zstd_exact(std::span<const uint8_t> in, size_t size, std::string_view name);
 

@@ -1,5 +1,5 @@
-// Decompression for the splat readers: gzip/zlib and raw deflate through zlib (native builds
-// only: the web build has no zlib, so gzipped SPZ and zip are an error there), zstd on both.
+// Decompression for the splat readers: gzip/zlib and raw deflate through zlib in native builds
+// (the web build has no zlib: there splat_deflate.cpp's decoder), zstd on both.
 #include <zstd.h>
 #ifndef __EMSCRIPTEN__
 #include <zlib.h>
@@ -65,11 +65,15 @@ std::vector<uint8_t> inflate_raw(std::span<const uint8_t> in, size_t size, std::
   return out;
 }
 #else
-std::vector<uint8_t> inflate_all(std::span<const uint8_t>, size_t, std::string_view name) {
-  fail("{}: gzip-compressed splats (SPZ v1-v3) cannot be read in the web build (no zlib)", name);
+std::vector<uint8_t> inflate_all(std::span<const uint8_t> in, size_t cap, std::string_view name) {
+  return inflate_portable(in, false, cap, name);
 }
-std::vector<uint8_t> inflate_raw(std::span<const uint8_t>, size_t, std::string_view name) {
-  fail("{}: deflate-compressed zip entries cannot be read in the web build (no zlib)", name);
+
+std::vector<uint8_t> inflate_raw(std::span<const uint8_t> in, size_t size, std::string_view name) {
+  std::vector<uint8_t> out = inflate_portable(in, true, size, name);
+  if (out.size() != size)
+    fail("{}: deflate data inflates to {} bytes, {} expected", name, out.size(), size);
+  return out;
 }
 #endif
 
