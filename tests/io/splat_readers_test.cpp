@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "stipple/core/error.hpp"
 #include "stipple/io/splat_readers.hpp"
 
@@ -424,4 +426,90 @@ TEST(SplatReaders, DamagedFilesAreErrors) {
     }
   }
   EXPECT_GT(errors, 0u);
+}
+
+namespace {
+
+// A GLB of one POINTS primitive holding `n` splats as float accessors named with `prefix`
+// ("KHR_gaussian_splatting:" or the older "_"), SH degree 1, under a node translation.
+std::vector<uint8_t> splat_glb(const std::string& prefix, size_t n) {
+  std::vector<float> bin;
+  nlohmann::json accessors = nlohmann::json::array(), views = nlohmann::json::array();
+  nlohmann::json attributes;
+  auto add = [&](const std::string& name, const char* type, int k, auto value) {
+    const size_t offset = bin.size() * 4;
+    for (size_t i = 0; i < n; ++i)
+      for (int c = 0; c < k; ++c) bin.push_back(value(i, c));
+    views.push_back({{"buffer", 0}, {"byteOffset", offset}, {"byteLength", n * size_t(k) * 4}});
+    accessors.push_back(
+        {{"bufferView", views.size() - 1}, {"componentType", 5126}, {"count", n}, {"type", type}});
+    attributes[name] = accessors.size() - 1;
+  };
+  add("POSITION", "VEC3", 3, [](size_t i, int c) { return float(i) + 0.25f * float(c); });
+  add(prefix + "ROTATION", "VEC4", 4, [](size_t, int c) { return c == 2 ? 2.0f : 0.0f; });
+  add(prefix + "SCALE", "VEC3", 3, [](size_t i, int c) { return 0.1f * float(i + 1) + float(c); });
+  add(prefix + "OPACITY", "SCALAR", 1, [](size_t i, int) { return 0.5f + 0.1f * float(i); });
+  add(prefix + "SH_DEGREE_0_COEF_0", "VEC3", 3, [](size_t i, int c) { return float(i) - c; });
+  for (int k = 0; k < 3; ++k)
+    add(prefix + "SH_DEGREE_1_COEF_" + std::to_string(k), "VEC3", 3,
+        [k](size_t i, int c) { return float(100 * i + 10 * size_t(k) + size_t(c)); });
+  nlohmann::json j = {
+      {"asset", {{"version", "2.0"}}},
+      {"extensionsUsed", {"KHR_gaussian_splatting"}},
+      {"buffers", {{{"byteLength", bin.size() * 4}}}},
+      {"bufferViews", views},
+      {"accessors", accessors},
+      {"meshes",
+       {{{"primitives",
+          {{{"mode", 0},
+            {"attributes", attributes},
+            {"extensions", {{"KHR_gaussian_splatting", nlohmann::json::object()}}}}}}}}},
+      {"nodes", {{{"mesh", 0}, {"translation", {10, 20, 30}}}}},
+      {"scenes", {{{"nodes", {0}}}}},
+      {"scene", 0}};
+  std::string text = j.dump();
+  while (text.size() % 4) text += ' ';
+  std::vector<uint8_t> glb(12);
+  auto u32 = [&](uint32_t v) {
+    for (int b = 0; b < 4; ++b) glb.push_back(uint8_t(v >> (8 * b)));
+  };
+  u32(uint32_t(text.size()));
+  u32(0x4E4F534A);
+  glb.insert(glb.end(), text.begin(), text.end());
+  u32(uint32_t(bin.size() * 4));
+  u32(0x004E4942);
+  const auto* raw = reinterpret_cast<const uint8_t*>(bin.data());
+  glb.insert(glb.end(), raw, raw + bin.size() * 4);
+  const uint32_t header[3] = {0x46546C67, 2, uint32_t(glb.size())};
+  std::memcpy(glb.data(), header, 12);
+  return glb;
+}
+
+}  // namespace
+
+// Uncompressed KHR_gaussian_splatting, under the current and the older attribute names.
+TEST(SplatReaders, GltfAttributes) {
+  for (const std::string prefix : {"KHR_gaussian_splatting:", "_"}) {
+    SCOPED_TRACE(prefix);
+    const auto glb = splat_glb(prefix, 3);
+    SplatSet s = decode_splats(glb, "synthetic.glb");
+    ASSERT_EQ(s.size(), 3u);
+    EXPECT_EQ(s.sh_degree, 1);
+    EXPECT_EQ(s.format, "glTF KHR_gaussian_splatting");
+    EXPECT_EQ(s.transform[3], glm::dvec4(10, 20, 30, 1));
+    for (size_t i = 0; i < 3; ++i) {
+      EXPECT_EQ(s.positions[i], glm::vec3(float(i), float(i) + 0.25f, float(i) + 0.5f));
+      expect_rotation(s.rotations[i], glm::vec4(0, 0, 1, 0), 1e-6f);  // (x, y, z, w) order
+      EXPECT_NEAR(s.scales[i].y, 0.1f * float(i + 1) + 1.0f, 1e-6f);  // linear
+      EXPECT_NEAR(s.opacities[i], 0.5f + 0.1f * float(i), 1e-6f);
+      EXPECT_EQ(s.sh_dc[i], glm::vec3(float(i), float(i) - 1, float(i) - 2));
+      for (size_t k = 0; k < 3; ++k)
+        EXPECT_EQ(s.sh_rest[i * 3 + k],
+                  glm::vec3(float(100 * i + 10 * k), float(100 * i + 10 * k + 1),
+                            float(100 * i + 10 * k + 2)));
+    }
+    // Truncated, it is an error naming the file.
+    std::vector<uint8_t> cut(glb.begin(), glb.end() - 8);
+    EXPECT_THROW(decode_splats(cut, "synthetic.glb"), Error);
+  }
 }
