@@ -49,7 +49,7 @@ SplatSet decode_ksplat(std::span<const uint8_t> bytes, std::string_view name,
     uint32_t count, bucket_size, bucket_count, full_buckets, partial_buckets, scale_range;
     float half_block;
     int degree;
-    size_t lengths_at, buckets_at, data_at, stride;
+    size_t lengths_at, buckets_at, data_at, stride, bucket_bytes;
   };
   std::vector<Section> sections;
   size_t at = kHeader + size_t(max_sections) * kSectionHeader;
@@ -82,6 +82,7 @@ SplatSet decode_ksplat(std::span<const uint8_t> bytes, std::string_view name,
     const uint64_t data = uint64_t(max_count) * sec.stride;
     if (lengths + buckets + data > bytes.size() - std::min(bytes.size(), at))
       fail("{}: .ksplat section {} ({} splats) runs past the end of the file", name, k, max_count);
+    sec.bucket_bytes = bucket_bytes;
     sec.lengths_at = at;
     sec.buckets_at = at + lengths;
     sec.data_at = at + lengths + buckets;
@@ -127,7 +128,7 @@ SplatSet decode_ksplat(std::span<const uint8_t> bytes, std::string_view name,
           }
         }
         if (bucket >= sec.bucket_count) fail("{}: .ksplat splat {} lies in no bucket", name, out);
-        const uint8_t* b = bytes.data() + sec.buckets_at + bucket * 12;
+        const uint8_t* b = bytes.data() + sec.buckets_at + bucket * sec.bucket_bytes;
         for (int k = 0; k < 3; ++k)
           s.positions[out][k] =
               (float(u16(r + 2 * k)) - float(sec.scale_range)) * factor + f32(b + 4 * k);
