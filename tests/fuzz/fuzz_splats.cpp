@@ -1,12 +1,14 @@
 // libFuzzer target: arbitrary bytes through the splat readers (PLY, compressed PLY, SPZ v1-v4,
-// .splat, .ksplat, SOG zip, glTF). Formats without a magic number are chosen by the name's
-// extension, which the input's last byte picks; any stipple::Error is a correct rejection.
+// .splat, .ksplat, SOG zip, glTF) and the web build's DEFLATE decoder (io-private: included by
+// path). Formats without a magic number are chosen by the name's extension, which the input's
+// last byte picks; any stipple::Error is a correct rejection.
 #include <cstddef>
 #include <cstdint>
 #include <span>
 
 #include <spdlog/spdlog.h>
 
+#include "../../src/io/src/splat_detail.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/io/splat_readers.hpp"
 
@@ -29,6 +31,15 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
   try {
     if (size >= 4 && data[0] == 'g') (void)stipple::io::decode_splats_glb(bytes, name, limits);
+  } catch (const stipple::Error&) {
+  }
+  try {
+    // gzip inputs (the SPZ seeds) whole; 'z' and a raw or wrapped stream.
+    if (size >= 2 && data[0] == 0x1f && data[1] == 0x8b)
+      (void)stipple::io::splat_detail::inflate_portable(bytes, false, 1 << 24, "fuzz.gz");
+    else if (size >= 1 && data[0] == 'z')
+      (void)stipple::io::splat_detail::inflate_portable(bytes.subspan(1), size % 2, 1 << 24,
+                                                        "fuzz.gz");
   } catch (const stipple::Error&) {
   }
   return 0;

@@ -432,7 +432,7 @@ namespace {
 
 // A GLB of one POINTS primitive holding `n` splats as float accessors named with `prefix`
 // ("KHR_gaussian_splatting:" or the older "_"), SH degree 1, under a node translation.
-std::vector<uint8_t> splat_glb(const std::string& prefix, size_t n) {
+std::vector<uint8_t> splat_glb(const std::string& prefix, size_t n, const char* drop = nullptr) {
   std::vector<float> bin;
   nlohmann::json accessors = nlohmann::json::array(), views = nlohmann::json::array();
   nlohmann::json attributes;
@@ -467,6 +467,7 @@ std::vector<uint8_t> splat_glb(const std::string& prefix, size_t n) {
       {"nodes", {{{"mesh", 0}, {"translation", {10, 20, 30}}}}},
       {"scenes", {{{"nodes", {0}}}}},
       {"scene", 0}};
+  if (drop) j.erase(drop);
   std::string text = j.dump();
   while (text.size() % 4) text += ' ';
   std::vector<uint8_t> glb(12);
@@ -508,6 +509,9 @@ TEST(SplatReaders, GltfAttributes) {
                   glm::vec3(float(100 * i + 10 * k), float(100 * i + 10 * k + 1),
                             float(100 * i + 10 * k + 2)));
     }
+    // Without its buffers or views (a const lookup of a missing key once read freed memory).
+    for (const char* key : {"buffers", "bufferViews", "accessors"})
+      EXPECT_THROW(decode_splats(splat_glb(prefix, 3, key), "synthetic.glb"), Error) << key;
     // Truncated, it is an error naming the file.
     std::vector<uint8_t> cut(glb.begin(), glb.end() - 8);
     EXPECT_THROW(decode_splats(cut, "synthetic.glb"), Error);

@@ -40,11 +40,11 @@ struct Glb {
 
   // Buffer view `v` of the GLB's binary chunk (external and data: buffers are not read here).
   std::span<const uint8_t> view(size_t v, uint64_t& stride) const {
-    const json& views = j["bufferViews"];
-    const json& bv = views[v];
-    const json& buffers = j["buffers"];
+    const json& views = j.at("bufferViews");
+    const json& bv = views.at(v);
+    const json& buffers = j.at("buffers");
     const size_t b = index(bv, "buffer", buffers.size(), "a bufferView");
-    if (b != 0 || buffers[b].contains("uri"))
+    if (b != 0 || buffers.at(b).contains("uri"))
       fail("{}: splat data in an external or data: buffer is not supported", name);
     const uint64_t offset = number(bv, "byteOffset", 0, "bufferView");
     const uint64_t length = number(bv, "byteLength", 0, "bufferView");
@@ -56,12 +56,12 @@ struct Glb {
   }
 
   size_t count(size_t accessor) const {
-    return size_t(number(j["accessors"][accessor], "count", 0, "accessor"));
+    return size_t(number(j.at("accessors").at(accessor), "count", 0, "accessor"));
   }
 
   // Accessor `a` as floats (normalized integers to [0,1] / [-1,1]), `components` a value.
   std::vector<float> floats(size_t a, int components, const char* what) const {
-    const json& acc = j["accessors"][a];
+    const json& acc = j.at("accessors").at(a);
     static const std::map<std::string, int> types = {
         {"SCALAR", 1}, {"VEC2", 2}, {"VEC3", 3}, {"VEC4", 4}};
     const std::string type = acc.value("type", "");
@@ -78,7 +78,7 @@ struct Glb {
     if (!acc.contains("bufferView")) return out;
     if (acc.contains("sparse")) fail("{}: {} is sparse, which is not supported", name, what);
     uint64_t stride = 0;
-    auto data = view(index(acc, "bufferView", j["bufferViews"].size(), "accessor"), stride);
+    auto data = view(index(acc, "bufferView", j.at("bufferViews").size(), "accessor"), stride);
     const uint64_t offset = number(acc, "byteOffset", 0, "accessor");
     const uint64_t elem = uint64_t(size) * uint64_t(components);
     if (stride == 0) stride = elem;
@@ -201,7 +201,7 @@ SplatSet decode_primitive(const Glb& g, const json& prim, const SplatLimits& lim
       fail("{}: attribute {} names no accessor", name, what);
     return ref.get<size_t>();
   };
-  const size_t pos = accessor_of(attrs["POSITION"], "POSITION");
+  const size_t pos = accessor_of(attrs.at("POSITION"), "POSITION");
   const size_t n = g.count(pos);
   if (n > limits.max_splats)
     fail("{}: {} splats exceed the limit of {}", name, n, limits.max_splats);
@@ -265,8 +265,8 @@ SplatSet decode_primitive(const Glb& g, const json& prim, const SplatLimits& lim
   std::vector<float> colour;
   int colour_k = 0;
   if (attrs.contains("COLOR_0")) {
-    const size_t c = accessor_of(attrs["COLOR_0"], "COLOR_0");
-    colour_k = g.j["accessors"][c].value("type", "") == "VEC4" ? 4 : 3;
+    const size_t c = accessor_of(attrs.at("COLOR_0"), "COLOR_0");
+    colour_k = g.j.at("accessors").at(c).value("type", "") == "VEC4" ? 4 : 3;
     colour = g.floats(c, colour_k, "COLOR_0");
     if (colour.size() != n * size_t(colour_k))
       fail("{}: COLOR_0 has a count other than POSITION's", name);
