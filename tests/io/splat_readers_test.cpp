@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include <zlib.h>
 #include <nlohmann/json.hpp>
 
 #include "stipple/core/error.hpp"
@@ -515,5 +516,114 @@ TEST(SplatReaders, GltfAttributes) {
     // Truncated, it is an error naming the file.
     std::vector<uint8_t> cut(glb.begin(), glb.end() - 8);
     EXPECT_THROW(decode_splats(cut, "synthetic.glb"), Error);
+  }
+}
+
+namespace {
+
+// The entries of a zip whose entries are stored (as wave_0001.sog's are, sizes in the central
+// directory: its local headers defer them to data descriptors), by walking the central
+// directory of an archive without a comment: a reader independent of the one under test.
+std::vector<std::pair<std::string, std::vector<uint8_t>>> stored_entries(
+    const std::vector<uint8_t>& zip) {
+  std::vector<std::pair<std::string, std::vector<uint8_t>>> out;
+  auto u16 = [&](size_t p) { return uint32_t(zip[p]) | uint32_t(zip[p + 1]) << 8; };
+  auto u32 = [&](size_t p) { return u16(p) | u16(p + 2) << 16; };
+  const size_t eocd = zip.size() - 22;
+  EXPECT_EQ(u32(eocd), 0x06054b50u);
+  size_t at = u32(eocd + 16);
+  for (uint32_t k = 0; k < u16(eocd + 10); ++k) {
+    EXPECT_EQ(u16(at + 10), 0u) << "entry not stored";
+    const size_t size = u32(at + 24), name = u16(at + 28), local = u32(at + 42);
+    std::string entry(zip.begin() + long(at + 46), zip.begin() + long(at + 46 + name));
+    const size_t data = local + 30 + u16(local + 26) + u16(local + 28);
+    out.emplace_back(
+        entry, std::vector<uint8_t>(zip.begin() + long(data), zip.begin() + long(data + size)));
+    at += 46 + name + u16(at + 30) + u16(at + 32);
+  }
+  return out;
+}
+
+// A zip of the entries, each deflated (zlib, raw), with its central directory.
+std::vector<uint8_t> deflated_zip(
+    const std::vector<std::pair<std::string, std::vector<uint8_t>>>& entries) {
+  std::vector<uint8_t> zip, dir;
+  auto put = [](std::vector<uint8_t>& v, uint32_t x, int bytes) {
+    for (int b = 0; b < bytes; ++b) v.push_back(uint8_t(x >> (8 * b)));
+  };
+  for (const auto& [name, data] : entries) {
+    z_stream z{};
+    deflateInit2(&z, 9, Z_DEFLATED, -15, 8, Z_DEFAULT_STRATEGY);
+    std::vector<uint8_t> packed(deflateBound(&z, uLong(data.size())));
+    z.next_in = const_cast<Bytef*>(data.data());
+    z.avail_in = uInt(data.size());
+    z.next_out = packed.data();
+    z.avail_out = uInt(packed.size());
+    deflate(&z, Z_FINISH);
+    packed.resize(z.total_out);
+    deflateEnd(&z);
+    const uint32_t crc = uint32_t(crc32(0, data.data(), uInt(data.size())));
+    const uint32_t local = uint32_t(zip.size());
+    put(zip, 0x04034b50, 4), put(zip, 20, 2), put(zip, 0, 2), put(zip, 8, 2), put(zip, 0, 4);
+    put(zip, crc, 4), put(zip, uint32_t(packed.size()), 4), put(zip, uint32_t(data.size()), 4);
+    put(zip, uint32_t(name.size()), 2), put(zip, 0, 2);
+    zip.insert(zip.end(), name.begin(), name.end());
+    zip.insert(zip.end(), packed.begin(), packed.end());
+    put(dir, 0x02014b50, 4), put(dir, 20, 2), put(dir, 20, 2), put(dir, 0, 2), put(dir, 8, 2);
+    put(dir, 0, 4), put(dir, crc, 4), put(dir, uint32_t(packed.size()), 4);
+    put(dir, uint32_t(data.size()), 4), put(dir, uint32_t(name.size()), 2), put(dir, 0, 2);
+    put(dir, 0, 2), put(dir, 0, 2), put(dir, 0, 2), put(dir, 0, 4), put(dir, local, 4);
+    dir.insert(dir.end(), name.begin(), name.end());
+  }
+  const uint32_t dir_at = uint32_t(zip.size());
+  zip.insert(zip.end(), dir.begin(), dir.end());
+  put(zip, 0x06054b50, 4), put(zip, 0, 2), put(zip, 0, 2);
+  put(zip, uint32_t(entries.size()), 2), put(zip, uint32_t(entries.size()), 2);
+  put(zip, uint32_t(dir.size()), 4), put(zip, dir_at, 4), put(zip, 0, 2);
+  return zip;
+}
+
+void expect_same_splats(const SplatSet& a, const SplatSet& b) {
+  ASSERT_EQ(a.size(), b.size());
+  EXPECT_EQ(a.positions, b.positions);
+  EXPECT_EQ(a.scales, b.scales);
+  EXPECT_EQ(a.rotations, b.rotations);
+  EXPECT_EQ(a.opacities, b.opacities);
+  EXPECT_EQ(a.sh_dc, b.sh_dc);
+  EXPECT_EQ(a.sh_rest, b.sh_rest);
+}
+
+}  // namespace
+
+// wave_0001.sog (stored entries) read three ways: the archive, the same files deflated into a
+// new archive, and unbundled beside a meta.json.
+TEST(SplatReaders, SogBundledDeflatedAndUnbundled) {
+  REQUIRE_SPLATS("playcanvas-engine/wave_0001.sog");
+  const SplatSet sog = read_splats(file.string());
+  const auto entries = stored_entries(bytes_of(file));
+  ASSERT_EQ(entries.size(), 6u);
+  const auto zip = deflated_zip(entries);
+  expect_same_splats(decode_splats(zip, "deflated.sog"), sog);
+  const fs::path dir = fs::temp_directory_path() / "stipple_sog_unbundled";
+  fs::create_directories(dir);
+  for (const auto& [name, data] : entries) {
+    std::ofstream out(dir / name, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(data.data()), std::streamsize(data.size()));
+  }
+  EXPECT_TRUE(is_splat_path((dir / "meta.json").string()));
+  expect_same_splats(read_splats((dir / "meta.json").string()), sog);
+  // A missing image is an error naming it.
+  fs::remove(dir / "quats.webp");
+  try {
+    read_splats((dir / "meta.json").string());
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("quats.webp"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
+  // Positions within meta.json's bounds after the log transform (sign(v) (e^|v| - 1)).
+  for (const auto& p : sog.positions) {
+    EXPECT_LE(std::fabs(p.x), std::expm1(1.4080441f) + 1e-5f);
+    EXPECT_LE(p.y, 0.0f);
   }
 }
