@@ -22,7 +22,7 @@ apt_pkgs=(build-essential cmake ninja-build ccache pkg-config git curl ca-certif
   python3 python3-pip unzip xz-utils
   libglm-dev libglfw3-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libcurl4-openssl-dev libpng-dev libproj-dev proj-data libdraco-dev libmeshoptimizer-dev libzstd-dev
-  libbrotli-dev
+  libbrotli-dev libwebp-dev
   libgtest-dev libgmock-dev libbenchmark-dev libimgui-dev xvfb xauth
   libvulkan1 vulkan-tools clang-14 libclang-rt-14-dev clang-format nginx-light chromium)
 # npm (for Dawn's package and the glTF validator) and venv (for py3dtiles) come from Debian

@@ -15,6 +15,7 @@
 #include "read.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/io/las.hpp"
+#include "stipple/io/splat_readers.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -46,6 +47,49 @@ nb::tuple read_las(const std::string& path, std::optional<std::vector<std::strin
   return nb::make_tuple(names, formats, offsets, itemsize, to_numpy(std::move(r.data)));
 }
 
+// Moves a vector of float vectors (glm::vec3/vec4: tightly packed floats) into a float32
+// array of shape (n, k) or (n, m, k) that owns it (no copy).
+template <typename V>
+nb::ndarray<nb::numpy, float> float_array(std::vector<V>&& v, std::vector<size_t> shape) {
+  static_assert(sizeof(V) % sizeof(float) == 0);
+  auto* owned = new std::vector<V>(std::move(v));
+  nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<V>*>(p); });
+  return nb::ndarray<nb::numpy, float>(reinterpret_cast<float*>(owned->data()), shape.size(),
+                                       shape.data(), owner);
+}
+
+// A splat file as a dict of arrays (SplatSet's fields, splats.hpp says their conventions).
+nb::dict read_splats(const std::string& path) {
+  io::SplatSet s;
+  {
+    nb::gil_scoped_release release;
+    s = io::read_splats(path);
+  }
+  const size_t n = s.size(), rest = s.rest_count();
+  nb::dict d;
+  d["format"] = s.format;
+  d["sh_degree"] = s.sh_degree;
+  nb::list transform;  // row-major rows of the 4x4 matrix
+  for (int r = 0; r < 4; ++r) {
+    nb::list row;
+    for (int c = 0; c < 4; ++c) row.append(s.transform[c][r]);
+    transform.append(row);
+  }
+  d["transform"] = transform;
+  d["positions"] = float_array(std::move(s.positions), {n, 3});
+  d["scales"] = float_array(std::move(s.scales), {n, 3});
+  d["rotations"] = float_array(std::move(s.rotations), {n, 4});
+  d["opacities"] = float_array(std::move(s.opacities), {n});
+  d["sh_dc"] = float_array(std::move(s.sh_dc), {n, 3});
+  d["sh_rest"] = float_array(std::move(s.sh_rest), {n, rest, 3});
+  return d;
+}
+
+bool is_splat_path(const std::string& path) {
+  nb::gil_scoped_release release;
+  return io::is_splat_path(path);
+}
+
 std::string header_json(const std::string& path) {
   nb::gil_scoped_release release;
   return io::las_header_json(io::read_las_header(path));
@@ -64,6 +108,8 @@ NB_MODULE(_stipple, m) {
   nb::exception<stipple::Error>(m, "Error", PyExc_RuntimeError);
   m.def("read", &read_las, "path"_a, "fields"_a = nb::none());
   m.def("header_json", &header_json, "path"_a);
+  m.def("read_splats", &read_splats, "path"_a);
+  m.def("is_splat_path", &is_splat_path, "path"_a);
   add_tile(m);
   add_render(m);
 }

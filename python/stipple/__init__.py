@@ -1,5 +1,6 @@
-"""stipple: LAS/LAZ/COPC point clouds read into numpy, rendered headless on WebGPU and tiled to
-3D Tiles, through libstipple (the library the ``stipple`` command line is made of).
+"""stipple: LAS/LAZ/COPC point clouds and Gaussian splat files read into numpy, rendered
+headless on WebGPU and tiled to 3D Tiles, through libstipple (the library the ``stipple``
+command line is made of).
 
 Every call that reads, renders or tiles releases the GIL. Errors raise :class:`stipple.Error`
 (a ``RuntimeError``) carrying the library's message, which names the file.
@@ -23,8 +24,14 @@ def _path(path) -> str:
     return os.fspath(path)
 
 
-def read(path, fields: Optional[Sequence[str]] = None) -> np.ndarray:
-    """Every point of a LAS, LAZ or COPC file as a numpy structured array.
+def read(path, fields: Optional[Sequence[str]] = None):
+    """Every point of a LAS, LAZ or COPC file as a numpy structured array; or the splats of a
+    3D Gaussian splat file (INRIA or compressed PLY, SPZ, .splat, .ksplat, SOG) as a dict.
+
+    Splats: ``positions`` (N, 3), ``scales`` (N, 3, linear), ``rotations`` (N, 4, unit
+    quaternions x, y, z, w), ``opacities`` (N, linear), ``sh_dc`` (N, 3: colour is
+    0.5 + 0.28209479 * sh_dc) and ``sh_rest`` (N, (degree+1)^2 - 1, 3: coefficient-major), all
+    float32, with ``sh_degree``, ``format`` and ``transform`` (4x4 rows, to the source's frame).
 
     Fields are named as laspy names them (``X``, ``Y``, ``Z`` the stored integers,
     ``intensity``, ``return_number``, ``classification``, ``synthetic``, ``scan_angle_rank`` or
@@ -33,6 +40,10 @@ def read(path, fields: Optional[Sequence[str]] = None) -> np.ndarray:
     ``x``, ``y``, ``z``: the scaled coordinates as float64. ``fields`` keeps only those named,
     in that order.
     """
+    if _stipple.is_splat_path(_path(path)):
+        if fields is not None:
+            raise Error(f"{_path(path)}: fields select LAS dimensions; a splat file has none")
+        return _stipple.read_splats(_path(path))
     names, formats, offsets, itemsize, data = _stipple.read(
         _path(path), None if fields is None else list(fields)
     )

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -77,5 +78,24 @@ TEST(Info, MeshContentIsNamedAsNotDrawn) {
   EXPECT_NE(text.output.find("warning: 1 of 1 contents are b3dm (batched 3D models), which "
                              "stipple does not draw"),
             std::string::npos)
+      << text.output;
+}
+
+// A splat file: format, count, SH degree and bounds (donut_fused.ply's, as numpy reads them).
+TEST(Info, SplatFile) {
+  const char* data = std::getenv("STIPPLE_DATA_DIR");
+  const fs::path file = fs::path(data ? data : STIPPLE_SOURCE_DIR "/../shared/data") / "splats" /
+                        "v3dg" / "donut_fused.ply";
+  if (!fs::exists(file)) GTEST_SKIP() << file << " not found (set STIPPLE_DATA_DIR)";
+  json j = info_json(file.string());
+  ASSERT_FALSE(j.is_discarded());
+  EXPECT_EQ(j["format"], "INRIA PLY");
+  EXPECT_EQ(j["splats"], 45624);
+  EXPECT_EQ(j["sh_degree"], 0);
+  EXPECT_NEAR(j["bounds"]["min"][0].get<double>(), -0.10316952, 1e-6);
+  EXPECT_NEAR(j["bounds"]["max"][1].get<double>(), 0.1095402, 1e-6);
+  CommandResult text = run_stipple("info " + file.string());
+  EXPECT_EQ(text.exit_code, 0);
+  EXPECT_NE(text.output.find("INRIA PLY: 45624 splats, SH degree 0"), std::string::npos)
       << text.output;
 }

@@ -1,15 +1,21 @@
 #!/usr/bin/env bash
 # run_fuzzer.sh FUZZER SECONDS CORPUS_DIR [SEED_DIR [EXTRA_SEED_DIR]]: runs a libFuzzer binary for a bounded time
-# on a fresh working corpus seeded with the real files (LAS, LAZ) when they exist, the generated
+# on a fresh working corpus seeded with the real files (LAS, LAZ; splats for fuzz_splats) when they exist, the generated
 # seeds and the kept corpus (corpus/<fuzzer name>/).
 set -euo pipefail
 fuzzer=$1 seconds=$2 corpus=$3 seeds=${4:-} extra=${5:-}
 rm -rf "$corpus" && mkdir -p "$corpus"
 if [[ -n "$seeds" && -d "$seeds" ]]; then
   # Small seeds keep the run fast: the first 64 KiB of each file holds header, VLRs and points.
+  # The splat reader's seeds are the splat files (../shared/data/splats), the others' LAS/LAZ.
+  if [[ "$(basename "$fuzzer")" == fuzz_splats ]]; then
+    pattern=(-path '*/splats/*' -a ! -name '*.md')
+  else
+    pattern=(-name '*.las' -o -name '*.laz')
+  fi
   while IFS= read -r -d '' f; do
     head -c 65536 "$f" >"$corpus/$(basename "$f")"
-  done < <(find "$seeds" -type f \( -name '*.las' -o -name '*.laz' \) -print0)
+  done < <(find "$seeds" -type f \( "${pattern[@]}" \) -print0)
 else
   echo "seed corpus not found (../shared/data absent): fuzzing from an empty corpus"
 fi

@@ -1,4 +1,4 @@
-// `stipple info`: what a point-cloud file holds, or what the GPU offers.
+// `stipple info`: what a point-cloud or splat file holds, or what the GPU offers.
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -16,6 +16,7 @@
 #include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
 #include "stipple/io/source.hpp"
+#include "stipple/io/splat_readers.hpp"
 #include "stipple/io/tileset.hpp"
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/tiles3d/render_load.hpp"
@@ -287,6 +288,42 @@ void print_copc_hierarchy(const nlohmann::json& h) {
   for (const auto& e : h["errors"]) std::printf("  error: %s\n", e.get<std::string>().c_str());
 }
 
+// A splat file: format, count, SH degree and the bounds of the splat centres (in the source's
+// frame: SplatSet::transform applied).
+// A .glb is read as glTF splats (KHR_gaussian_splatting).
+nlohmann::json splat_json(const std::string& input) {
+  const io::SplatSet s = io::uri_path(input).ends_with(".glb")
+                             ? io::decode_splats_glb(io::fetch(input), input)
+                             : io::read_splats(input);
+  glm::dvec3 lo(0.0), hi(0.0);
+  for (size_t i = 0; i < s.size(); ++i) {
+    const glm::dvec3 p(s.transform * glm::dvec4(glm::dvec3(s.positions[i]), 1.0));
+    lo = i ? glm::min(lo, p) : p;
+    hi = i ? glm::max(hi, p) : p;
+  }
+  nlohmann::json j;
+  j["file"] = input;
+  j["format"] = s.format;
+  j["splats"] = s.size();
+  j["sh_degree"] = s.sh_degree;
+  lo = no_negative_zero(lo);
+  hi = no_negative_zero(hi);
+  j["bounds"] = {{"min", {lo.x, lo.y, lo.z}}, {"max", {hi.x, hi.y, hi.z}}};
+  return j;
+}
+
+void print_splats(const nlohmann::json& j) {
+  std::printf("%s\n", j["file"].get<std::string>().c_str());
+  std::printf("  %s: %llu splats, SH degree %d\n", j["format"].get<std::string>().c_str(),
+              static_cast<unsigned long long>(j["splats"].get<uint64_t>()),
+              j["sh_degree"].get<int>());
+  for (const char* end : {"min", "max"}) {
+    const auto& b = j["bounds"][end];
+    std::printf("  bounds %s: %.6f %.6f %.6f\n", end, b[0].get<double>(), b[1].get<double>(),
+                b[2].get<double>());
+  }
+}
+
 void run_info(const InfoArgs& args) {
   if (args.gpu) {
     print_gpu(args.backend, args.json);
@@ -295,6 +332,14 @@ void run_info(const InfoArgs& args) {
   if (args.inputs.empty()) fail("info: give a file, or --gpu");
   nlohmann::json all = nlohmann::json::array();
   for (const auto& input : args.inputs) {
+    if (io::is_splat_path(input) || io::uri_path(input).ends_with(".glb")) {
+      auto j = splat_json(input);
+      if (args.json)
+        all.push_back(j);
+      else
+        print_splats(j);
+      continue;
+    }
     const io::SourceFormat format = io::source_format(input);
     if (format == io::SourceFormat::Copc) {
       io::LasHeader header;
@@ -375,7 +420,8 @@ void run_info(const InfoArgs& args) {
 
 void add_info_command(CLI::App& cli) {
   auto args = std::make_shared<InfoArgs>();
-  auto* cmd = cli.add_subcommand("info", "Describe LAS/LAZ/COPC files, or the GPU (--gpu)");
+  auto* cmd = cli.add_subcommand(
+      "info", "Describe LAS/LAZ/COPC and splat files, tilesets, or the GPU (--gpu)");
   cmd->add_option("inputs", args->inputs, "Input files, tileset.json paths or URLs");
   cmd->add_flag("--gpu", args->gpu, "Print the WebGPU adapter, backend, limits and features");
   cmd->add_flag("--json", args->json, "Print JSON instead of text");
