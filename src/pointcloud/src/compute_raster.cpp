@@ -20,6 +20,15 @@
 namespace stipple::pc {
 namespace {
 
+// How raster-dilate runs (see its pass): the window over every pixel on GPUs, scatter from the
+// drawn pixels on CPU adapters; STIPPLE_DILATE=gather|scatter overrides.
+bool dilate_by_gather(const gpu::Context& ctx) {
+  static const char* forced = std::getenv("STIPPLE_DILATE");
+  if (forced && std::string_view(forced) == "gather") return true;
+  if (forced && std::string_view(forced) == "scatter") return false;
+  return !gpu::is_cpu_adapter(ctx.description);
+}
+
 // Mirrors Params in compute_raster_common.wgsl.
 struct Params {
   float view_proj[16];
@@ -757,12 +766,11 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                    gpu::bind_buffer(3, pc.buffer("raster-dilated")),
                    gpu::bind_buffer(4, pc.buffer("raster-dilated-depth")),
                    gpu::bind_buffer(5, winner)});
-              // By scatter (from the drawn pixels) unless STIPPLE_DILATE=gather asks for the
-              // window over every pixel (the same image; bench/RESULTS.md compares them).
-              static const bool gather = [] {
-                const char* v = std::getenv("STIPPLE_DILATE");
-                return v && std::string_view(v) == "gather";
-              }();
+              // By scatter from the drawn pixels on CPU adapters (SwiftShader, lavapipe), where
+              // the window over every pixel cost most of the frame; by that window on GPUs, where
+              // views are dense and it measured 1.6x faster (bench/RESULTS.md, "Dilation").
+              // STIPPLE_DILATE=gather|scatter chooses for the bench. The same image either way.
+              const bool gather = dilate_by_gather(ctx);
               if (!gather) wgpuCommandEncoderClearBuffer(pc.encoder(), winner, 0, WGPU_WHOLE_SIZE);
               auto pass = pc.begin_compute_pass();
               if (gather) {

@@ -1,6 +1,7 @@
 #include "stipple/renderer/gpu.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdlib>
 #include <cstring>
 #include <thread>
@@ -59,6 +60,19 @@ const char* adapter_type_name(WGPUAdapterType type) {
       return "unknown";
   }
 }
+
+}  // namespace
+
+bool is_cpu_adapter(const AdapterDescription& d) {
+  if (d.adapter_type == "CPU") return true;
+  std::string names = d.vendor + " " + d.architecture + " " + d.device + " " + d.description;
+  std::transform(names.begin(), names.end(), names.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  return names.find("swiftshader") != std::string::npos ||
+         names.find("llvmpipe") != std::string::npos;
+}
+
+namespace {
 
 const char* error_type_name(WGPUErrorType type) {
   switch (type) {

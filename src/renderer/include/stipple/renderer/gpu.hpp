@@ -86,6 +86,10 @@ struct AdapterDescription {
   uint32_t vendor_id = 0, device_id = 0;
 };
 
+// Whether the adapter runs on the CPU: its type says so, or (browsers report no type for it)
+// its name is SwiftShader's or llvmpipe's.
+bool is_cpu_adapter(const AdapterDescription& d);
+
 // One device with its queue; limits are the adapter's own (WebGPU defaults are far too small
 // for point clouds: 128 MiB storage bindings).
 struct Context {
