@@ -662,7 +662,7 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
       width, height, kAccumFormat,
       WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_TextureBinding};
   // A transient depth buffer is dropped after its last pass; an imported one is kept.
-  const bool keep_depth = resolve || translucent || !targets.create_depth;
+  const bool keep_depth = resolve || translucent || !targets.create_depth || targets.keep_depth;
 
   if (!blend) {
     // Naive: straight into the output, or into the accumulation texture for the EDL resolve.
