@@ -456,8 +456,11 @@ void queue_tileset(Registry& render) {
     return;
   }
   Camera camera = to_camera(*extracted);
+  // The depth stays stored for later passes of the frame (splats test against it).
+  pc::PointPassTargets targets;
+  targets.keep_depth = true;
   pc::add_point_cloud_passes(fg.graph, *g.pipelines, drawn, camera, settings.render, target.width,
-                             target.height);
+                             target.height, targets);
   stats.points_drawn += drawn.point_count;
 }
 
