@@ -130,6 +130,10 @@ TEST_P(Bench, SplatsWritesJson) {
     for (const char* pass : {"splat-project", "splat-sort", "splat-draw"})
       EXPECT_GT(j["passes"][pass].get<double>(), 0.0) << pass;
     EXPECT_GT(j["sort_only_ms"].get<double>(), 0.0);
+    // Both rasterizers in one run.
+    EXPECT_GT(j["variants"]["quads"]["frame_gpu_ms"].get<double>(), 0.0);
+    for (const char* pass : {"splat-bin", "splat-tile-sort", "splat-raster", "splat-composite"})
+      EXPECT_GT(j["variants"]["tiles"]["passes"][pass].get<double>(), 0.0) << pass;
   }
   fs::remove_all(dir);
 }

@@ -176,8 +176,9 @@ Target make_target(gpu::Context& ctx, uint32_t w, uint32_t h, const glm::dvec3& 
                                    WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc,
                                    "test-color");
   t.color_view = gpu::create_view(t.color);
-  t.depth = gpu::create_texture_2d(ctx, w, h, WGPUTextureFormat_Depth32Float,
-                                   WGPUTextureUsage_RenderAttachment, "test-depth");
+  t.depth = gpu::create_texture_2d(
+      ctx, w, h, WGPUTextureFormat_Depth32Float,
+      WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_TextureBinding, "test-depth");
   t.depth_view = gpu::create_view(t.depth);
   WGPUCommandEncoderDescriptor edesc = WGPU_COMMAND_ENCODER_DESCRIPTOR_INIT;
   gpu::CommandEncoder encoder(wgpuDeviceCreateCommandEncoder(ctx.device.get(), &edesc));
@@ -245,14 +246,15 @@ Difference compare(const gpu::Image& image, const std::vector<glm::dvec3>& refer
 
 // Draws `set` alone over the background and compares it with the reference renderer.
 Difference draw_and_compare(gpu::Context& ctx, const io::SplatSet& set, const Camera& camera,
-                            uint32_t* visible) {
+                            uint32_t* visible,
+                            splats::SplatRasterizer rasterizer = splats::SplatRasterizer::Quads) {
   const uint32_t w = 200, h = 150;
   const glm::dvec3 background(0.1, 0.2, 0.3);
   auto pipelines = splats::create_splat_pipelines(ctx, WGPUTextureFormat_RGBA8Unorm);
   auto gpu_splats = splats::upload_splats(ctx, set);
   Target target = make_target(ctx, w, h, background, 0.0f);
   splats::draw_splats(ctx, pipelines, gpu_splats, camera, target.color.get(),
-                      target.color_view.get(), w, h);
+                      target.color_view.get(), w, h, nullptr, nullptr, false, rasterizer);
   gpu::Image image = gpu::read_texture(ctx, target.color.get(), w, h, WGPUTextureFormat_RGBA8Unorm);
   *visible = splats::read_visible_count(ctx, gpu_splats);
   Difference d = compare(image, render_reference(set, camera, w, h, background), background, 4);
@@ -274,6 +276,16 @@ void expect_close(const Difference& d) {
 TEST_P(Splats, MatchTheCpuReference) {
   uint32_t visible = 0;
   Difference d = draw_and_compare(*ctx, random_splats(300, 11), test_camera(), &visible);
+  EXPECT_EQ(visible, 300u);
+  expect_close(d);
+}
+
+TEST_P(Splats, TileRasterizerMatchesTheCpuReference) {
+  // The same splats through the 16x16-tile compute rasterizer (f32 blending, no per-splat
+  // rounding to 8 bits): the same tolerance holds.
+  uint32_t visible = 0;
+  Difference d = draw_and_compare(*ctx, random_splats(300, 11), test_camera(), &visible,
+                                  splats::SplatRasterizer::Tiles);
   EXPECT_EQ(visible, 300u);
   expect_close(d);
 }
@@ -360,7 +372,8 @@ TEST_P(SplatsWithPoints, OccludeEachOther) {
 
   Camera camera;
   camera.look_at({0, 0, 6}, {0, 0, 0});
-  auto render = [&](bool depth_test) {
+  auto render = [&](bool depth_test,
+                    splats::SplatRasterizer rasterizer = splats::SplatRasterizer::Quads) {
     auto color = gpu::create_texture_2d(
         *ctx, w, h, WGPUTextureFormat_RGBA8Unorm,
         WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_CopySrc, "test-color");
@@ -375,6 +388,7 @@ TEST_P(SplatsWithPoints, OccludeEachOther) {
                                point_targets);
     splats::SplatPassTargets splat_targets;
     if (!depth_test) splat_targets.depth.clear();
+    splat_targets.rasterizer = rasterizer;
     splats::add_splat_passes(graph, splat_pipelines, gpu_splats, camera, w, h, splat_targets);
     graph.execute(*ctx, point_pipelines.pool);
     ctx->check("points and splats");
@@ -388,19 +402,22 @@ TEST_P(SplatsWithPoints, OccludeEachOther) {
     const uint8_t* px = &image.rgba[(size_t(y) * w + size_t(x)) * 4];
     return glm::ivec3(px[0], px[1], px[2]);
   };
-  const gpu::Image tested = render(true);
-  const glm::ivec3 front = pixel(tested, set.positions[0]);
-  const glm::ivec3 behind = pixel(tested, set.positions[1]);
-  const glm::ivec3 beside = pixel(tested, set.positions[2]);
-  EXPECT_GT(front.g, 200) << "the splat in front of the points shows";
-  EXPECT_LT(front.r, 60);
-  EXPECT_GT(behind.r, 200) << "the points hide the splat behind them";
-  EXPECT_LT(behind.b, 60);
-  EXPECT_GT(beside.r, 200);
-  EXPECT_GT(beside.g, 200) << "a splat behind the points' plane but not behind a point shows";
-  // Without the depth test the hidden splat would show: the test above can fail.
-  const gpu::Image untested = render(false);
-  EXPECT_GT(pixel(untested, set.positions[1]).b, 200);
+  for (auto rasterizer : {splats::SplatRasterizer::Quads, splats::SplatRasterizer::Tiles}) {
+    SCOPED_TRACE(rasterizer == splats::SplatRasterizer::Quads ? "quads" : "tiles");
+    const gpu::Image tested = render(true, rasterizer);
+    const glm::ivec3 front = pixel(tested, set.positions[0]);
+    const glm::ivec3 behind = pixel(tested, set.positions[1]);
+    const glm::ivec3 beside = pixel(tested, set.positions[2]);
+    EXPECT_GT(front.g, 200) << "the splat in front of the points shows";
+    EXPECT_LT(front.r, 60);
+    EXPECT_GT(behind.r, 200) << "the points hide the splat behind them";
+    EXPECT_LT(behind.b, 60);
+    EXPECT_GT(beside.r, 200);
+    EXPECT_GT(beside.g, 200) << "a splat behind the points' plane but not behind a point shows";
+    // Without the depth test the hidden splat would show: the test above can fail.
+    const gpu::Image untested = render(false, rasterizer);
+    EXPECT_GT(pixel(untested, set.positions[1]).b, 200);
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, SplatsWithPoints,

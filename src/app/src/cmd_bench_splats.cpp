@@ -1,7 +1,8 @@
 // `stipple bench splats`: the splat passes (stipple/splats/splats.hpp) on N generated splats of a
 // chosen SH degree: GPU milliseconds per pass (project, sort, draw) from the render graph's
 // timestamp queries, medians over --frames after one warm-up frame, every frame waited for; the
-// sort's keys per second (visible splats / sort time). Also a sort of N random full-range keys
+// sort's keys per second (visible splats / sort time), for the sorted quads and the tile
+// rasterizer (--rasterizer, both by default) in one run. Also a sort of N random full-range keys
 // alone (`sort-only` row), which does not depend on what the camera sees. Needs no input data.
 //
 // The scene: splats uniform in a 20 x 10 x 20 box, scales log-uniform in [0.005, 0.05] (a few
@@ -37,6 +38,7 @@ struct BenchSplatsArgs {
   std::string backend;
   std::string json;
   uint32_t seed = 1;
+  std::string rasterizer = "both";
 };
 
 io::SplatSet generate_splats(uint32_t n, int sh_degree, uint32_t seed) {
@@ -85,18 +87,31 @@ void run_bench_splats(const BenchSplatsArgs& args) {
                                               WGPUTextureUsage_RenderAttachment, "bench-color");
   gpu::TextureView color_view = gpu::create_view(color);
 
-  std::map<std::string, std::vector<double>> pass_ms;
-  std::vector<double> frame_ms;
-  for (uint32_t frame = 0; frame <= args.frames; ++frame) {
-    auto times = splats::draw_splats(*ctx, pipelines, gpu_splats, camera, color.get(),
-                                     color_view.get(), width, height, nullptr, nullptr, true);
-    if (frame == 0 || times.empty()) continue;
-    double total = 0;
-    for (const auto& [name, ms] : times) {
-      pass_ms[name].push_back(ms);
-      total += ms;
+  // Per rasterizer: per pass its times, and the frames' sums.
+  struct Variant {
+    std::string name;
+    splats::SplatRasterizer rasterizer;
+    std::map<std::string, std::vector<double>> pass_ms;
+    std::vector<double> frame_ms;
+  };
+  std::vector<Variant> variants;
+  if (args.rasterizer != "tiles")
+    variants.push_back({"quads", splats::SplatRasterizer::Quads, {}, {}});
+  if (args.rasterizer != "quads")
+    variants.push_back({"tiles", splats::SplatRasterizer::Tiles, {}, {}});
+  for (Variant& v : variants) {
+    for (uint32_t frame = 0; frame <= args.frames; ++frame) {
+      auto times =
+          splats::draw_splats(*ctx, pipelines, gpu_splats, camera, color.get(), color_view.get(),
+                              width, height, nullptr, nullptr, true, v.rasterizer);
+      if (frame == 0 || times.empty()) continue;
+      double total = 0;
+      for (const auto& [name, ms] : times) {
+        v.pass_ms[name].push_back(ms);
+        total += ms;
+      }
+      v.frame_ms.push_back(total);
     }
-    frame_ms.push_back(total);
   }
   const uint32_t visible = splats::read_visible_count(*ctx, gpu_splats);
 
@@ -142,23 +157,37 @@ void run_bench_splats(const BenchSplatsArgs& args) {
   report["height"] = height;
   report["frames"] = args.frames;
   report["visible"] = visible;
-  std::string table = "| pass | GPU ms (median) |\n|---|---:|\n";
-  for (const auto& [name, ms] : pass_ms) {
-    report["passes"][name] = median(ms);
+  std::string table;
+  double frame = 0, sort_frame = 0;
+  for (Variant& v : variants) {
+    table += "| " + v.name + " pass | GPU ms (median) |\n|---|---:|\n";
+    nlohmann::json j;
+    for (const auto& [name, ms] : v.pass_ms) {
+      j["passes"][name] = median(ms);
+      char row[96];
+      std::snprintf(row, sizeof row, "| %s | %.3f |\n", name.c_str(), median(ms));
+      table += row;
+    }
+    const double f = median(v.frame_ms);
+    j["frame_gpu_ms"] = f;
     char row[96];
-    std::snprintf(row, sizeof row, "| %s | %.3f |\n", name.c_str(), median(ms));
+    std::snprintf(row, sizeof row, "| frame (sum) | %.3f |\n\n", f);
     table += row;
+    report["variants"][v.name] = j;
+    if (&v == &variants.front()) {  // the first variant's also at the top level
+      report["passes"] = j["passes"];
+      frame = f;
+      sort_frame = v.pass_ms.count("splat-sort") ? median(v.pass_ms["splat-sort"]) : 0.0;
+    }
   }
-  const double frame = median(frame_ms);
-  const double sort_frame = pass_ms.count("splat-sort") ? median(pass_ms["splat-sort"]) : 0.0;
   const double sort_alone = median(sort_ms);
   report["frame_gpu_ms"] = frame;
   report["sort_only_ms"] = sort_alone;
   report["sort_keys_per_second"] = sort_alone > 0 ? args.count / (sort_alone * 1e-3) : 0.0;
   char tail[256];
-  std::snprintf(tail, sizeof tail,
-                "| frame (sum) | %.3f |\n| sort-only (%u random keys) | %.3f |\n", frame,
-                args.count, sort_alone);
+  std::snprintf(tail, sizeof tail, "| sort-only (%u random keys) | %.3f |\n", args.count,
+                sort_alone);
+  table += "| sort | GPU ms (median) |\n|---|---:|\n";
   table += tail;
   std::printf(
       "%s on %s (%s), %u splats, SH degree %d, %ux%u, %u visible, median of %u frames (GPU ms "
@@ -168,7 +197,7 @@ void run_bench_splats(const BenchSplatsArgs& args) {
       ctx->description.graphics_api.c_str(), args.count, args.sh, width, height, visible,
       args.frames, table.c_str(), sort_frame > 0 ? visible / (sort_frame * 1e-3) * 1e-6 : 0.0,
       sort_alone > 0 ? args.count / (sort_alone * 1e-3) * 1e-6 : 0.0);
-  if (frame_ms.empty()) std::printf("\n(no timestamp queries on this adapter: no GPU times)\n");
+  if (frame == 0) std::printf("\n(no timestamp queries on this adapter: no GPU times)\n");
   if (!args.json.empty()) write_file_atomically(args.json, report.dump(2) + "\n");
 }
 
@@ -192,6 +221,10 @@ void add_bench_splats_command(CLI::App& bench) {
       ->capture_default_str();
   cmd->add_option("--backend", args->backend, "WebGPU implementation: dawn or wgpu")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
+  cmd->add_option("--rasterizer", args->rasterizer,
+                  "quads (sorted instanced quads), tiles (16x16 tiles in compute) or both")
+      ->check(CLI::IsMember({"quads", "tiles", "both"}))
+      ->capture_default_str();
   cmd->add_option("--json", args->json, "Write the results as JSON");
   cmd->callback([args] { run_bench_splats(*args); });
 }

@@ -650,7 +650,8 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
 
   // Depth: the caller's, or a transient that the resolve can read.
   const WGPUTextureUsage depth_usage =
-      WGPUTextureUsage_RenderAttachment | (resolve ? WGPUTextureUsage_TextureBinding : 0);
+      WGPUTextureUsage_RenderAttachment |
+      (resolve || targets.keep_depth ? WGPUTextureUsage_TextureBinding : 0);
   auto declare_depth = [&](gpu::PassBuilder& pass) {
     if (targets.create_depth)
       pass.create_texture(targets.depth, {width, height, p.depth_format, depth_usage});

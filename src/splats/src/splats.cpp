@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <utility>
 
 #include <glm/gtc/packing.hpp>
 #include <glm/mat3x3.hpp>
@@ -154,7 +155,188 @@ void ensure_groups(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& s) {
       "splat-draw");
 }
 
+// splat_tiles.wgsl's TileParams.
+struct TileParams {
+  uint32_t tiles_x, tiles_y, capacity, pair_capacity, blocks, has_depth, pad0, pad1;
+};
+
+constexpr uint32_t kTile = 16;
+constexpr uint32_t kScanBlock = 512;
+
+// Workgroups for `items` items of `per_group` each as a 2D grid within the per-dimension limit.
+std::pair<uint32_t, uint32_t> grid(uint64_t items, uint32_t per_group) {
+  const uint32_t groups = uint32_t(std::max<uint64_t>(1, (items + per_group - 1) / per_group));
+  const uint32_t x = std::min(groups, kMaxGroupsX);
+  return {x, (groups + x - 1) / x};
+}
+
+void ensure_tile_pipelines(gpu::Context& ctx, SplatPipelines& p) {
+  if (p.tile_pipelines) return;
+  using B = gpu::BufferBinding;
+  p.tile_layout = gpu::create_compute_layout(
+      ctx,
+      {B::Uniform, B::Uniform, B::ReadOnlyStorage, B::ReadOnlyStorage, B::ReadOnlyStorage,
+       B::ReadOnlyStorage, B::Storage, B::Storage, B::Storage, B::Storage},
+      "splat-tiles");
+  p.tile_pipeline_layout = gpu::create_pipeline_layout(ctx, {p.tile_layout.get()});
+  gpu::ShaderModule bin = gpu::create_shader_from_file(ctx, "splat_tiles.wgsl");
+  auto make = [&](const char* entry) {
+    return gpu::create_compute_pipeline(ctx, bin.get(), entry, p.tile_pipeline_layout.get(), entry);
+  };
+  p.tile_count = make("cs_count");
+  p.tile_block_sums = make("cs_block_sums");
+  p.tile_scan_blocks = make("cs_scan_blocks");
+  p.tile_block_apply = make("cs_block_apply");
+  p.tile_emit = make("cs_emit");
+  p.tile_clear_ranges = make("cs_clear_ranges");
+  p.tile_ranges = make("cs_ranges");
+  gpu::ShaderModule raster = gpu::create_shader_from_file(ctx, "splat_tiles_raster.wgsl");
+  p.tile_raster =
+      gpu::create_compute_pipeline(ctx, raster.get(), "cs_raster", nullptr, "splat-raster");
+  gpu::ShaderModule composite = gpu::create_shader_from_file(ctx, "splat_tiles_composite.wgsl");
+  WGPUBlendState blend = WGPU_BLEND_STATE_INIT;
+  blend.color = {WGPUBlendOperation_Add, WGPUBlendFactor_One, WGPUBlendFactor_OneMinusSrcAlpha};
+  blend.alpha = {WGPUBlendOperation_Add, WGPUBlendFactor_One, WGPUBlendFactor_OneMinusSrcAlpha};
+  gpu::FullscreenPipelineDesc desc;
+  desc.module = composite.get();
+  desc.fragment_entry = "fs_composite";
+  desc.format = p.color_format;
+  desc.blend = &blend;
+  desc.label = "splat-composite";
+  p.tile_composite = gpu::create_fullscreen_pipeline(ctx, desc);
+  p.no_depth = gpu::create_texture_2d(
+      ctx, 1, 1, p.depth_format,
+      WGPUTextureUsage_TextureBinding | WGPUTextureUsage_RenderAttachment, "splat-no-depth");
+  p.no_depth_view = gpu::create_view(p.no_depth);
+  p.tile_pipelines = true;
+  ctx.check("creating the splat tile pipelines");
+}
+
+void ensure_tile_buffers(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& s, uint32_t width,
+                         uint32_t height) {
+  if (s.tiles && s.tiles->width == width && s.tiles->height == height) return;
+  auto t = std::make_unique<TileBuffers>();
+  t->width = width;
+  t->height = height;
+  t->tiles_x = (width + kTile - 1) / kTile;
+  t->tiles_y = (height + kTile - 1) / kTile;
+  if (uint64_t(t->tiles_x) * t->tiles_y > 65536)
+    fail("splats: the tile rasterizer sorts tiles by 16 bits: {}x{} has too many tiles", width,
+         height);
+  // Room for each splat to touch four tiles on average; more pairs are dropped.
+  const uint64_t limit =
+      std::min<uint64_t>(ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize) / 4;
+  t->pair_capacity = uint32_t(std::min<uint64_t>(
+      {std::max<uint64_t>(uint64_t(s.count) * 4, 1 << 16), limit, uint64_t(UINT32_MAX / 2)}));
+  const uint32_t blocks = (s.count + kScanBlock - 1) / kScanBlock;
+  t->scan = gpu::create_buffer(ctx, (uint64_t(s.count) + blocks + 1) * 4, WGPUBufferUsage_Storage,
+                               "splat-tile-scan");
+  t->tile_data = gpu::create_buffer(ctx, (1 + 2 * uint64_t(t->tiles_x) * t->tiles_y) * 4,
+                                    WGPUBufferUsage_Storage, "splat-tile-ranges");
+  t->pixels = gpu::create_buffer(ctx, uint64_t(width) * height * 16, WGPUBufferUsage_Storage,
+                                 "splat-tile-pixels");
+  t->params =
+      gpu::create_buffer(ctx, sizeof(TileParams), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst,
+                         "splat-tile-params");
+  t->sort = create_radix_sort_buffers(ctx, p.sort, t->pair_capacity, t->tile_data.get(), 0);
+  const uint32_t r = radix_sort_result(32);
+  t->binning = gpu::create_bind_group(
+      ctx, p.tile_layout.get(),
+      {gpu::bind_buffer(0, s.frame_uniforms.get()), gpu::bind_buffer(1, t->params.get()),
+       gpu::bind_buffer(2, s.projected.get()), gpu::bind_buffer(3, s.sort.keys[r].get()),
+       gpu::bind_buffer(4, s.sort.values[r].get()), gpu::bind_buffer(5, s.args.get()),
+       gpu::bind_buffer(6, t->scan.get()), gpu::bind_buffer(7, t->sort.keys[0].get()),
+       gpu::bind_buffer(8, t->sort.values[0].get()), gpu::bind_buffer(9, t->tile_data.get())},
+      "splat-tiles");
+  auto composite_layout = gpu::bind_group_layout_of(p.tile_composite);
+  t->composite = gpu::create_bind_group(
+      ctx, composite_layout.get(),
+      {gpu::bind_buffer(0, s.frame_uniforms.get()), gpu::bind_buffer(1, t->pixels.get())},
+      "splat-composite");
+  s.tiles = std::move(t);
+}
+
+// The tile rasterizer's passes after the projection and depth sort (see splats.hpp).
+void add_tile_passes(gpu::RenderGraph& graph, SplatPipelines* pp, GpuSplats* sp,
+                     const SplatPassTargets& targets, const std::string& projected, uint32_t width,
+                     uint32_t height) {
+  const bool depth_test = !targets.depth.empty();
+  graph
+      .add_pass(targets.name + "-bin", gpu::PassKind::Compute,
+                [pp, sp, width, height, depth_test](gpu::PassContext& pc) {
+                  gpu::Context& ctx = pc.gpu();
+                  ensure_tile_buffers(ctx, *pp, *sp, width, height);
+                  TileBuffers& t = *sp->tiles;
+                  const uint32_t blocks = (sp->count + kScanBlock - 1) / kScanBlock;
+                  const TileParams params{t.tiles_x, t.tiles_y,
+                                          sp->count, t.pair_capacity,
+                                          blocks,    depth_test ? 1u : 0u,
+                                          0,         0};
+                  gpu::write_buffer(ctx, t.params.get(), 0, params);
+                  auto pass = pc.begin_compute_pass();
+                  WGPUBindGroup g = t.binning.get();
+                  const auto [sx, sy] = grid(sp->count, 256);
+                  const auto [bx, by] = grid(uint64_t(blocks), 1);
+                  gpu::dispatch(pass.get(), pp->tile_count.get(), {g}, sx, sy);
+                  gpu::dispatch(pass.get(), pp->tile_block_sums.get(), {g}, bx, by);
+                  gpu::dispatch(pass.get(), pp->tile_scan_blocks.get(), {g}, 1);
+                  gpu::dispatch(pass.get(), pp->tile_block_apply.get(), {g}, bx, by);
+                  gpu::dispatch(pass.get(), pp->tile_emit.get(), {g}, sx, sy);
+                  wgpuComputePassEncoderEnd(pass.get());
+                })
+      .write(projected);
+  graph
+      .add_pass(targets.name + "-tile-sort", gpu::PassKind::Compute,
+                [pp, sp](gpu::PassContext& pc) {
+                  auto pass = pc.begin_compute_pass();
+                  encode_radix_sort(pass.get(), pp->sort, sp->tiles->sort, 16);
+                  wgpuComputePassEncoderEnd(pass.get());
+                })
+      .write(projected);
+  auto raster = graph.add_pass(
+      targets.name + "-raster", gpu::PassKind::Compute,
+      [pp, sp, targets, depth_test](gpu::PassContext& pc) {
+        gpu::Context& ctx = pc.gpu();
+        TileBuffers& t = *sp->tiles;
+        const uint32_t r = radix_sort_result(32);
+        auto layout = gpu::bind_group_layout_of(pp->tile_raster);
+        gpu::BindGroup group = gpu::create_bind_group(
+            ctx, layout.get(),
+            {gpu::bind_buffer(0, sp->frame_uniforms.get()), gpu::bind_buffer(1, t.params.get()),
+             gpu::bind_buffer(2, sp->projected.get()), gpu::bind_buffer(3, sp->sort.keys[r].get()),
+             gpu::bind_buffer(4, sp->sort.values[r].get()),
+             gpu::bind_buffer(5, t.sort.values[0].get()), gpu::bind_buffer(6, t.tile_data.get()),
+             gpu::bind_buffer(7, t.pixels.get()),
+             gpu::bind_texture(8, depth_test ? pc.view(targets.depth) : pp->no_depth_view.get())},
+            "splat-raster");
+        auto pass = pc.begin_compute_pass();
+        WGPUBindGroup g = t.binning.get();
+        const auto [tx, ty] = grid(uint64_t(t.tiles_x) * t.tiles_y, 256);
+        const auto [px, py] = grid(t.pair_capacity, 256);
+        gpu::dispatch(pass.get(), pp->tile_clear_ranges.get(), {g}, tx, ty);
+        gpu::dispatch(pass.get(), pp->tile_ranges.get(), {g}, px, py);
+        gpu::dispatch(pass.get(), pp->tile_raster.get(), {group.get()}, t.tiles_x, t.tiles_y);
+        wgpuComputePassEncoderEnd(pass.get());
+      });
+  raster.write(projected);
+  if (depth_test) raster.read(targets.depth);
+  graph
+      .add_pass(targets.name + "-composite", gpu::PassKind::Render,
+                [pp, sp, targets](gpu::PassContext& pc) {
+                  gpu::draw_fullscreen(pc, pc.view(targets.color), pp->tile_composite.get(),
+                                       {sp->tiles->composite.get()});
+                })
+      .read(projected)
+      .write(targets.color);
+}
+
 }  // namespace
+
+SplatRasterizer parse_splat_rasterizer(const std::string& name) {
+  if (name == "quads") return SplatRasterizer::Quads;
+  if (name == "tiles") return SplatRasterizer::Tiles;
+  fail("unknown splat rasterizer '{}' (quads or tiles)", name);
+}
 
 GpuSplats upload_splats(gpu::Context& ctx, const io::SplatSet& set) {
   const size_t n = set.size();
@@ -285,6 +467,11 @@ void add_splat_passes(gpu::RenderGraph& graph, SplatPipelines& p, GpuSplats& s,
                 })
       .write(projected);
 
+  if (targets.rasterizer == SplatRasterizer::Tiles) {
+    graph.add_prepare([pp](gpu::Context& ctx) { ensure_tile_pipelines(ctx, *pp); });
+    add_tile_passes(graph, pp, sp, targets, projected, width, height);
+    return;
+  }
   const bool depth_test = !targets.depth.empty();
   auto draw = graph.add_pass(
       targets.name + "-draw", gpu::PassKind::Render,
@@ -319,12 +506,14 @@ std::map<std::string, double> draw_splats(gpu::Context& ctx, SplatPipelines& p, 
                                           const Camera& camera, WGPUTexture color,
                                           WGPUTextureView color_view, uint32_t width,
                                           uint32_t height, WGPUTexture depth,
-                                          WGPUTextureView depth_view, bool timed) {
+                                          WGPUTextureView depth_view, bool timed,
+                                          SplatRasterizer rasterizer) {
   gpu::RenderGraph graph;
   graph.import_texture("color", color, color_view,
                        {width, height, p.color_format, WGPUTextureUsage_RenderAttachment},
                        gpu::Access::Writable);
   SplatPassTargets targets;
+  targets.rasterizer = rasterizer;
   if (depth) {
     graph.import_texture("depth", depth, depth_view,
                          {width, height, p.depth_format, WGPUTextureUsage_RenderAttachment},

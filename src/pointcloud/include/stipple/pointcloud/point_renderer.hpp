@@ -202,7 +202,8 @@ struct PointPassTargets {
   std::string depth = "depth";
   bool create_depth = true;
   // A later pass of the frame reads the depth (splats test against it): a transient depth is
-  // stored even where no point pass reads it back (naive points without EDL).
+  // stored even where no point pass reads it back (naive points without EDL), and can be bound
+  // as a texture.
   bool keep_depth = false;
 };
 

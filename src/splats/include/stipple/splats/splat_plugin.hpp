@@ -14,6 +14,7 @@
 
 #include "stipple/io/splats.hpp"
 #include "stipple/math/aabb.hpp"
+#include "stipple/splats/splats.hpp"
 
 namespace stipple {
 class Engine;
@@ -32,6 +33,7 @@ struct SplatData {
 struct SplatDrawSettings {
   glm::vec3 background{0.07f, 0.08f, 0.1f};  // when no point pass draws the frame first
   bool depth_test = true;                    // against the points' depth, when there is one
+  SplatRasterizer rasterizer = SplatRasterizer::Quads;
 };
 
 // The world-space bounds of the splats' centres (through the set's transform), for framing a

@@ -15,6 +15,7 @@
 // drawn. Camera-relative: the set's centre minus the camera in double, cast to float.
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <string>
 
 #include "stipple/io/splats.hpp"
@@ -25,6 +26,21 @@
 #include "stipple/splats/radix_sort.hpp"
 
 namespace stipple::splats {
+
+// Quads: sorted instanced quads blended by the fixed-function blender (the default). Tiles: the
+// reference's 16x16 tiles in compute (each tile's splats in depth order through a second, stable
+// sort by tile), blended front to back in f32 with early termination, then laid over the frame.
+enum class SplatRasterizer { Quads, Tiles };
+SplatRasterizer parse_splat_rasterizer(const std::string& name);
+
+// The tile rasterizer's per-set buffers (made on its first frame, remade when the size changes).
+struct TileBuffers {
+  uint32_t width = 0, height = 0, tiles_x = 0, tiles_y = 0;
+  uint32_t pair_capacity = 0;  // (tile, splat) pairs a frame; more are dropped
+  gpu::Buffer scan, tile_data, pixels, params;
+  RadixSortBuffers sort;  // pairs by tile
+  gpu::BindGroup binning, composite;
+};
 
 // One splat set on the GPU, with the buffers its frames use (sized for every splat visible).
 struct GpuSplats {
@@ -39,6 +55,7 @@ struct GpuSplats {
   gpu::Buffer projected, args, frame_uniforms;
   RadixSortBuffers sort;
   gpu::BindGroup project_group, draw_group;  // made on first draw
+  std::unique_ptr<TileBuffers> tiles;        // SplatRasterizer::Tiles
 };
 
 // Uploads a set (positions relative to its centre, rotations, scales and SH as f16). Throws
@@ -53,6 +70,15 @@ struct SplatPipelines {
   gpu::PipelineLayout draw_pipeline_layout;
   gpu::RenderPipeline draw, draw_no_depth;
   RadixSortPipelines sort;
+  // SplatRasterizer::Tiles, made on first use.
+  bool tile_pipelines = false;
+  gpu::BindGroupLayout tile_layout;
+  gpu::PipelineLayout tile_pipeline_layout;
+  gpu::ComputePipeline tile_count, tile_block_sums, tile_scan_blocks, tile_block_apply, tile_emit,
+      tile_clear_ranges, tile_ranges, tile_raster;
+  gpu::RenderPipeline tile_composite;
+  gpu::Texture no_depth;  // 1x1, bound when there is no depth to test against
+  gpu::TextureView no_depth_view;
   gpu::TransientPool pool;  // for draw_splats
   gpu::PassTimer timer;     // for draw_splats
 };
@@ -68,10 +94,14 @@ struct SplatPassTargets {
   std::string color = "color";
   std::string depth = "depth";  // empty: no depth test
   std::string name = "splat";   // prefix of the passes' and resources' names (one per set)
+  SplatRasterizer rasterizer = SplatRasterizer::Quads;
 };
 
-// Adds the three passes (see the top of this file) for one set. The set and pipelines must
-// outlive the graph's execution.
+// Adds the three passes (see the top of this file) for one set; with the tile rasterizer the
+// draw is four: splat-bin (tiles per splat, their prefix sum, the (tile, splat) pairs),
+// splat-tile-sort, splat-raster (tile ranges, blending per tile) and splat-composite. The
+// depth, when tested, must then also be bindable as a texture (TextureBinding). The set and
+// pipelines must outlive the graph's execution.
 void add_splat_passes(gpu::RenderGraph& graph, SplatPipelines& pipelines, GpuSplats& splats,
                       const Camera& camera, uint32_t width, uint32_t height,
                       const SplatPassTargets& targets = {});
@@ -85,7 +115,8 @@ std::map<std::string, double> draw_splats(gpu::Context& ctx, SplatPipelines& pip
                                           WGPUTexture color, WGPUTextureView color_view,
                                           uint32_t width, uint32_t height,
                                           WGPUTexture depth = nullptr,
-                                          WGPUTextureView depth_view = nullptr, bool timed = false);
+                                          WGPUTextureView depth_view = nullptr, bool timed = false,
+                                          SplatRasterizer rasterizer = SplatRasterizer::Quads);
 
 // Visible splats of the last executed frame (the draw's instance count; blocks).
 uint32_t read_visible_count(gpu::Context& ctx, const GpuSplats& splats);
