@@ -16,6 +16,8 @@
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
 
+#include "stipple/pointcloud/batches.hpp"
+#include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/renderer/gpu.hpp"
@@ -323,11 +325,13 @@ TEST_P(Splats, CulledBehindTheCameraAndOffScreen) {
 // Points and splats in one frame: a wall of red points at z = 0 over the left half of the view;
 // an opaque green splat in front of it, a blue one behind it (hidden), and a yellow one behind
 // the wall's plane but beside the wall (seen). Naive points (their exact depth) and the
-// default blended splatting (its pre-pass depth, pushed back by 1%).
-class SplatsWithPoints : public ::testing::TestWithParam<std::tuple<std::string, bool>> {};
+// default blended splatting (its pre-pass depth, pushed back by 1%) and the compute rasterizer
+// (its depth buffer exported as a depth texture).
+enum class PointPath { Naive, Blend, Compute };
+class SplatsWithPoints : public ::testing::TestWithParam<std::tuple<std::string, PointPath>> {};
 
 TEST_P(SplatsWithPoints, OccludeEachOther) {
-  const auto [backend, blend] = GetParam();
+  const auto [backend, path] = GetParam();
   gpu::ContextOptions options;
   options.backend = backend;
   auto ctx = gpu::create_context(options);
@@ -347,10 +351,18 @@ TEST_P(SplatsWithPoints, OccludeEachOther) {
   cloud.attributes.has_rgb = true;
   cloud.chunks.push_back(std::move(chunk));
   auto gpu_cloud = pc::upload_point_cloud(*ctx, cloud);
+  std::unique_ptr<pc::GpuBatchedCloud> batched;
+  std::unique_ptr<pc::ComputeRasterPipeline> raster;
+  if (path == PointPath::Compute) {
+    batched = std::make_unique<pc::GpuBatchedCloud>(
+        pc::upload_batched_cloud(*ctx, pc::build_batches(cloud)));
+    raster = std::make_unique<pc::ComputeRasterPipeline>(
+        pc::create_compute_raster_pipeline(*ctx, WGPUTextureFormat_RGBA8Unorm));
+  }
   auto point_pipelines = pc::create_point_pipelines(*ctx, WGPUTextureFormat_RGBA8Unorm);
   pc::PointRenderSettings settings;
   settings.color = pc::ColorMode::Rgb;
-  settings.splat = blend ? pc::SplatMode::Blend : pc::SplatMode::Naive;
+  settings.splat = path == PointPath::Blend ? pc::SplatMode::Blend : pc::SplatMode::Naive;
   settings.edl = false;
   settings.point_size = 6.0f;
   settings.background = {0.0f, 0.0f, 0.0f};
@@ -382,10 +394,18 @@ TEST_P(SplatsWithPoints, OccludeEachOther) {
     graph.import_texture("color", color.get(), view.get(),
                          {w, h, WGPUTextureFormat_RGBA8Unorm, WGPUTextureUsage_RenderAttachment},
                          gpu::Access::Writable);
-    pc::PointPassTargets point_targets;
-    point_targets.keep_depth = true;
-    pc::add_point_cloud_passes(graph, point_pipelines, gpu_cloud, camera, settings, w, h,
-                               point_targets);
+    if (path == PointPath::Compute) {
+      pc::ComputeRasterOptions options;
+      options.point_size = 6.0f;
+      options.background = {0.0f, 0.0f, 0.0f};
+      options.depth_texture = "depth";
+      pc::add_compute_raster_passes(graph, *raster, *batched, camera, options, w, h);
+    } else {
+      pc::PointPassTargets point_targets;
+      point_targets.keep_depth = true;
+      pc::add_point_cloud_passes(graph, point_pipelines, gpu_cloud, camera, settings, w, h,
+                                 point_targets);
+    }
     splats::SplatPassTargets splat_targets;
     if (!depth_test) splat_targets.depth.clear();
     splat_targets.rasterizer = rasterizer;
@@ -421,10 +441,15 @@ TEST_P(SplatsWithPoints, OccludeEachOther) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, SplatsWithPoints,
-                         ::testing::Combine(::testing::Values("dawn", "wgpu"), ::testing::Bool()),
+                         ::testing::Combine(::testing::Values("dawn", "wgpu"),
+                                            ::testing::Values(PointPath::Naive, PointPath::Blend,
+                                                              PointPath::Compute)),
                          [](const auto& info) {
-                           return std::get<0>(info.param) +
-                                  (std::get<1>(info.param) ? "_blend" : "_naive");
+                           const PointPath path = std::get<1>(info.param);
+                           return std::get<0>(info.param) + (path == PointPath::Naive ? "_naive"
+                                                             : path == PointPath::Blend
+                                                                 ? "_blend"
+                                                                 : "_compute");
                          });
 
 INSTANTIATE_TEST_SUITE_P(Backends, Splats, ::testing::Values("dawn", "wgpu"),

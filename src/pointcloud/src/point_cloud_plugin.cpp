@@ -171,6 +171,7 @@ void queue_point_clouds(Registry& render) {
       options.filter = settings.render.filter;
       options.clip = settings.render.clip;
       options.highlight = settings.render.highlight;
+      options.depth_texture = "depth";  // later passes (splats) test against it
       pc::add_compute_raster_passes(fg.graph, *cache.raster, *r.batched, camera, options,
                                     target.width, target.height);
       stats.points_drawn += r.batched->point_count;

@@ -394,6 +394,7 @@ void queue_tileset(Registry& render) {
     options.filter = settings.render.filter;
     options.clip = settings.render.clip;
     options.highlight = settings.render.highlight;
+    options.depth_texture = "depth";  // later passes (splats) test against it
     pc::add_compute_raster_passes(fg.graph, *c->pipeline, drawn, to_camera(*extracted), options,
                                   target.width, target.height);
     auto& stats = render.resource<RenderStats>();
