@@ -106,6 +106,38 @@ TEST(BenchRaster, CombinedVariantsRunAndUnknownOnesFail) {
   EXPECT_NE(r.output.find("unknown variant 'wg65'"), std::string::npos) << r.output;
 }
 
+TEST_P(Bench, SplatsWritesJson) {
+  fs::path dir =
+      fs::temp_directory_path() /
+      ("stipple-bench-splats-" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+       "-" + GetParam());
+  fs::create_directories(dir);
+  fs::path json_path = dir / "splats.json";
+  auto r = test::run_stipple("bench splats --count 3000 --sh 3 --size 96x64 --frames 2 --backend " +
+                             GetParam() + " --json " + json_path.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("splat-sort"), std::string::npos) << r.output;
+  std::ifstream in(json_path);
+  auto j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["benchmark"], "splats");
+  EXPECT_EQ(j["backend"], GetParam());
+  EXPECT_EQ(j["splats"], 3000);
+  EXPECT_EQ(j["sh_degree"], 3);
+  // The generated box is in view: most splats survive culling.
+  EXPECT_GT(j["visible"].get<uint32_t>(), 1500u);
+  EXPECT_LE(j["visible"].get<uint32_t>(), 3000u);
+  if (j.contains("passes")) {
+    for (const char* pass : {"splat-project", "splat-sort", "splat-draw"})
+      EXPECT_GT(j["passes"][pass].get<double>(), 0.0) << pass;
+    EXPECT_GT(j["sort_only_ms"].get<double>(), 0.0);
+    // Both rasterizers in one run.
+    EXPECT_GT(j["variants"]["quads"]["frame_gpu_ms"].get<double>(), 0.0);
+    for (const char* pass : {"splat-bin", "splat-tile-sort", "splat-raster", "splat-composite"})
+      EXPECT_GT(j["variants"]["tiles"]["passes"][pass].get<double>(), 0.0) << pass;
+  }
+  fs::remove_all(dir);
+}
+
 INSTANTIATE_TEST_SUITE_P(Backends, Bench, ::testing::Values("dawn", "wgpu"),
                          [](const auto& info) { return info.param; });
 

@@ -445,6 +445,7 @@ void add_bench_command(CLI::App& cli) {
   add_bench_stream_command(*bench);
   add_bench_batches_command(*bench);
   add_bench_bandwidth_command(*bench);
+  add_bench_splats_command(*bench);
   add_bench_points_command(bench);
 }
 

@@ -15,6 +15,7 @@
 #include "stipple/engine/render_plugins.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/virtual_cloud.hpp"
+#include "stipple/splats/splat_plugin.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 #include "stipple/viewer/camera_controller.hpp"
 #include "stipple/viewer/script.hpp"
@@ -42,6 +43,7 @@ std::vector<PluginInfo> builtin_plugins() {
           plugin_info<pc::PointCloudPlugin>(),
           plugin_info<pc::VirtualPointCloudPlugin>(),
           plugin_info<tiles3d::TilesetPlugin>(),
+          plugin_info<splats::SplatPlugin>(),
           plugin_info<viewer::WindowPlugin>(),
           plugin_info<viewer::InputPlugin>(),
           plugin_info<viewer::SurfaceTargetPlugin>(),

@@ -836,6 +836,61 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                        {pixels * 20, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst});
   }
 
+  if (!options.depth_texture.empty()) {
+    // The depth for later passes (splats): from the buffer the display reads.
+    graph.add_prepare([&p](gpu::Context& ctx) {
+      if (p.depth_export) return;
+      gpu::ShaderModule module =
+          gpu::create_shader_from_file(ctx, "compute_raster_depth_export.wgsl");
+      WGPUDepthStencilState depth = WGPU_DEPTH_STENCIL_STATE_INIT;
+      depth.format = gpu::native(WGPUTextureFormat_Depth32Float);
+      depth.depthWriteEnabled = WGPUOptionalBool_True;
+      depth.depthCompare = WGPUCompareFunction_Always;
+      WGPUFragmentState fragment = WGPU_FRAGMENT_STATE_INIT;
+      fragment.module = module.get();
+      fragment.entryPoint = gpu::to_view("fs_depth");
+      WGPURenderPipelineDescriptor desc = WGPU_RENDER_PIPELINE_DESCRIPTOR_INIT;
+      desc.label = gpu::to_view("raster-depth-export");
+      desc.vertex.module = module.get();
+      desc.vertex.entryPoint = gpu::to_view("vs_fullscreen");
+      desc.primitive.topology = WGPUPrimitiveTopology_TriangleList;
+      desc.depthStencil = &depth;
+      desc.multisample.count = 1;
+      desc.multisample.mask = ~0u;
+      desc.fragment = &fragment;
+      p.depth_export = gpu::RenderPipeline(wgpuDeviceCreateRenderPipeline(ctx.device.get(), &desc));
+    });
+    const std::string target = options.depth_texture;
+    graph
+        .add_pass("raster-depth-export", gpu::PassKind::Render,
+                  [&p, &cloud, target, depth_name = depth_shown](gpu::PassContext& pc) {
+                    WGPURenderPassDepthStencilAttachment depth =
+                        WGPU_RENDER_PASS_DEPTH_STENCIL_ATTACHMENT_INIT;
+                    depth.view = pc.view(target);
+                    depth.depthLoadOp = WGPULoadOp_Clear;
+                    depth.depthStoreOp = WGPUStoreOp_Store;
+                    depth.depthClearValue = 0.0f;
+                    WGPURenderPassDescriptor desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
+                    desc.depthStencilAttachment = &depth;
+                    auto pass = pc.begin_render_pass(desc);
+                    if (!cloud.segments.empty()) {
+                      auto layout = gpu::bind_group_layout_of(p.depth_export);
+                      auto group = gpu::create_bind_group(
+                          pc.gpu(), layout.get(),
+                          {gpu::bind_buffer(0, cloud.segments[0].params.get()),
+                           gpu::bind_buffer(2, pc.buffer(depth_name))});
+                      wgpuRenderPassEncoderSetPipeline(pass.get(), p.depth_export.get());
+                      gpu::set_bind_groups(pass.get(), {group.get()});
+                      wgpuRenderPassEncoderDraw(pass.get(), 3, 1, 0, 0);
+                    }
+                    wgpuRenderPassEncoderEnd(pass.get());
+                  })
+        .read(depth_shown)
+        .create_texture(target,
+                        {width, height, WGPUTextureFormat_Depth32Float,
+                         WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_TextureBinding});
+  }
+
   if (options.storage_target && p.display_compute) {
     const uint32_t gx = (width + 15) / 16, gy = (height + 15) / 16;
     auto display = graph.add_pass(

@@ -108,7 +108,11 @@ void upload_point_clouds(Registry& render) {
 void add_scene_passes(gpu::RenderGraph& graph, pc::PointPipelines& pipelines,
                       pc::GpuPointCloud& cloud, const Camera& camera,
                       const PointDrawSettings& settings, uint32_t width, uint32_t height) {
-  pc::add_point_cloud_passes(graph, pipelines, cloud, camera, settings.render, width, height);
+  // The depth stays stored for later passes of the frame (splats test against it).
+  pc::PointPassTargets targets;
+  targets.keep_depth = true;
+  pc::add_point_cloud_passes(graph, pipelines, cloud, camera, settings.render, width, height,
+                             targets);
 }
 
 void queue_point_clouds(Registry& render) {
@@ -168,6 +172,7 @@ void queue_point_clouds(Registry& render) {
       options.filter = settings.render.filter;
       options.clip = settings.render.clip;
       options.highlight = settings.render.highlight;
+      options.depth_texture = "depth";  // later passes (splats) test against it
       pc::add_compute_raster_passes(fg.graph, *cache.raster, *r.batched, camera, options,
                                     target.width, target.height);
       stats.points_drawn += r.batched->point_count;

@@ -653,7 +653,8 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
 
   // Depth: the caller's, or a transient that the resolve can read.
   const WGPUTextureUsage depth_usage =
-      WGPUTextureUsage_RenderAttachment | (resolve ? WGPUTextureUsage_TextureBinding : 0);
+      WGPUTextureUsage_RenderAttachment |
+      (resolve || targets.keep_depth ? WGPUTextureUsage_TextureBinding : 0);
   auto declare_depth = [&](gpu::PassBuilder& pass) {
     if (targets.create_depth)
       pass.create_texture(targets.depth, {width, height, p.depth_format, depth_usage});
@@ -665,7 +666,7 @@ void add_point_cloud_passes(gpu::RenderGraph& graph, PointPipelines& p, GpuPoint
       width, height, kAccumFormat,
       WGPUTextureUsage_RenderAttachment | WGPUTextureUsage_TextureBinding};
   // A transient depth buffer is dropped after its last pass; an imported one is kept.
-  const bool keep_depth = resolve || translucent || !targets.create_depth;
+  const bool keep_depth = resolve || translucent || !targets.create_depth || targets.keep_depth;
 
   if (!blend) {
     // Naive: straight into the output, or into the accumulation texture for the EDL resolve.

@@ -395,6 +395,7 @@ void queue_tileset(Registry& render) {
     options.filter = settings.render.filter;
     options.clip = settings.render.clip;
     options.highlight = settings.render.highlight;
+    options.depth_texture = "depth";  // later passes (splats) test against it
     pc::add_compute_raster_passes(fg.graph, *c->pipeline, drawn, to_camera(*extracted), options,
                                   target.width, target.height);
     auto& stats = render.resource<RenderStats>();
@@ -458,8 +459,11 @@ void queue_tileset(Registry& render) {
     return;
   }
   Camera camera = to_camera(*extracted);
+  // The depth stays stored for later passes of the frame (splats test against it).
+  pc::PointPassTargets targets;
+  targets.keep_depth = true;
   pc::add_point_cloud_passes(fg.graph, *g.pipelines, drawn, camera, settings.render, target.width,
-                             target.height);
+                             target.height, targets);
   stats.points_drawn += drawn.point_count;
 }
 

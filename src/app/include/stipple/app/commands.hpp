@@ -13,6 +13,7 @@ void add_bench_virtual_command(CLI::App& bench);    // `bench virtual`, cmd_benc
 void add_bench_stream_command(CLI::App& bench);     // `bench stream`, cmd_bench_stream.cpp
 void add_bench_batches_command(CLI::App& bench);    // `bench batches`, cmd_bench_batches.cpp
 void add_bench_bandwidth_command(CLI::App& bench);  // `bench bandwidth`, bench_bandwidth.cpp
+void add_bench_splats_command(CLI::App& bench);     // `bench splats`, cmd_bench_splats.cpp
 void add_plugins_command(CLI::App& cli);
 void add_tile_command(CLI::App& cli);
 // `stipple bench points`, a subcommand of `bench`.

@@ -157,6 +157,8 @@ struct ComputeRasterPipeline {
   bool depth32_plain_early = false;
   uint64_t max_storage_binding = 0;  // the device's maxStorageBufferBindingSize (the event list)
   gpu::RenderPipeline display;
+  // ComputeRasterOptions::depth_texture's pass, made on first use.
+  gpu::RenderPipeline depth_export;
   // The display as a compute pass (RGBA8Unorm targets with storage usage); null otherwise.
   gpu::ComputePipeline display_compute;
   gpu::Buffer counters;  // RasterCounters as u32s, cleared each frame
@@ -223,6 +225,10 @@ struct ComputeRasterOptions {
   // mode is RGB: they are blended over the opaque ones (translucent_frame() decides). Off, every
   // point is drawn opaque, whatever its alpha.
   bool translucent = false;
+  // When set, the frame's depth is also written into a transient Depth32Float texture of this
+  // name (reverse Z, as the billboard path's; RenderAttachment | TextureBinding) for later
+  // passes: splats test against it.
+  std::string depth_texture;
 };
 
 // Whether a frame of a cloud with `attributes` in the shading's mode blends translucent points.

@@ -205,6 +205,10 @@ struct PointPassTargets {
   std::string color = "color";
   std::string depth = "depth";
   bool create_depth = true;
+  // A later pass of the frame reads the depth (splats test against it): a transient depth is
+  // stored even where no point pass reads it back (naive points without EDL), and can be bound
+  // as a texture.
+  bool keep_depth = false;
 };
 
 // Adds all passes of a frame for one cloud (see the top of this file). The cloud's GPU objects

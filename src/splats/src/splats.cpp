@@ -1,0 +1,546 @@
+#include "stipple/splats/splats.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <utility>
+
+#include <glm/gtc/packing.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/matrix.hpp>
+
+#include "stipple/core/error.hpp"
+#include "stipple/renderer/shader_preprocessor.hpp"
+
+namespace stipple::splats {
+namespace {
+
+constexpr uint32_t kProjectWorkgroup = 256;  // splat_project.wgsl's workgroup size
+constexpr uint32_t kMaxGroupsX = 65535;
+
+// splat_common.wgsl's Splat.
+struct GpuSplat {
+  float position[3];
+  float opacity;
+  float scale[3];
+  uint32_t rot_xy, rot_zw, dc_rg, dc_b, pad;
+};
+static_assert(sizeof(GpuSplat) == 48);
+
+// splat_common.wgsl's SplatFrame.
+struct FrameUniforms {
+  float local_to_view[16];
+  float world_to_local[16];
+  float view_rotation[16];
+  float offset[3];
+  uint32_t count;
+  float focal[2];
+  float tan_fov[2];
+  float viewport[2];
+  float near;
+  uint32_t sh_degree;
+  uint32_t sh_stride;
+  uint32_t pad[3];
+};
+static_assert(sizeof(FrameUniforms) == 256);
+
+constexpr uint64_t kProjectedBytes = 32;  // splat_common.wgsl's Projected
+
+uint32_t pack_half2(float a, float b) {
+  return uint32_t(glm::packHalf1x16(a)) | uint32_t(glm::packHalf1x16(b)) << 16;
+}
+
+void store_mat3(float* out, const glm::dmat3& m) {
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) out[c * 4 + r] = c < 3 && r < 3 ? float(m[c][r]) : 0.0f;
+}
+
+FrameUniforms make_frame(const GpuSplats& s, const Camera& camera, uint32_t width,
+                         uint32_t height) {
+  FrameUniforms f{};
+  // World to the reference rasterizer's view axes: x right, y down, z forward (the camera looks
+  // along -Z with y up).
+  const glm::dmat3 flip(1, 0, 0, 0, -1, 0, 0, 0, -1);
+  const glm::dmat3 world_to_view = flip * glm::dmat3(camera.view_rotation());
+  store_mat3(f.local_to_view, world_to_view * s.linear);
+  store_mat3(f.world_to_local, glm::inverse(s.linear));
+  store_mat3(f.view_rotation, world_to_view);
+  const glm::dvec3 offset = s.centre - camera.position;
+  for (int i = 0; i < 3; ++i) f.offset[i] = float(offset[i]);
+  f.count = s.count;
+  const double tan_y = std::tan(camera.fov_y * 0.5);
+  const double tan_x = tan_y * double(width) / double(height);
+  f.tan_fov[0] = float(tan_x);
+  f.tan_fov[1] = float(tan_y);
+  f.focal[0] = float(double(width) / (2.0 * tan_x));
+  f.focal[1] = float(double(height) / (2.0 * tan_y));
+  f.viewport[0] = float(width);
+  f.viewport[1] = float(height);
+  f.near = float(camera.near_plane);
+  f.sh_degree = uint32_t(s.sh_degree);
+  f.sh_stride = s.sh_stride;
+  return f;
+}
+
+// One layout for both draw pipelines (with and without the depth test), so one bind group
+// serves either: the frame's uniforms, the projected splats, the sorted keys and values.
+gpu::BindGroupLayout make_draw_layout(gpu::Context& ctx) {
+  WGPUBindGroupLayoutEntry entries[4];
+  for (uint32_t i = 0; i < 4; ++i) {
+    entries[i] = WGPU_BIND_GROUP_LAYOUT_ENTRY_INIT;
+    entries[i].binding = i;
+    entries[i].visibility = WGPUShaderStage_Vertex | WGPUShaderStage_Fragment;
+    entries[i].buffer.type =
+        i == 0 ? WGPUBufferBindingType_Uniform : WGPUBufferBindingType_ReadOnlyStorage;
+  }
+  for (uint32_t i = 1; i < 4; ++i) entries[i].visibility = WGPUShaderStage_Vertex;
+  WGPUBindGroupLayoutDescriptor desc = WGPU_BIND_GROUP_LAYOUT_DESCRIPTOR_INIT;
+  desc.label = gpu::to_view("splat-draw");
+  desc.entryCount = 4;
+  desc.entries = entries;
+  return gpu::BindGroupLayout(wgpuDeviceCreateBindGroupLayout(ctx.device.get(), &desc));
+}
+
+gpu::RenderPipeline make_draw_pipeline(gpu::Context& ctx, WGPUShaderModule module,
+                                       WGPUPipelineLayout layout, WGPUTextureFormat color_format,
+                                       WGPUTextureFormat depth_format, bool depth_test) {
+  // Premultiplied alpha, back to front: dst = src + (1 - src.a) dst.
+  WGPUBlendState blend = WGPU_BLEND_STATE_INIT;
+  blend.color = {WGPUBlendOperation_Add, WGPUBlendFactor_One, WGPUBlendFactor_OneMinusSrcAlpha};
+  blend.alpha = {WGPUBlendOperation_Add, WGPUBlendFactor_One, WGPUBlendFactor_OneMinusSrcAlpha};
+  WGPUColorTargetState target = WGPU_COLOR_TARGET_STATE_INIT;
+  target.format = gpu::native(color_format);
+  target.writeMask = WGPUColorWriteMask_All;
+  target.blend = &blend;
+  WGPUFragmentState fragment = WGPU_FRAGMENT_STATE_INIT;
+  fragment.module = module;
+  fragment.entryPoint = gpu::to_view("fs_splat");
+  fragment.targetCount = 1;
+  fragment.targets = &target;
+  // Reverse Z: nearer is greater; tested against the points' depth, never written.
+  WGPUDepthStencilState depth = WGPU_DEPTH_STENCIL_STATE_INIT;
+  depth.format = gpu::native(depth_format);
+  depth.depthWriteEnabled = WGPUOptionalBool_False;
+  depth.depthCompare = WGPUCompareFunction_Greater;
+  WGPURenderPipelineDescriptor desc = WGPU_RENDER_PIPELINE_DESCRIPTOR_INIT;
+  desc.label = gpu::to_view(depth_test ? "splat-draw" : "splat-draw-no-depth");
+  desc.layout = layout;
+  desc.vertex.module = module;
+  desc.vertex.entryPoint = gpu::to_view("vs_splat");
+  desc.primitive.topology = WGPUPrimitiveTopology_TriangleStrip;
+  desc.primitive.cullMode = WGPUCullMode_None;
+  desc.depthStencil = depth_test ? &depth : nullptr;
+  desc.multisample.count = 1;
+  desc.multisample.mask = ~0u;
+  desc.fragment = &fragment;
+  return gpu::RenderPipeline(wgpuDeviceCreateRenderPipeline(ctx.device.get(), &desc));
+}
+
+void ensure_groups(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& s) {
+  if (s.project_group) return;
+  auto project_layout = gpu::bind_group_layout_of(p.project);
+  s.project_group = gpu::create_bind_group(
+      ctx, project_layout.get(),
+      {gpu::bind_buffer(0, s.frame_uniforms.get()), gpu::bind_buffer(1, s.splats.get()),
+       gpu::bind_buffer(2, s.sh.get()), gpu::bind_buffer(3, s.projected.get()),
+       gpu::bind_buffer(4, s.sort.keys[0].get()), gpu::bind_buffer(5, s.sort.values[0].get()),
+       gpu::bind_buffer(6, s.args.get())},
+      "splat-project");
+  const uint32_t r = radix_sort_result(32);
+  s.draw_group = gpu::create_bind_group(
+      ctx, p.draw_layout.get(),
+      {gpu::bind_buffer(0, s.frame_uniforms.get()), gpu::bind_buffer(1, s.projected.get()),
+       gpu::bind_buffer(2, s.sort.keys[r].get()), gpu::bind_buffer(3, s.sort.values[r].get())},
+      "splat-draw");
+}
+
+// splat_tiles.wgsl's TileParams.
+struct TileParams {
+  uint32_t tiles_x, tiles_y, capacity, pair_capacity, blocks, has_depth, pad0, pad1;
+};
+
+constexpr uint32_t kTile = 16;
+constexpr uint32_t kScanBlock = 512;
+
+// Workgroups for `items` items of `per_group` each as a 2D grid within the per-dimension limit.
+std::pair<uint32_t, uint32_t> grid(uint64_t items, uint32_t per_group) {
+  const uint32_t groups = uint32_t(std::max<uint64_t>(1, (items + per_group - 1) / per_group));
+  const uint32_t x = std::min(groups, kMaxGroupsX);
+  return {x, (groups + x - 1) / x};
+}
+
+void ensure_tile_pipelines(gpu::Context& ctx, SplatPipelines& p) {
+  if (p.tile_pipelines) return;
+  using B = gpu::BufferBinding;
+  p.tile_layout = gpu::create_compute_layout(
+      ctx,
+      {B::Uniform, B::Uniform, B::ReadOnlyStorage, B::ReadOnlyStorage, B::ReadOnlyStorage,
+       B::ReadOnlyStorage, B::Storage, B::Storage, B::Storage, B::Storage},
+      "splat-tiles");
+  p.tile_pipeline_layout = gpu::create_pipeline_layout(ctx, {p.tile_layout.get()});
+  gpu::ShaderModule bin = gpu::create_shader_from_file(ctx, "splat_tiles.wgsl");
+  auto make = [&](const char* entry) {
+    return gpu::create_compute_pipeline(ctx, bin.get(), entry, p.tile_pipeline_layout.get(), entry);
+  };
+  p.tile_count = make("cs_count");
+  p.tile_block_sums = make("cs_block_sums");
+  p.tile_scan_blocks = make("cs_scan_blocks");
+  p.tile_block_apply = make("cs_block_apply");
+  p.tile_emit = make("cs_emit");
+  p.tile_clear_ranges = make("cs_clear_ranges");
+  p.tile_ranges = make("cs_ranges");
+  gpu::ShaderModule raster = gpu::create_shader_from_file(ctx, "splat_tiles_raster.wgsl");
+  p.tile_raster =
+      gpu::create_compute_pipeline(ctx, raster.get(), "cs_raster", nullptr, "splat-raster");
+  gpu::ShaderModule composite = gpu::create_shader_from_file(ctx, "splat_tiles_composite.wgsl");
+  WGPUBlendState blend = WGPU_BLEND_STATE_INIT;
+  blend.color = {WGPUBlendOperation_Add, WGPUBlendFactor_One, WGPUBlendFactor_OneMinusSrcAlpha};
+  blend.alpha = {WGPUBlendOperation_Add, WGPUBlendFactor_One, WGPUBlendFactor_OneMinusSrcAlpha};
+  gpu::FullscreenPipelineDesc desc;
+  desc.module = composite.get();
+  desc.fragment_entry = "fs_composite";
+  desc.format = p.color_format;
+  desc.blend = &blend;
+  desc.label = "splat-composite";
+  p.tile_composite = gpu::create_fullscreen_pipeline(ctx, desc);
+  p.no_depth = gpu::create_texture_2d(
+      ctx, 1, 1, p.depth_format,
+      WGPUTextureUsage_TextureBinding | WGPUTextureUsage_RenderAttachment, "splat-no-depth");
+  p.no_depth_view = gpu::create_view(p.no_depth);
+  p.tile_pipelines = true;
+  ctx.check("creating the splat tile pipelines");
+}
+
+void ensure_tile_buffers(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& s, uint32_t width,
+                         uint32_t height) {
+  if (s.tiles && s.tiles->width == width && s.tiles->height == height) return;
+  auto t = std::make_unique<TileBuffers>();
+  t->width = width;
+  t->height = height;
+  t->tiles_x = (width + kTile - 1) / kTile;
+  t->tiles_y = (height + kTile - 1) / kTile;
+  if (uint64_t(t->tiles_x) * t->tiles_y > 65536)
+    fail("splats: the tile rasterizer sorts tiles by 16 bits: {}x{} has too many tiles", width,
+         height);
+  // Room for each splat to touch four tiles on average; more pairs are dropped.
+  const uint64_t limit =
+      std::min<uint64_t>(ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize) / 4;
+  t->pair_capacity = uint32_t(std::min<uint64_t>(
+      {std::max<uint64_t>(uint64_t(s.count) * 4, 1 << 16), limit, uint64_t(UINT32_MAX / 2)}));
+  const uint32_t blocks = (s.count + kScanBlock - 1) / kScanBlock;
+  t->scan = gpu::create_buffer(ctx, (uint64_t(s.count) + blocks + 1) * 4, WGPUBufferUsage_Storage,
+                               "splat-tile-scan");
+  t->tile_data = gpu::create_buffer(ctx, (1 + 2 * uint64_t(t->tiles_x) * t->tiles_y) * 4,
+                                    WGPUBufferUsage_Storage, "splat-tile-ranges");
+  t->pixels = gpu::create_buffer(ctx, uint64_t(width) * height * 16, WGPUBufferUsage_Storage,
+                                 "splat-tile-pixels");
+  t->params =
+      gpu::create_buffer(ctx, sizeof(TileParams), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst,
+                         "splat-tile-params");
+  t->sort = create_radix_sort_buffers(ctx, p.sort, t->pair_capacity, t->tile_data.get(), 0);
+  const uint32_t r = radix_sort_result(32);
+  t->binning = gpu::create_bind_group(
+      ctx, p.tile_layout.get(),
+      {gpu::bind_buffer(0, s.frame_uniforms.get()), gpu::bind_buffer(1, t->params.get()),
+       gpu::bind_buffer(2, s.projected.get()), gpu::bind_buffer(3, s.sort.keys[r].get()),
+       gpu::bind_buffer(4, s.sort.values[r].get()), gpu::bind_buffer(5, s.args.get()),
+       gpu::bind_buffer(6, t->scan.get()), gpu::bind_buffer(7, t->sort.keys[0].get()),
+       gpu::bind_buffer(8, t->sort.values[0].get()), gpu::bind_buffer(9, t->tile_data.get())},
+      "splat-tiles");
+  auto composite_layout = gpu::bind_group_layout_of(p.tile_composite);
+  t->composite = gpu::create_bind_group(
+      ctx, composite_layout.get(),
+      {gpu::bind_buffer(0, s.frame_uniforms.get()), gpu::bind_buffer(1, t->pixels.get())},
+      "splat-composite");
+  s.tiles = std::move(t);
+}
+
+// The tile rasterizer's passes after the projection and depth sort (see splats.hpp).
+void add_tile_passes(gpu::RenderGraph& graph, SplatPipelines* pp, GpuSplats* sp,
+                     const SplatPassTargets& targets, const std::string& projected, uint32_t width,
+                     uint32_t height) {
+  const bool depth_test = !targets.depth.empty();
+  graph
+      .add_pass(targets.name + "-bin", gpu::PassKind::Compute,
+                [pp, sp, width, height, depth_test](gpu::PassContext& pc) {
+                  gpu::Context& ctx = pc.gpu();
+                  ensure_tile_buffers(ctx, *pp, *sp, width, height);
+                  TileBuffers& t = *sp->tiles;
+                  const uint32_t blocks = (sp->count + kScanBlock - 1) / kScanBlock;
+                  const TileParams params{t.tiles_x, t.tiles_y,
+                                          sp->count, t.pair_capacity,
+                                          blocks,    depth_test ? 1u : 0u,
+                                          0,         0};
+                  gpu::write_buffer(ctx, t.params.get(), 0, params);
+                  auto pass = pc.begin_compute_pass();
+                  WGPUBindGroup g = t.binning.get();
+                  const auto [sx, sy] = grid(sp->count, 256);
+                  const auto [bx, by] = grid(uint64_t(blocks), 1);
+                  gpu::dispatch(pass.get(), pp->tile_count.get(), {g}, sx, sy);
+                  gpu::dispatch(pass.get(), pp->tile_block_sums.get(), {g}, bx, by);
+                  gpu::dispatch(pass.get(), pp->tile_scan_blocks.get(), {g}, 1);
+                  gpu::dispatch(pass.get(), pp->tile_block_apply.get(), {g}, bx, by);
+                  gpu::dispatch(pass.get(), pp->tile_emit.get(), {g}, sx, sy);
+                  wgpuComputePassEncoderEnd(pass.get());
+                })
+      .write(projected);
+  graph
+      .add_pass(targets.name + "-tile-sort", gpu::PassKind::Compute,
+                [pp, sp](gpu::PassContext& pc) {
+                  auto pass = pc.begin_compute_pass();
+                  encode_radix_sort(pass.get(), pp->sort, sp->tiles->sort, 16);
+                  wgpuComputePassEncoderEnd(pass.get());
+                })
+      .write(projected);
+  auto raster = graph.add_pass(
+      targets.name + "-raster", gpu::PassKind::Compute,
+      [pp, sp, targets, depth_test](gpu::PassContext& pc) {
+        gpu::Context& ctx = pc.gpu();
+        TileBuffers& t = *sp->tiles;
+        const uint32_t r = radix_sort_result(32);
+        auto layout = gpu::bind_group_layout_of(pp->tile_raster);
+        gpu::BindGroup group = gpu::create_bind_group(
+            ctx, layout.get(),
+            {gpu::bind_buffer(0, sp->frame_uniforms.get()), gpu::bind_buffer(1, t.params.get()),
+             gpu::bind_buffer(2, sp->projected.get()), gpu::bind_buffer(3, sp->sort.keys[r].get()),
+             gpu::bind_buffer(4, sp->sort.values[r].get()),
+             gpu::bind_buffer(5, t.sort.values[0].get()), gpu::bind_buffer(6, t.tile_data.get()),
+             gpu::bind_buffer(7, t.pixels.get()),
+             gpu::bind_texture(8, depth_test ? pc.view(targets.depth) : pp->no_depth_view.get())},
+            "splat-raster");
+        auto pass = pc.begin_compute_pass();
+        WGPUBindGroup g = t.binning.get();
+        const auto [tx, ty] = grid(uint64_t(t.tiles_x) * t.tiles_y, 256);
+        const auto [px, py] = grid(t.pair_capacity, 256);
+        gpu::dispatch(pass.get(), pp->tile_clear_ranges.get(), {g}, tx, ty);
+        gpu::dispatch(pass.get(), pp->tile_ranges.get(), {g}, px, py);
+        gpu::dispatch(pass.get(), pp->tile_raster.get(), {group.get()}, t.tiles_x, t.tiles_y);
+        wgpuComputePassEncoderEnd(pass.get());
+      });
+  raster.write(projected);
+  if (depth_test) raster.read(targets.depth);
+  graph
+      .add_pass(targets.name + "-composite", gpu::PassKind::Render,
+                [pp, sp, targets](gpu::PassContext& pc) {
+                  gpu::draw_fullscreen(pc, pc.view(targets.color), pp->tile_composite.get(),
+                                       {sp->tiles->composite.get()});
+                })
+      .read(projected)
+      .write(targets.color);
+}
+
+}  // namespace
+
+SplatRasterizer parse_splat_rasterizer(const std::string& name) {
+  if (name == "quads") return SplatRasterizer::Quads;
+  if (name == "tiles") return SplatRasterizer::Tiles;
+  fail("unknown splat rasterizer '{}' (quads or tiles)", name);
+}
+
+GpuSplats upload_splats(gpu::Context& ctx, const io::SplatSet& set) {
+  const size_t n = set.size();
+  if (set.scales.size() != n || set.rotations.size() != n || set.opacities.size() != n ||
+      set.sh_dc.size() != n || set.sh_rest.size() != n * set.rest_count())
+    fail("splats: the set's arrays disagree on its size ({} positions)", n);
+  if (set.sh_degree < 0 || set.sh_degree > 3)
+    fail("splats: SH degree {} (0 to 3 are drawn)", set.sh_degree);
+  GpuSplats g;
+  g.count = uint32_t(n);
+  g.sh_degree = set.sh_degree;
+  const size_t rest = set.rest_count();
+  g.sh_stride = uint32_t((rest * 3 + 1) / 2);
+  const uint64_t limit =
+      std::min<uint64_t>(ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize);
+  const uint64_t splat_bytes = uint64_t(std::max<size_t>(1, n)) * sizeof(GpuSplat);
+  const uint64_t sh_bytes = uint64_t(std::max<size_t>(1, n)) * std::max(1u, g.sh_stride) * 4;
+  if (splat_bytes > limit || sh_bytes > limit ||
+      uint64_t(std::max<size_t>(1, n)) * kProjectedBytes > limit)
+    fail(
+        "splats: {} splats of SH degree {} need {} bytes in one storage binding, over this "
+        "device's limit of {}",
+        n, set.sh_degree, std::max(splat_bytes, sh_bytes), limit);
+
+  // Positions relative to their mean (float keeps its precision near the splats), the mean
+  // through the set's transform in double.
+  glm::dvec3 mean(0.0);
+  for (const auto& p : set.positions) mean += glm::dvec3(p);
+  if (n) mean /= double(n);
+  g.linear = glm::dmat3(set.transform);
+  g.centre = g.linear * mean + glm::dvec3(set.transform[3]);
+
+  std::vector<GpuSplat> splats(std::max<size_t>(1, n), GpuSplat{});
+  std::vector<uint32_t> sh(std::max<size_t>(1, n * g.sh_stride), 0u);
+  for (size_t i = 0; i < n; ++i) {
+    GpuSplat& s = splats[i];
+    const glm::dvec3 p = glm::dvec3(set.positions[i]) - mean;
+    for (int k = 0; k < 3; ++k) {
+      s.position[k] = float(p[k]);
+      s.scale[k] = set.scales[i][k];
+    }
+    s.opacity = set.opacities[i];
+    const glm::vec4& q = set.rotations[i];
+    s.rot_xy = pack_half2(q.x, q.y);
+    s.rot_zw = pack_half2(q.z, q.w);
+    s.dc_rg = pack_half2(set.sh_dc[i].r, set.sh_dc[i].g);
+    s.dc_b = pack_half2(set.sh_dc[i].b, 0.0f);
+    // SH above degree 0 as f16, coefficient-major as in the set: half k * 3 + c.
+    const glm::vec3* coefs = set.sh_rest.data() + i * rest;
+    for (size_t h = 0; h < rest * 3; h += 2) {
+      const float a = coefs[h / 3][int(h % 3)];
+      const float b = h + 1 < rest * 3 ? coefs[(h + 1) / 3][int((h + 1) % 3)] : 0.0f;
+      sh[i * g.sh_stride + h / 2] = pack_half2(a, b);
+    }
+  }
+  g.splats = gpu::create_buffer(ctx, splat_bytes, WGPUBufferUsage_Storage, "splats", splats.data());
+  g.sh = gpu::create_buffer(ctx, uint64_t(sh.size()) * 4, WGPUBufferUsage_Storage, "splat-sh",
+                            sh.data());
+  g.projected = gpu::create_buffer(ctx, uint64_t(std::max<size_t>(1, n)) * kProjectedBytes,
+                                   WGPUBufferUsage_Storage, "splats-projected");
+  g.args = gpu::create_buffer(ctx, 16,
+                              WGPUBufferUsage_Storage | WGPUBufferUsage_Indirect |
+                                  WGPUBufferUsage_CopyDst | WGPUBufferUsage_CopySrc,
+                              "splat-draw-args");
+  g.frame_uniforms = gpu::create_buffer(
+      ctx, sizeof(FrameUniforms), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "splat-frame");
+  return g;
+}
+
+SplatPipelines create_splat_pipelines(gpu::Context& ctx, WGPUTextureFormat color_format,
+                                      WGPUTextureFormat depth_format) {
+  SplatPipelines p;
+  p.color_format = color_format;
+  p.depth_format = depth_format;
+  gpu::ShaderModule project = gpu::create_shader_from_file(ctx, "splat_project.wgsl");
+  p.project =
+      gpu::create_compute_pipeline(ctx, project.get(), "cs_project", nullptr, "splat-project");
+  gpu::ShaderModule draw = gpu::create_shader_from_file(ctx, "splat_draw.wgsl");
+  p.draw_layout = make_draw_layout(ctx);
+  p.draw_pipeline_layout = gpu::create_pipeline_layout(ctx, {p.draw_layout.get()});
+  p.draw = make_draw_pipeline(ctx, draw.get(), p.draw_pipeline_layout.get(), color_format,
+                              depth_format, true);
+  p.draw_no_depth = make_draw_pipeline(ctx, draw.get(), p.draw_pipeline_layout.get(), color_format,
+                                       depth_format, false);
+  p.sort = create_radix_sort_pipelines(ctx);
+  ctx.check("creating the splat pipelines");
+  return p;
+}
+
+void add_splat_passes(gpu::RenderGraph& graph, SplatPipelines& p, GpuSplats& s,
+                      const Camera& camera, uint32_t width, uint32_t height,
+                      const SplatPassTargets& targets) {
+  if (s.count == 0) return;
+  SplatPipelines* pp = &p;
+  GpuSplats* sp = &s;
+  auto frame = std::make_shared<FrameUniforms>(make_frame(s, camera, width, height));
+  const std::string projected = targets.name + "s-projected";
+  graph.import_buffer(projected, s.projected.get(),
+                      {uint64_t(s.count) * kProjectedBytes, WGPUBufferUsage_Storage},
+                      gpu::Access::Writable);
+
+  graph
+      .add_pass(targets.name + "-project", gpu::PassKind::Compute,
+                [pp, sp, frame](gpu::PassContext& pc) {
+                  gpu::Context& ctx = pc.gpu();
+                  if (!sp->sort.capacity)
+                    sp->sort =
+                        create_radix_sort_buffers(ctx, pp->sort, sp->count, sp->args.get(), 1);
+                  ensure_groups(ctx, *pp, *sp);
+                  gpu::write_buffer(ctx, sp->frame_uniforms.get(), 0, *frame);
+                  const uint32_t args[4] = {4, 0, 0, 0};
+                  gpu::write_buffer(ctx, sp->args.get(), 0, args, sizeof args);
+                  const uint32_t groups = (sp->count + kProjectWorkgroup - 1) / kProjectWorkgroup;
+                  const uint32_t x = std::min(groups, kMaxGroupsX);
+                  const uint32_t y = (groups + x - 1) / x;
+                  auto pass = pc.begin_compute_pass();
+                  gpu::dispatch(pass.get(), pp->project.get(), {sp->project_group.get()}, x, y);
+                  wgpuComputePassEncoderEnd(pass.get());
+                })
+      .write(projected);
+
+  graph
+      .add_pass(targets.name + "-sort", gpu::PassKind::Compute,
+                [pp, sp](gpu::PassContext& pc) {
+                  auto pass = pc.begin_compute_pass();
+                  encode_radix_sort(pass.get(), pp->sort, sp->sort, 32);
+                  wgpuComputePassEncoderEnd(pass.get());
+                })
+      .write(projected);
+
+  if (targets.rasterizer == SplatRasterizer::Tiles) {
+    graph.add_prepare([pp](gpu::Context& ctx) { ensure_tile_pipelines(ctx, *pp); });
+    add_tile_passes(graph, pp, sp, targets, projected, width, height);
+    return;
+  }
+  const bool depth_test = !targets.depth.empty();
+  auto draw = graph.add_pass(
+      targets.name + "-draw", gpu::PassKind::Render,
+      [pp, sp, targets, depth_test](gpu::PassContext& pc) {
+        WGPURenderPassColorAttachment color = WGPU_RENDER_PASS_COLOR_ATTACHMENT_INIT;
+        color.view = pc.view(targets.color);
+        color.loadOp = WGPULoadOp_Load;
+        color.storeOp = WGPUStoreOp_Store;
+        WGPURenderPassDepthStencilAttachment depth = WGPU_RENDER_PASS_DEPTH_STENCIL_ATTACHMENT_INIT;
+        WGPURenderPassDescriptor desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
+        desc.colorAttachmentCount = 1;
+        desc.colorAttachments = &color;
+        if (depth_test) {
+          depth.view = pc.view(targets.depth);
+          depth.depthReadOnly = true;
+          depth.depthLoadOp = WGPULoadOp_Undefined;
+          depth.depthStoreOp = WGPUStoreOp_Undefined;
+          desc.depthStencilAttachment = &depth;
+        }
+        auto pass = pc.begin_render_pass(desc);
+        wgpuRenderPassEncoderSetPipeline(pass.get(),
+                                         depth_test ? pp->draw.get() : pp->draw_no_depth.get());
+        gpu::set_bind_groups(pass.get(), {sp->draw_group.get()});
+        wgpuRenderPassEncoderDrawIndirect(pass.get(), sp->args.get(), 0);
+        wgpuRenderPassEncoderEnd(pass.get());
+      });
+  draw.read(projected).write(targets.color);
+  if (depth_test) draw.read(targets.depth);
+}
+
+std::map<std::string, double> draw_splats(gpu::Context& ctx, SplatPipelines& p, GpuSplats& s,
+                                          const Camera& camera, WGPUTexture color,
+                                          WGPUTextureView color_view, uint32_t width,
+                                          uint32_t height, WGPUTexture depth,
+                                          WGPUTextureView depth_view, bool timed,
+                                          SplatRasterizer rasterizer) {
+  gpu::RenderGraph graph;
+  graph.import_texture("color", color, color_view,
+                       {width, height, p.color_format, WGPUTextureUsage_RenderAttachment},
+                       gpu::Access::Writable);
+  SplatPassTargets targets;
+  targets.rasterizer = rasterizer;
+  if (depth) {
+    graph.import_texture("depth", depth, depth_view,
+                         {width, height, p.depth_format, WGPUTextureUsage_RenderAttachment},
+                         gpu::Access::ReadOnly);
+  } else {
+    targets.depth.clear();
+  }
+  add_splat_passes(graph, p, s, camera, width, height, targets);
+  graph.compile();
+  gpu::PassTimer* timer = nullptr;
+  if (timed) {
+    if (!p.timer.enabled || p.timer.capacity < graph.plan().timed_passes)
+      p.timer = gpu::create_pass_timer(ctx, graph.plan().timed_passes);
+    if (p.timer.enabled) timer = &p.timer;
+  }
+  graph.execute(ctx, p.pool, timer);
+  gpu::pool_end_frame(p.pool);
+  ctx.check("drawing splats");
+  if (!timer) return {};
+  return graph.read_pass_times(ctx, *timer);
+}
+
+uint32_t read_visible_count(gpu::Context& ctx, const GpuSplats& s) {
+  auto bytes = gpu::read_buffer(ctx, s.args.get(), 4, 4);
+  uint32_t n = 0;
+  std::memcpy(&n, bytes.data(), 4);
+  return n;
+}
+
+}  // namespace stipple::splats
