@@ -32,9 +32,9 @@ for n in "$@"; do
   if [ ! -f "$set_dir/tileset.json" ]; then
     echo "== generating and tiling $n points"
     start=$(date +%s)
-    # LAZ from 500M points: the LAS, the tiler's chunks and the tiles do not fit the disk.
+    # LAZ above 700M points: the LAS, the tiler's chunks and the tiles do not fit the 64 GB disk.
     gen=/tmp/gen.las
-    [ "$n" -ge 500000000 ] && gen=/tmp/gen.laz
+    [ "$n" -gt 700000000 ] && gen=/tmp/gen.laz
     $stipple generate -n "$n" --point-format 2 -o $gen 2>&1 | tail -1
     $stipple tile $gen -o "$set_dir" 2>&1 | tail -2
     rm -f $gen

@@ -40,6 +40,7 @@ void run_render(const RenderArgs& args) {
     j["width"] = args.width;
     j["height"] = args.height;
     j["point_size_px"] = r.point_size;
+    j["splats"] = r.splats;
     j["frames"] = args.frames;
     j["pipelined"] = args.pipelined;
     j["renderer"] = r.compute ? "compute" : "billboard";
@@ -66,8 +67,9 @@ void run_render(const RenderArgs& args) {
   const std::string drawn = stats.points_drawn > 0 && stats.points_drawn < stats.points_total
                                 ? fmt::format("{} of {}", stats.points_drawn, stats.points_total)
                                 : std::to_string(stats.points_total);
-  std::printf("rendered %s points (%s colour, %.1f px) with %s on %s to %s (%ux%u) in %.2f s\n",
-              drawn.c_str(), r.color_source.c_str(), double(r.point_size),
+  const std::string splats = r.splats > 0 ? fmt::format(" and {} splats", r.splats) : "";
+  std::printf("rendered %s points%s (%s colour, %.1f px) with %s on %s to %s (%ux%u) in %.2f s\n",
+              drawn.c_str(), splats.c_str(), r.color_source.c_str(), double(r.point_size),
               description.backend.c_str(), description.device.c_str(), args.output.c_str(),
               args.width, args.height, r.seconds);
 }
@@ -80,9 +82,11 @@ void add_render_command(CLI::App& cli) {
       cli.add_subcommand("render",
                          "Render point clouds (LAS/LAZ/COPC) headless to a PNG; with no input, the "
                          "built-in procedural scene");
-  cmd->add_option("inputs", args->scene.inputs,
-                  "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json, Potree "
-                  "metadata.json or cloud.js, or EPT ept.json path or URL")
+  cmd->add_option(
+         "inputs", args->scene.inputs,
+         "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json, Potree "
+         "metadata.json or cloud.js, or EPT ept.json path or URL; Gaussian splat files (.ply, "
+         ".splat, .spz, .ksplat, .sog) drawn with them or alone")
       ->check([](const std::string& in) {
         return io::is_url(in) ? std::string() : CLI::ExistingFile(in);
       });

@@ -101,10 +101,12 @@ void add_view_command(CLI::App& cli) {
       "Orbit: left drag rotate, right/middle drag pan, wheel zoom to the cursor. Fly (F/Tab): "
       "WASD, Q/E, shift, drag to look. Double click: focus. P screenshot, V vsync, F1 panel, "
       "Esc quit");
-  cmd->add_option("inputs", args->scene.inputs,
-                  "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json, Potree "
-                  "metadata.json or cloud.js, or EPT ept.json path or URL "
-                  "(streamed while the camera moves)")
+  cmd->add_option(
+         "inputs", args->scene.inputs,
+         "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json, Potree "
+         "metadata.json or cloud.js, or EPT ept.json path or URL "
+         "(streamed while the camera moves); Gaussian splat files (.ply, .splat, .spz, .ksplat, "
+         ".sog) drawn with them or alone")
       ->check([](const std::string& in) {
         return io::is_url(in) ? std::string() : CLI::ExistingFile(in);
       });

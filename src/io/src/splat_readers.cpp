@@ -152,10 +152,25 @@ SplatSet decode_unchecked(std::span<const uint8_t> bytes, std::string_view name,
 
 }  // namespace
 
+namespace {
+
+// SplatSet::transform leads to a Y-up frame. SPZ stores x right, y up, z back and glTF is Y up:
+// they stay as they are. The PLY family (INRIA and PlayCanvas PLY, .splat, .ksplat, SOG) stores
+// what its trainers wrote, OpenCV/COLMAP's x right, y down, z forward: half a turn about x.
+void orient_y_up(SplatSet& s) {
+  if (s.format.starts_with("SPZ") || s.format.starts_with("glTF")) return;
+  s.transform = glm::dmat4(glm::dvec4(1, 0, 0, 0), glm::dvec4(0, -1, 0, 0), glm::dvec4(0, 0, -1, 0),
+                           glm::dvec4(0, 0, 0, 1)) *
+                s.transform;
+}
+
+}  // namespace
+
 SplatSet decode_splats(std::span<const uint8_t> bytes, std::string_view name,
                        const SplatLimits& limits) {
   SplatSet s = decode_unchecked(bytes, name, limits);
   check_values(s, name);
+  orient_y_up(s);
   return s;
 }
 
@@ -172,6 +187,7 @@ SplatSet read_splats(const std::string& path_or_url, const SplatLimits& limits) 
         [&](const std::string& file) { return fetch(resolve_uri(path_or_url, file), options); },
         limits);
     check_values(s, path_or_url);
+    orient_y_up(s);
     return s;
   }
   return decode_splats(bytes, path_or_url, limits);

@@ -293,7 +293,7 @@ void PointCloudPlugin::build(Engine& engine) {
   const bool in_memory = inputs.points && inputs.files.empty();
   std::shared_ptr<const pc::PointCloud> cloud =
       in_memory ? inputs.points : std::make_shared<const pc::PointCloud>(load_inputs(inputs));
-  if (cloud->point_count == 0) {
+  if (cloud->point_count == 0 && !(in_memory && inputs.allow_empty)) {
     if (in_memory) fail("nothing to render: the points given hold none");
     std::string names;
     for (const auto& f : inputs.files) names += (names.empty() ? "" : ", ") + f.string();

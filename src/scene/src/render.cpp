@@ -164,6 +164,7 @@ RenderResult render_image(const RenderOptions& args) {
   result.image = std::move(engine.render().resource<CapturedFrame>().image);
   if (result.image.rgba.empty()) fail("no frame was drawn: nothing to return");
   result.compute = compute;
+  result.splats = plan.splat_count();
   result.renderer_reason = std::move(plan.renderer_reason);
   result.point_size = point_size;
   result.stats = engine.render().resource<RenderStats>();

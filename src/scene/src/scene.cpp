@@ -20,6 +20,7 @@
 #include "stipple/io/fetch.hpp"
 #include "stipple/io/las.hpp"
 #include "stipple/io/procedural.hpp"
+#include "stipple/io/splat_readers.hpp"
 #include "stipple/io/tileset.hpp"
 #include "stipple/math/geo.hpp"
 #include "stipple/math/sun.hpp"
@@ -27,6 +28,7 @@
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/scene.hpp"
 #include "stipple/renderer/gpu.hpp"
+#include "stipple/splats/splat_plugin.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 #include "virtual_scene.hpp"
 
@@ -222,6 +224,22 @@ ScenePlan plan_scene(const SceneOptions& options, const gpu::Context& ctx) {
   ScenePlan plan;
   plan.options = options;
   plan.renderer_auto = options.renderer == Renderer::Auto;
+  // Splat files read here and drawn beside whatever the other inputs are; alone, over an empty
+  // cloud (so the frame, its camera and the summary are those of a point scene).
+  if (!options.points) {
+    std::vector<std::string> others;
+    for (const auto& in : options.inputs) {
+      if (io::is_splat_path(in))
+        plan.splats.push_back(std::make_shared<const io::SplatSet>(io::read_splats(in)));
+      else
+        others.push_back(in);
+    }
+    if (!plan.splats.empty()) {
+      plan.options.inputs = std::move(others);
+      if (plan.options.inputs.empty())
+        plan.options.points = std::make_shared<const pc::PointCloud>();
+    }
+  }
   apply_filters(plan.options);
   plan.source = classify_scene(plan.options);
   resolve_sun(plan.options, plan.source);
@@ -278,6 +296,9 @@ Camera frame_scene(Registry& main, uint32_t width, uint32_t height, double azimu
   main.view<pc::PointCloudData>().each([&](const pc::PointCloudData& data) {
     if (data.cloud) pc::fit_cloud(fit, *data.cloud);
   });
+  main.view<splats::SplatData>().each([&](const splats::SplatData& data) {
+    if (data.set && data.set->size() > 0) fit.add_corners(splats::splat_bounds(*data.set));
+  });
   if (fit.empty()) fit_virtual_scene(fit, main);
   if (fit.empty())
     if (const auto* stream = main.try_resource<tiles3d::TilesetStream>())
@@ -300,7 +321,36 @@ Camera scene_camera(Registry& main, const std::string& text, uint32_t width, uin
   return camera;
 }
 
+uint64_t ScenePlan::splat_count() const {
+  uint64_t n = 0;
+  for (const auto& set : splats) n += set->size();
+  return n;
+}
+
+namespace {
+
+// The plugin that reads or streams the points (add_scene_plugin's first half).
+void add_scene_points_plugin(Engine& engine, const ScenePlan& plan);
+
+// Added after the scene's plugin, so the splats' passes follow the points' (splat_plugin.hpp).
+void add_splat_plugin(Engine& engine, const ScenePlan& plan) {
+  if (plan.splats.empty()) return;
+  splats::SplatPlugin plugin;
+  plugin.sets = plan.splats;
+  plugin.settings.background = plan.options.render.background;
+  engine.add_plugin(std::move(plugin));
+}
+
+}  // namespace
+
 void add_scene_plugin(Engine& engine, const ScenePlan& plan) {
+  add_scene_points_plugin(engine, plan);
+  add_splat_plugin(engine, plan);
+}
+
+namespace {
+
+void add_scene_points_plugin(Engine& engine, const ScenePlan& plan) {
   const SceneOptions& options = plan.options;
   const bool compute = options.renderer == Renderer::Compute;
   if (plan.source.streamed()) {
@@ -330,6 +380,7 @@ void add_scene_plugin(Engine& engine, const ScenePlan& plan) {
   points.inputs.scene.seed = options.seed;
   points.inputs.chunk_points = options.chunk_points;
   points.inputs.keep_extras = options.keep_extras || options.render.filter.needs_extras();
+  points.inputs.allow_empty = !plan.splats.empty();
   points.settings.render = options.render;
   points.settings.budget = options.budget;
   points.settings.compute = compute;
@@ -338,6 +389,8 @@ void add_scene_plugin(Engine& engine, const ScenePlan& plan) {
   points.settings.occlusion_beta = options.occlusion_beta;
   engine.add_plugin(std::move(points));
 }
+
+}  // namespace
 
 Camera place_camera(Engine& engine, ScenePlan& plan, const SceneView& view,
                     bool one_pixel_compute) {

@@ -30,8 +30,9 @@ struct SplatSet {
   std::vector<glm::vec3> sh_dc;      // degree-0 SH coefficient per channel
   std::vector<glm::vec3> sh_rest;    // size() * rest_count(), coefficient-major per splat
   int sh_degree = 0;                 // 0..3
-  // From the set's frame to the source's (a glTF node's matrix, a tile's transform); identity
-  // for plain splat files.
+  // From the set's frame to the source's, which is Y up (glTF's axes): a glTF node's matrix, a
+  // tile's transform; for the PLY family (INRIA and PlayCanvas PLY, .splat, .ksplat, SOG), whose
+  // trainers write y down and z forward, half a turn about x; identity for SPZ (y up, z back).
   glm::dmat4 transform{1.0};
   std::string format;  // what the reader read, e.g. "INRIA PLY", "SPZ v4"
 

@@ -35,6 +35,9 @@ struct PointCloudInputs {
   size_t chunk_points = 1 << 20;  // smaller chunks make the point budget finer
   bool progress = true;
   bool keep_extras = false;  // PointChunk::extras, for GPS-time and point-source filters
+  // Points in memory may hold none: the frame draws other content (Gaussian splats) over an
+  // empty cloud; otherwise an empty input is an error.
+  bool allow_empty = false;
 };
 
 // Main-world component: the loaded points, shared with the render world (never modified; a

@@ -36,6 +36,7 @@ struct RenderResult {
   std::string renderer_reason;
   std::string color_source;  // the colour mode shown ("rgb", "elevation"...)
   float point_size = 0;      // pixels
+  uint64_t splats = 0;       // Gaussian splats drawn beside the points (splat files among inputs)
   gpu::AdapterDescription adapter;
   RenderStats stats;  // every frame's pass times
   uint64_t transient_textures_created = 0, transient_buffers_created = 0;

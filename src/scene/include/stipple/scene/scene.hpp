@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "stipple/io/source.hpp"
+#include "stipple/io/splats.hpp"
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
@@ -105,6 +106,12 @@ struct ScenePlan {
   bool renderer_auto = false;   // the renderer was chosen here (--renderer auto)
   // The compute rasterizer draws it (resolved, or the virtualized path, which draws with it).
   bool compute() const { return options.renderer == Renderer::Compute || source.virtualized; }
+  // Gaussian splat files among the inputs (io::is_splat_path), read whole by plan_scene and
+  // taken out of options.inputs: splats::SplatPlugin draws them in the points' frame, depth-
+  // tested against the points; splats alone draw over an empty cloud. Their coordinates are
+  // the world's as the files store them (no CRS).
+  std::vector<std::shared_ptr<const io::SplatSet>> splats;
+  uint64_t splat_count() const;
 };
 
 // The longitude, latitude and height (degrees, WGS 84) of the centre of the scene's data, from
