@@ -9,6 +9,7 @@
 #include "webgpu_web.hpp"
 
 #include <emscripten.h>
+#include <cmath>
 
 #include <cstdlib>
 #include <cstring>
@@ -944,7 +945,9 @@ WGPURenderPassEncoder CommandEncoderBeginRenderPass(WGPUCommandEncoder encoder,
     depth.depthStoreOp = em::to_em(s.depthStoreOp);
     if (s.depthLoadOp == WGPULoadOp_Undefined) depth.depthLoadOp = em::WGPULoadOp_Undefined;
     if (s.depthStoreOp == WGPUStoreOp_Undefined) depth.depthStoreOp = em::WGPUStoreOp_Undefined;
-    depth.depthClearValue = s.depthClearValue;
+    // webgpu.h's "undefined" clear value is NaN, which browsers reject as a non-finite float
+    // even where the value is unused (a read-only depth that is loaded, not cleared).
+    depth.depthClearValue = std::isnan(s.depthClearValue) ? 0.0f : s.depthClearValue;
     depth.depthReadOnly = s.depthReadOnly;
     depth.stencilLoadOp = s.stencilLoadOp == WGPULoadOp_Undefined ? em::WGPULoadOp_Undefined
                                                                   : em::to_em(s.stencilLoadOp);

@@ -236,8 +236,20 @@ ScenePlan plan_scene(const SceneOptions& options, const gpu::Context& ctx) {
     }
     if (!plan.splats.empty()) {
       plan.options.inputs = std::move(others);
-      if (plan.options.inputs.empty())
-        plan.options.points = std::make_shared<const pc::PointCloud>();
+      if (plan.options.inputs.empty()) {
+        // An empty cloud with the splats' bounds, so that what reads the scene's bounds (near
+        // and far planes, the page's report) sees the splats, not an empty box.
+        auto empty = std::make_shared<pc::PointCloud>();
+        for (const auto& set : plan.splats) {
+          if (set->size() == 0) continue;
+          const Aabb b = splats::splat_bounds(*set);
+          empty->world_bounds.extend(b);
+          for (int c = 0; c < 8; ++c)
+            empty->source_bounds.extend(y_up_to_z_up(
+                {c & 1 ? b.max.x : b.min.x, c & 2 ? b.max.y : b.min.y, c & 4 ? b.max.z : b.min.z}));
+        }
+        plan.options.points = std::move(empty);
+      }
     }
   }
   apply_filters(plan.options);
