@@ -26,6 +26,7 @@ def test_read_splats_arrays():
     np.testing.assert_allclose(s["scales"][5, 0], np.exp(-1.7474055), rtol=1e-5)
     q = np.array([0.29227456, 0.31505269, 0.57389545, 0.94085699])
     np.testing.assert_allclose(s["rotations"][5], q / np.linalg.norm(q), rtol=1e-5)
-    assert np.allclose(s["transform"], np.eye(4))
+    # A PLY's frame (y down, z forward) turned half a turn about x into the Y-up frame.
+    assert np.allclose(s["transform"], np.diag([1.0, -1.0, -1.0, 1.0]))
     with pytest.raises(stipple.Error):
         stipple.read(ply, fields=["x"])

@@ -65,7 +65,7 @@ SunTime parse_sun_time(const std::string& text) {
     fail("--sun-time '{}': expected YYYY-MM-DDTHH:MM[:SS] with an optional Z or +HH:MM", text);
   };
   size_t p = 0;
-  int y, mo, d, h, mi, s = 0;
+  int y = 0, mo = 0, d = 0, h = 0, mi = 0, s = 0;
   if (!digits(text, p, 4, y) || p >= text.size() || text[p++] != '-' || !digits(text, p, 2, mo) ||
       p >= text.size() || text[p++] != '-' || !digits(text, p, 2, d))
     bad();
