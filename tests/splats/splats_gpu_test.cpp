@@ -331,7 +331,9 @@ enum class PointPath { Naive, Blend, Compute };
 class SplatsWithPoints : public ::testing::TestWithParam<std::tuple<std::string, PointPath>> {};
 
 TEST_P(SplatsWithPoints, OccludeEachOther) {
-  const auto [backend, path] = GetParam();
+  // Not a structured binding: the lambdas below capture it (clang 14 cannot capture those).
+  const auto backend = std::get<0>(GetParam());
+  const auto path = std::get<1>(GetParam());
   gpu::ContextOptions options;
   options.backend = backend;
   auto ctx = gpu::create_context(options);
