@@ -372,10 +372,11 @@ inline PotreeWriteResult write_potree_attributes(
                 {"numElements", n},   {"elementSize", a_size}, {"type", type},
                 {"min", range.first}, {"max", range.second}};
   };
-  json meta_attributes = {
-      attr("position", 3, 4, "int32", ranges(3, [](const PotreePoint& p, int k) {
-             return k == 0 ? p.x : k == 1 ? p.y : p.z;
-           }))};
+  // json::array: a braced list of one object is that object under clang, an array under gcc.
+  json meta_attributes =
+      json::array({attr("position", 3, 4, "int32", ranges(3, [](const PotreePoint& p, int k) {
+                          return k == 0 ? p.x : k == 1 ? p.y : p.z;
+                        }))});
   for (const auto& a : attributes)
     meta_attributes.push_back(
         attr(a.name, a.elements, a.element_size, a.type, ranges(a.elements, a.value)));
