@@ -18,6 +18,7 @@
 //   node bench/web_frames.mjs --tileset DIR                an existing tileset folder
 //   options: --sizes 320x240,1280x720  --frames 20  --max-sse 1  --work /tmp/stipple-web-frames
 //            --timeout-s 1800 (a page's limit)  --skip-native
+//            --renderer auto|billboard|compute  both sides (the page's ?renderer=)
 //            --before DIR  another build of the page (a folder like build-web), measured in the
 //                          same run, before this one at each size (a before/after comparison)
 // STIPPLE_BINARY (default build/stipple) and STIPPLE_WEB_DIR (default build-web) as for the tests.
@@ -38,6 +39,7 @@ const { values: o } = parseArgs({
     'timeout-s': { type: 'string', default: '1800' },
     'skip-native': { type: 'boolean', default: false },
     before: { type: 'string' },
+    renderer: { type: 'string' },
   },
 });
 const webDir = process.env.STIPPLE_WEB_DIR || path.join(h.sourceDir, 'build-web');
@@ -91,7 +93,7 @@ try {
     if (!o['skip-native']) {
       const out = h.stipple(['render', path.join(tileset, 'tileset.json'), '-o', ref, '--width',
                              width, '--height', height, '--frames', o.frames, '--max-sse',
-                             o['max-sse']]);
+                             o['max-sse'], ...(o.renderer ? ['--renderer', o.renderer] : [])]);
       const m = out.match(/frames: GPU ([\d.]+) ms, wall ([\d.]+) ms per frame/);
       if (m) Object.assign(native, { gpu: m[1], wall: m[2] });
       native.points = (out.match(/rendered (\d+) points/) || [])[1] || '?';
@@ -104,7 +106,8 @@ try {
       page.on('console', (m) => log.push(`page ${m.type()}: ${m.text()}`));
       const t0 = Date.now();
       await page.goto(server.url(`${dir}/stipple.html?url=/tiles/tileset.json&width=${width}` +
-                                 `&height=${height}&frames=${o.frames}&max-sse=${o['max-sse']}`));
+                                 `&height=${height}&frames=${o.frames}&max-sse=${o['max-sse']}` +
+                                 (o.renderer ? `&renderer=${o.renderer}` : '')));
       await page.waitForFunction(() => window.stipple && (window.stipple.done || window.stipple.error),
                                  { timeout: Number(o['timeout-s']) * 1000, polling: 1000 });
       const wallMs = Date.now() - t0;
