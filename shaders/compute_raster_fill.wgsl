@@ -179,6 +179,19 @@ fn dilate_source_depth(id: vec3<u32>) -> u32 {
   return depth_buffer[pixel * fp.depth_stride + fp.depth_word];
 }
 
+// The pixel that the drawn pixel at `id` covers at the scan offset (dx, dy) (this one less the
+// offset), or -1 where that is outside the disc or the image: both scatter passes walk the same
+// disc.
+fn dilate_covered(id: vec3<u32>, dx: i32, dy: i32) -> i32 {
+  let x = i32(id.x) - dx;
+  let y = i32(id.y) - dy;
+  if (f32(dx * dx + dy * dy) > fp.radius2 || x < 0 || y < 0 || x >= i32(fp.width) ||
+      y >= i32(fp.height)) {
+    return -1;
+  }
+  return y * i32(fp.width) + x;
+}
+
 @compute @workgroup_size(16, 16)
 fn dilate_depth_main(@builtin(global_invocation_id) id: vec3<u32>) {
   let d = dilate_source_depth(id);
@@ -188,14 +201,10 @@ fn dilate_depth_main(@builtin(global_invocation_id) id: vec3<u32>) {
   let r = i32(fp.radius);
   for (var dy = -r; dy <= r; dy++) {
     for (var dx = -r; dx <= r; dx++) {
-      // The covered pixel is this one less the offset (dx, dy) of dilate_main's scan.
-      let x = i32(id.x) - dx;
-      let y = i32(id.y) - dy;
-      if (f32(dx * dx + dy * dy) > fp.radius2 || x < 0 || y < 0 || x >= i32(fp.width) ||
-          y >= i32(fp.height)) {
-        continue;
+      let covered = dilate_covered(id, dx, dy);
+      if (covered >= 0) {
+        atomicMax(&dilate_winner[2u * u32(covered)], ~d);
       }
-      atomicMax(&dilate_winner[2u * (u32(y) * fp.width + u32(x))], ~d);
     }
   }
 }
@@ -209,15 +218,9 @@ fn dilate_offset_main(@builtin(global_invocation_id) id: vec3<u32>) {
   let r = i32(fp.radius);
   for (var dy = -r; dy <= r; dy++) {
     for (var dx = -r; dx <= r; dx++) {
-      let x = i32(id.x) - dx;
-      let y = i32(id.y) - dy;
-      if (f32(dx * dx + dy * dy) > fp.radius2 || x < 0 || y < 0 || x >= i32(fp.width) ||
-          y >= i32(fp.height)) {
-        continue;
-      }
-      let covered = u32(y) * fp.width + u32(x);
-      if (atomicLoad(&dilate_winner[2u * covered]) == ~d) {
-        atomicMax(&dilate_winner[2u * covered + 1u], ~dilate_offset_code(dx, dy, r));
+      let covered = dilate_covered(id, dx, dy);
+      if (covered >= 0 && atomicLoad(&dilate_winner[2u * u32(covered)]) == ~d) {
+        atomicMax(&dilate_winner[2u * u32(covered) + 1u], ~dilate_offset_code(dx, dy, r));
       }
     }
   }
