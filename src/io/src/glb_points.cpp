@@ -11,6 +11,7 @@
 #include <glm/mat4x4.hpp>
 #include <nlohmann/json.hpp>
 
+#include "gltf_nodes.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/math/color.hpp"
 
@@ -282,41 +283,6 @@ struct Gltf {
   }
 };
 
-glm::dmat4 node_matrix(const json& node, const std::string& name) {
-  auto numbers = [&](const char* key, size_t n) {
-    std::vector<double> v;
-    const json& a = node[key];
-    if (!a.is_array() || a.size() != n) fail("{}: node {} does not hold {} numbers", name, key, n);
-    for (const auto& x : a) {
-      if (!x.is_number()) fail("{}: node {} holds a non-number", name, key);
-      v.push_back(x.get<double>());
-    }
-    return v;
-  };
-  glm::dmat4 m(1.0);
-  if (node.contains("matrix")) {
-    auto v = numbers("matrix", 16);
-    for (int c = 0; c < 4; ++c)
-      for (int r = 0; r < 4; ++r) m[c][r] = v[c * 4 + r];
-    return m;
-  }
-  if (node.contains("translation")) {
-    auto t = numbers("translation", 3);
-    m[3] = glm::dvec4(t[0], t[1], t[2], 1.0);
-  }
-  if (node.contains("rotation")) {
-    auto q = numbers("rotation", 4);  // glTF order x, y, z, w
-    m = m * glm::dmat4(glm::mat4_cast(glm::normalize(glm::dquat(q[3], q[0], q[1], q[2]))));
-  }
-  if (node.contains("scale")) {
-    auto s = numbers("scale", 3);
-    m[0] *= s[0];
-    m[1] *= s[1];
-    m[2] *= s[2];
-  }
-  return m;
-}
-
 }  // namespace
 
 // JSON accessors throw nlohmann exceptions on a wrong type; the public entry point below turns
@@ -428,29 +394,9 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
     }
   }
 
-  const json nodes = j.value("nodes", json::array());
   const json meshes = j.value("meshes", json::array());
   const json materials = j.value("materials", json::array());
   const size_t accessor_count = j.value("accessors", json::array()).size();
-  // Roots: the scene's nodes, else every node that is nobody's child.
-  std::vector<size_t> roots;
-  const json scenes = j.value("scenes", json::array());
-  if (scenes.is_array() && !scenes.empty()) {
-    size_t s = j.contains("scene") ? index_of(j, "scene", scenes.size(), name, "glTF") : 0;
-    for (const auto& n : scenes[s].value("nodes", json::array())) {
-      if (!n.is_number_integer() || n.get<int64_t>() < 0 || n.get<uint64_t>() >= nodes.size())
-        fail("{}: scene node index out of range", name);
-      roots.push_back(n.get<size_t>());
-    }
-  } else {
-    std::vector<bool> is_child(nodes.size());
-    for (const auto& n : nodes)
-      for (const auto& ch : n.value("children", json::array()))
-        if (ch.is_number_integer() && ch.get<int64_t>() >= 0 && ch.get<uint64_t>() < nodes.size())
-          is_child[ch.get<size_t>()] = true;
-    for (size_t i = 0; i < nodes.size(); ++i)
-      if (!is_child[i]) roots.push_back(i);
-  }
 
   std::vector<glm::dvec3> points;
   std::vector<uint32_t> rgba;
@@ -460,30 +406,9 @@ static PointContent decode_glb_points_unchecked(std::span<const uint8_t> data,
   std::map<std::string, size_t> skipped;  // primitives that are not points, by mode
   const glm::dmat4 y_up_to_z_up(1, 0, 0, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 0, 0, 1);
 
-  struct Item {
-    size_t node;
-    glm::dmat4 parent;
-    int depth;
-  };
-  std::vector<Item> stack;
-  for (size_t r : roots) stack.push_back({r, glm::dmat4(1.0), 0});
-  size_t visits = 0;
-  while (!stack.empty()) {
-    Item item = stack.back();
-    stack.pop_back();
-    // A node graph with cycles (invalid glTF) must not loop forever.
-    if (item.depth > 64 || ++visits > nodes.size() * 4 + 16)
-      fail("{}: node hierarchy is cyclic or too deep", name);
-    const json& node = nodes[item.node];
-    if (!node.is_object()) fail("{}: node {} is not an object", name, item.node);
-    glm::dmat4 m = item.parent * node_matrix(node, name);
-    for (const auto& ch : node.value("children", json::array())) {
-      if (!ch.is_number_integer() || ch.get<int64_t>() < 0 || ch.get<uint64_t>() >= nodes.size())
-        fail("{}: node {} has a child index out of range", name, item.node);
-      stack.push_back({ch.get<size_t>(), m, item.depth + 1});
-    }
-    if (!node.contains("mesh")) continue;
-    const json& mesh = meshes[index_of(node, "mesh", meshes.size(), name, "node")];
+  for (const gltf_nodes::MeshNode& mn : gltf_nodes::mesh_nodes(j, name)) {
+    const glm::dmat4& m = mn.world;
+    const json& mesh = meshes[mn.mesh];
     glm::dmat4 to_tile = y_up_to_z_up * m;
     glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(to_tile)));
     for (const auto& prim : mesh.value("primitives", json::array())) {

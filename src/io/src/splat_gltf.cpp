@@ -10,6 +10,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <nlohmann/json.hpp>
 
+#include "gltf_nodes.hpp"
 #include "splat_detail.hpp"
 
 namespace stipple::io {
@@ -115,41 +116,6 @@ struct Glb {
     return out;
   }
 };
-
-glm::dmat4 node_matrix(const json& node, std::string_view name) {
-  auto numbers = [&](const char* key, size_t n) {
-    const json& a = node[key];
-    if (!a.is_array() || a.size() != n) fail("{}: node {} does not hold {} numbers", name, key, n);
-    std::vector<double> v;
-    for (const auto& x : a) {
-      if (!x.is_number()) fail("{}: node {} holds a non-number", name, key);
-      v.push_back(x.get<double>());
-    }
-    return v;
-  };
-  glm::dmat4 m(1.0);
-  if (node.contains("matrix")) {
-    auto v = numbers("matrix", 16);
-    for (int c = 0; c < 4; ++c)
-      for (int r = 0; r < 4; ++r) m[c][r] = v[size_t(c * 4 + r)];
-    return m;
-  }
-  if (node.contains("translation")) {
-    auto t = numbers("translation", 3);
-    m[3] = glm::dvec4(t[0], t[1], t[2], 1.0);
-  }
-  if (node.contains("rotation")) {
-    auto q = numbers("rotation", 4);
-    m = m * glm::dmat4(glm::mat4_cast(glm::normalize(glm::dquat(q[3], q[0], q[1], q[2]))));
-  }
-  if (node.contains("scale")) {
-    auto s = numbers("scale", 3);
-    m[0] *= s[0];
-    m[1] *= s[1];
-    m[2] *= s[2];
-  }
-  return m;
-}
 
 // The attribute named `suffix` under the current or the older naming.
 const json* splat_attribute(const json& attrs, const std::string& suffix) {
@@ -345,46 +311,13 @@ SplatSet decode_glb_unchecked(std::span<const uint8_t> data, std::string_view na
     rtc = {c[0].get<double>(), c[1].get<double>(), c[2].get<double>()};
   }
 
-  const json nodes = j.value("nodes", json::array());
   const json meshes = j.value("meshes", json::array());
-  std::vector<size_t> roots;
-  const json scenes = j.value("scenes", json::array());
-  if (scenes.is_array() && !scenes.empty()) {
-    const size_t s = j.contains("scene") ? g.index(j, "scene", scenes.size(), "glTF") : 0;
-    for (const auto& r : scenes[s].value("nodes", json::array())) {
-      if (!r.is_number_unsigned() || r.get<uint64_t>() >= nodes.size())
-        fail("{}: scene node index out of range", name);
-      roots.push_back(r.get<size_t>());
-    }
-  } else {
-    for (size_t i = 0; i < nodes.size(); ++i) roots.push_back(i);
-  }
   SplatSet all;
   all.format = "glTF KHR_gaussian_splatting";
   bool have_matrix = false, compressed = false;
-  struct Item {
-    size_t node;
-    glm::dmat4 parent;
-    int depth;
-  };
-  std::vector<Item> stack;
-  for (size_t r : roots) stack.push_back({r, glm::dmat4(1.0), 0});
-  size_t visits = 0;
-  while (!stack.empty()) {
-    Item item = stack.back();
-    stack.pop_back();
-    if (item.depth > 64 || ++visits > nodes.size() * 4 + 16)
-      fail("{}: node hierarchy is cyclic or too deep", name);
-    const json& node = nodes[item.node];
-    if (!node.is_object()) fail("{}: node {} is not an object", name, item.node);
-    const glm::dmat4 m = item.parent * node_matrix(node, name);
-    for (const auto& ch : node.value("children", json::array())) {
-      if (!ch.is_number_unsigned() || ch.get<uint64_t>() >= nodes.size())
-        fail("{}: node {} has a child index out of range", name, item.node);
-      stack.push_back({ch.get<size_t>(), m, item.depth + 1});
-    }
-    if (!node.contains("mesh")) continue;
-    const json& mesh = meshes[g.index(node, "mesh", meshes.size(), "node")];
+  for (const gltf_nodes::MeshNode& mn : gltf_nodes::mesh_nodes(j, name)) {
+    const glm::dmat4& m = mn.world;
+    const json& mesh = meshes[mn.mesh];
     if (!mesh.is_object()) fail("{}: mesh is not an object", name);
     for (const auto& prim : mesh.value("primitives", json::array())) {
       if (!prim.is_object() || prim.value("mode", int64_t(4)) != 0) continue;
