@@ -131,8 +131,10 @@ std::vector<uint8_t> write_splat_glb(const io::SplatSet& in, SplatCompression co
   json primitive = {{"attributes", attributes},
                     {"mode", 0},
                     {"extensions", {{"KHR_gaussian_splatting", splatting}}}};
-  json node = {{"mesh", 0}};
-  if (centre != glm::dvec3(0)) node["translation"] = {centre.x, centre.y, centre.z};
+  // A matrix, not a translation: CesiumJS 1.145 takes a splat tile's transform from the first
+  // node's matrix only (GaussianSplat3DTileContent), and fails to render without one.
+  json node = {{"mesh", 0},
+               {"matrix", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, centre.x, centre.y, centre.z, 1}}};
   json gltf = {{"asset", {{"version", "2.0"}, {"generator", "stipple tile"}}},
                {"scene", 0},
                {"scenes", json::array({{{"nodes", {0}}}})},
