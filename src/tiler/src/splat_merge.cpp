@@ -128,6 +128,39 @@ void merge_group(const io::SplatSet& in, const uint32_t* members, size_t count, 
   for (size_t k = 0; k < rc; ++k) out.sh_rest[o * rc + k] = glm::vec3(rest[k] / total);
 }
 
+io::SplatSet morton_sorted(const io::SplatSet& in) {
+  const size_t n = in.size(), rc = in.rest_count();
+  glm::vec3 lo(1e30f), hi(-1e30f);
+  for (const glm::vec3& p : in.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+  const glm::vec3 scale = 1023.0f / glm::max(hi - lo, glm::vec3(1e-12f));
+  std::vector<std::pair<uint32_t, uint32_t>> keyed(n);
+  for (size_t i = 0; i < n; ++i) {
+    const glm::uvec3 c = glm::uvec3(glm::clamp((in.positions[i] - lo) * scale, 0.0f, 1023.0f));
+    keyed[i] = {spread3(c.x) | spread3(c.y) << 1 | spread3(c.z) << 2, uint32_t(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  io::SplatSet out;
+  out.sh_degree = in.sh_degree;
+  out.transform = in.transform;
+  out.format = in.format;
+  out.positions.resize(n);
+  out.scales.resize(n);
+  out.rotations.resize(n);
+  out.opacities.resize(n);
+  out.sh_dc.resize(n);
+  out.sh_rest.resize(n * rc);
+  for (size_t o = 0; o < n; ++o) {
+    const size_t i = keyed[o].second;
+    out.positions[o] = in.positions[i];
+    out.scales[o] = in.scales[i];
+    out.rotations[o] = in.rotations[i];
+    out.opacities[o] = in.opacities[i];
+    out.sh_dc[o] = in.sh_dc[i];
+    for (size_t k = 0; k < rc; ++k) out.sh_rest[o * rc + k] = in.sh_rest[i * rc + k];
+  }
+  return out;
+}
+
 MergeResult merge_splats(const io::SplatSet& in, const glm::dvec3& cube_min, double cube_size,
                          size_t target) {
   MergeResult result;

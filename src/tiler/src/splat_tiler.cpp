@@ -190,7 +190,7 @@ Box extent_of(const io::SplatSet& s) {
 }
 
 void write_tile(SplatBuild& b, const Key& k, const io::SplatSet& s, bool leaf, double error) {
-  const std::vector<uint8_t> glb = write_splat_glb(s, b.opt.compression);
+  const std::vector<uint8_t> glb = write_splat_glb(morton_sorted(s), b.opt.compression);
   write_file(b.dir / "tiles" / (k.name() + ".glb"), glb.data(), glb.size());
   b.bytes += glb.size();
   (leaf ? b.leaf_splats : b.merged_splats) += s.size();

@@ -42,4 +42,9 @@ struct MergeResult {
 MergeResult merge_splats(const io::SplatSet& in, const glm::dvec3& cube_min, double cube_size,
                          size_t target);
 
+// The splats reordered along a Morton curve over their bounds (10 bits an axis): neighbours in
+// the arrays are neighbours in space, so that gzip (SPZ) finds the repeated high bytes of
+// nearby positions and similar colours and scales.
+io::SplatSet morton_sorted(const io::SplatSet& in);
+
 }  // namespace stipple::tiler

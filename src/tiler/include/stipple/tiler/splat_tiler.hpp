@@ -4,7 +4,7 @@
 // level of detail: an octree over the splats' bounding cube whose leaves hold the input splats
 // exactly (each splat in one leaf, at most `max_leaf_splats` a leaf) and whose inner nodes hold
 // moment-matched merges of their children's splats (splat_merge.hpp), about 1/merge_ratio of
-// them, with REPLACE refinement and the merge's cell size as geometric error.
+// them (merge_ratio), with REPLACE refinement and the merge's cell size as geometric error.
 //
 // Out of core after reading: each input is decoded whole (the readers decode whole files), its
 // splats appended as records to a staging file and released; the staging file is counted on a
@@ -30,7 +30,9 @@ struct SplatTileOptions {
   std::string output;
   SplatCompression compression = SplatCompression::Spz;
   size_t max_leaf_splats = 65536;
-  double merge_ratio = 12;  // an inner node holds about 1/merge_ratio of its children's splats
+  // An inner node holds about 1/merge_ratio of its children's splats: the levels above the leaves
+  // add about 1/(merge_ratio - 1) to the output (the size goal is 1.1x the SPZ of the input).
+  double merge_ratio = 16;
   uint64_t max_memory = 2ull << 30;
   unsigned threads = 0;  // 0: every core
   bool force = false;
