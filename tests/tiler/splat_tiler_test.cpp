@@ -590,3 +590,32 @@ TEST(SplatTiler, GenerateWritesTheSameSplatsAsPlyAndSpz) {
   // SPZ's fixed point over a scene of a few hundred metres: 10 fractional bits.
   EXPECT_LT(worst, 2e-3);
 }
+
+TEST(SplatTiler, ReadSplatsOnTheTilesetReadsACutUnderABudget) {
+  const io::SplatSet want = random_splats(5000, 1, 71);
+  const Tiled t = tile_ply("cut", want, tiler::SplatCompression::Spz, 400, 0);
+  const std::string path = (t.dir / "tileset.json").string();
+  EXPECT_TRUE(io::is_splat_path(path));
+  // A budget above the input: every leaf, i.e. the input (in the PLY's frame: the root
+  // transform is the half turn about x, seen from Y-up the same half turn).
+  io::SplatLimits all;
+  all.tileset_splats = 1'000'000;
+  const io::SplatSet full = io::read_splats(path, all);
+  const io::SplatSet read = io::read_splats((t.dir.parent_path() / "in.ply").string());
+  EXPECT_EQ(full.transform, read.transform);
+  expect_same_splats(read, full, Tolerance{});
+  // A small budget: a cut of merged tiles, within it, no splat counted twice.
+  io::SplatLimits small;
+  small.tileset_splats = 2000;
+  const io::SplatSet cut = io::read_splats(path, small);
+  EXPECT_LE(cut.size(), 2000u);
+  EXPECT_GT(cut.size(), t.stats.merged_splats / 8);
+  // Just the root with a budget below its children.
+  small.tileset_splats = 1;
+  const io::SplatSet root = io::read_splats(path, small);
+  EXPECT_EQ(root.size(), read_tile(t.dir / t.tiles.front().uri).size());
+  // A point tileset is not a splat file.
+  const fs::path points = t.dir.parent_path() / "points.json";
+  std::ofstream(points) << R"({"asset": {"version": "1.1"}, "root": {"geometricError": 0}})";
+  EXPECT_FALSE(io::is_splat_path(points.string()));
+}
