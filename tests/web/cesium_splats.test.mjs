@@ -46,6 +46,7 @@ before(async () => {
   if (skip) return;
   const www = path.join(work, 'www');
   fs.mkdirSync(path.join(www, 'tiles'), { recursive: true });
+  // CESIUM_BUILD=CesiumUnminified gives readable stacks when CesiumJS throws.
   fs.symlinkSync(path.join(h.nodePrefix, 'node_modules/cesium/Build/' + (process.env.CESIUM_BUILD || 'Cesium')), path.join(www, 'cesium'));
   fs.copyFileSync(path.join(h.sourceDir, 'tests/web/cesium.html'), path.join(www, 'index.html'));
   const ply = path.join(work, 'splats.ply');
