@@ -13,9 +13,11 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <sstream>
 #include <thread>
 
 #include <fmt/format.h>
@@ -275,35 +277,110 @@ fs::path begin_output(SplatBuild& b) {
   return out;
 }
 
+// An INRIA PLY on disk read in blocks of `block` splats, each decoded by the PLY reader (the
+// header with the block's count, then the block's records), so that a large trained scene never
+// sits in memory whole. Returns false, having read nothing, for anything else (URLs, other
+// layouts: PlayCanvas's compressed PLY, ASCII, several elements, list properties).
+bool stream_inria_ply(const std::string& path, size_t block,
+                      const std::function<void(io::SplatSet&&)>& sink) {
+  if (!fs::is_regular_file(path)) return false;
+  std::ifstream in(path, std::ios::binary);
+  std::string head(65536, '\0');
+  in.read(head.data(), std::streamsize(head.size()));
+  head.resize(size_t(in.gcount()));
+  if (!head.starts_with("ply")) return false;
+  const size_t end = head.find("end_header\n");
+  if (end == std::string::npos) return false;
+  const std::string header = head.substr(0, end + 11);
+  std::istringstream lines(header);
+  std::string line, before, after;
+  uint64_t count = 0;
+  size_t stride = 0, elements = 0;
+  bool binary = false, inria = false, counted = false;
+  while (std::getline(lines, line)) {
+    if (!line.empty() && line.back() == '\r') return false;  // keep to the plain layout
+    std::istringstream words(line);
+    std::string w0, w1, w2;
+    words >> w0 >> w1 >> w2;
+    if (w0 == "format") binary = w1 == "binary_little_endian";
+    if (w0 == "element") {
+      if (++elements > 1 || w1 != "vertex") return false;
+      try {
+        count = std::stoull(w2);
+      } catch (const std::exception&) {
+        return false;
+      }
+      counted = true;
+      continue;
+    }
+    if (w0 == "property") {
+      static const std::map<std::string, size_t> sizes = {
+          {"char", 1},  {"uchar", 1},   {"int8", 1},   {"uint8", 1},  {"short", 2}, {"ushort", 2},
+          {"int16", 2}, {"uint16", 2},  {"int", 4},    {"uint", 4},   {"int32", 4}, {"uint32", 4},
+          {"float", 4}, {"float32", 4}, {"double", 8}, {"float64", 8}};
+      const auto it = sizes.find(w1);
+      if (it == sizes.end()) return false;  // a list, or a type this path does not know
+      stride += it->second;
+      inria = inria || w2 == "f_dc_0";
+    }
+    (counted ? after : before) += line + "\n";
+  }
+  if (!binary || !inria || !counted || stride == 0) return false;
+  // `before` ends before the element line, `after` holds the properties and end_header.
+  in.clear();
+  in.seekg(std::streamoff(header.size()));
+  std::vector<char> bytes;
+  for (uint64_t first = 0; first < count; first += block) {
+    const size_t n = size_t(std::min<uint64_t>(block, count - first));
+    const std::string h = before + fmt::format("element vertex {}\n", n) + after;
+    bytes.assign(h.begin(), h.end());
+    bytes.resize(h.size() + n * stride);
+    in.read(bytes.data() + h.size(), std::streamsize(n * stride));
+    if (size_t(in.gcount()) != n * stride)
+      fail("{}: PLY element vertex ({} records of {} bytes) runs past the end of the file", path,
+           count, stride);
+    sink(io::decode_splats(std::span(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()),
+                           path));
+  }
+  return true;
+}
+
 // Every input decoded in turn, appended to the staging file; returns its bounds (centres).
 Box stage_inputs(SplatBuild& b, const fs::path& staged) {
   Box box;
   bool first = true;
+  // INRIA PLY files are read in blocks of about a sixteenth of the budget (their records and the
+  // decoded set); other formats whole.
+  const size_t block = size_t(std::max<uint64_t>(b.opt.max_memory / 16 / 512, 4096));
   for (const std::string& path : b.opt.inputs) {
-    io::SplatSet s = io::read_splats(path);
-    if (first) {
-      b.lay = Layout(s.sh_degree);
-      b.transform = s.transform;
-      b.format = s.format;
-      first = false;
-    } else {
-      if (s.sh_degree != b.lay.degree)
-        fail("{}: SH degree {} differs from the first input's {}; tile them separately", path,
-             s.sh_degree, b.lay.degree);
-      if (s.transform != b.transform)
-        fail("{}: its frame ({}) differs from the first input's; tile them separately", path,
-             s.format);
-    }
-    STIPPLE_INFO("tile: {}: {} splats, SH degree {}, {}", path, s.size(), s.sh_degree, s.format);
-    for (const glm::vec3& p : s.positions) box.add(glm::dvec3(p));
-    const size_t block = 65536;
-    std::vector<float> recs(block * b.lay.stride);
-    for (size_t at = 0; at < s.size(); at += block) {
-      const size_t e = std::min(s.size(), at + block);
-      to_records(s, at, e, b.lay, recs.data());
-      append_file(staged, recs.data(), (e - at) * b.lay.stride * 4);
-    }
-    b.total += s.size();
+    uint64_t before = b.total;
+    auto stage = [&](io::SplatSet&& s) {
+      if (first) {
+        b.lay = Layout(s.sh_degree);
+        b.transform = s.transform;
+        b.format = s.format;
+        first = false;
+      } else {
+        if (s.sh_degree != b.lay.degree)
+          fail("{}: SH degree {} differs from the first input's {}; tile them separately", path,
+               s.sh_degree, b.lay.degree);
+        if (s.transform != b.transform)
+          fail("{}: its frame ({}) differs from the first input's; tile them separately", path,
+               s.format);
+      }
+      for (const glm::vec3& p : s.positions) box.add(glm::dvec3(p));
+      const size_t records = 65536;
+      std::vector<float> recs(records * b.lay.stride);
+      for (size_t at = 0; at < s.size(); at += records) {
+        const size_t e = std::min(s.size(), at + records);
+        to_records(s, at, e, b.lay, recs.data());
+        append_file(staged, recs.data(), (e - at) * b.lay.stride * 4);
+      }
+      b.total += s.size();
+    };
+    if (!stream_inria_ply(path, block, stage)) stage(io::read_splats(path));
+    STIPPLE_INFO("tile: {}: {} splats, SH degree {}, {}", path, b.total - before, b.lay.degree,
+                 b.format);
   }
   if (b.total == 0) fail("the inputs hold no splats");
   return box;

@@ -6,8 +6,9 @@
 // moment-matched merges of their children's splats (splat_merge.hpp), about 1/merge_ratio of
 // them (merge_ratio), with REPLACE refinement and the merge's cell size as geometric error.
 //
-// Out of core after reading: each input is decoded whole (the readers decode whole files), its
-// splats appended as records to a staging file and released; the staging file is counted on a
+// Out of core: an INRIA PLY is read in blocks (its records are fixed-size), other inputs are
+// decoded whole (their readers decode whole files); the splats are appended as records to a
+// staging file and released; the staging file is counted on a
 // grid and cut into chunks (octree nodes) of a size the memory budget allows, distributed to
 // one file a chunk, and every chunk's subtree is built on its own, chunks in parallel; the
 // chunk roots' merged splats go to files, from which the levels above them are built.
