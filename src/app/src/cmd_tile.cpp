@@ -114,6 +114,9 @@ void add_tile_command(CLI::App& cli) {
         fail("tile: splat files and point clouds cannot be tiled together");
       if (!args->subset.empty() || args->options.implicit || args->format != "glb")
         fail("tile: --subset, --implicit and --format pnts are for point clouds, not splats");
+      // The web viewer streams tilesets of points only: its page would not draw this one.
+      if (args->page)
+        fail("tile: --page is for point tilesets; the web viewer draws no splat tilesets yet");
       tiler::SplatTileOptions o;
       o.inputs = args->options.inputs;
       o.output = args->options.output;
@@ -131,11 +134,6 @@ void add_tile_command(CLI::App& cli) {
           static_cast<unsigned long long>(s.tiles), static_cast<unsigned long long>(s.leaves),
           s.depth, s.chunks, static_cast<unsigned long long>(s.merged_splats),
           double(s.bytes) / 1e6, s.seconds);
-      if (args->page) {
-        const auto viewer = write_web_page(args->options.output);
-        std::printf("web viewer copied from %s: serve %s and open index.html\n",
-                    viewer.string().c_str(), args->options.output.c_str());
-      }
       return;
     }
     if (!args->subset.empty())
