@@ -44,7 +44,7 @@ for in in "${args[@]}"; do
   rm -rf "$out" "$one"
   log=$( { /usr/bin/time -f "RSS %M" "$stipple" tile "$in" -o "$out" --max-memory "$memory" \
            "${thread_args[@]}" 2>&1 | grep -v '\[info\]'; } 2>&1 )
-  "$stipple" tile "$in" -o "$one" --max-leaf-splats 10000000 --max-memory "$memory" \
+  "$stipple" tile "$in" -o "$one" --max-leaf-splats 1000000000 --max-memory "$memory" \
     "${thread_args[@]}" >/dev/null 2>&1
   tiled=$(du -sb "$out" | cut -f1)
   single=$(du -sb "$one/tiles" | cut -f1)

@@ -61,7 +61,7 @@ void add_tile_command(CLI::App& cli) {
       ->capture_default_str();
   cmd->add_option("--max-leaf-splats", args->max_leaf_splats,
                   "Splat inputs: the most splats a leaf tile holds")
-      ->check(CLI::Range(size_t(16), size_t(10'000'000)))
+      ->check(CLI::Range(size_t(16), size_t(1'000'000'000)))
       ->capture_default_str();
   cmd->add_flag("--implicit", args->options.implicit,
                 "Write 3D Tiles 1.1 implicit tiling (an octree of subtree files) instead of "

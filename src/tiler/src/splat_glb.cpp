@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "stipple/core/error.hpp"
 #include "stipple/tiler/spz_writer.hpp"
 
 namespace stipple::tiler {
@@ -27,6 +28,9 @@ std::vector<uint8_t> pack_glb(const json& gltf, const std::vector<uint8_t>& bin)
   std::string text = gltf.dump();
   text.resize((text.size() + 3) & ~size_t(3), ' ');
   const size_t padded = (bin.size() + 3) & ~size_t(3);
+  if (28 + text.size() + padded > 0xffffffffu)
+    fail("a splat tile of {} bytes is more than a glb holds (4 GiB); use smaller leaves",
+         28 + text.size() + padded);
   std::vector<uint8_t> out;
   out.reserve(28 + text.size() + padded);
   put_u32(out, 0x46546C67);  // "glTF"
