@@ -43,6 +43,21 @@ fs::path temp_dir(const std::string& name) {
   return p;
 }
 
+// Removes this process's temporary directories when the tests end.
+struct RemoveTempDirs : ::testing::Environment {
+  void TearDown() override {
+    const std::string suffix = "-" + std::to_string(::getpid());
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(fs::temp_directory_path(), ec)) {
+      const std::string name = e.path().filename().string();
+      if (name.starts_with("stipple-splat-tiler-") && name.ends_with(suffix))
+        fs::remove_all(e.path(), ec);
+    }
+  }
+};
+[[maybe_unused]] const auto* const remove_temp_dirs =
+    ::testing::AddGlobalTestEnvironment(new RemoveTempDirs);
+
 io::SplatSet random_splats(size_t n, int degree, uint32_t seed, float extent = 5.0f) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f), unit(0.0f, 1.0f);
