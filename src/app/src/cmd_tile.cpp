@@ -1,4 +1,6 @@
-// `stipple tile`: LAS/LAZ inputs -> one 3D Tiles tileset (glb for 1.1, pnts for 1.0), out of core.
+// `stipple tile`: LAS/LAZ inputs -> one 3D Tiles tileset (glb for 1.1, pnts for 1.0), out of core;
+// Gaussian splat inputs (.ply with splat properties, .spz, .splat, ...) -> a splat tileset with
+// level of detail (tiler/splat_tiler.hpp).
 #include <cstdio>
 #include <memory>
 #include <tuple>
@@ -8,6 +10,8 @@
 #include "stipple/core/atomic_file.hpp"
 #include "stipple/core/error.hpp"
 #include "stipple/core/memory.hpp"
+#include "stipple/io/splat_readers.hpp"
+#include "stipple/tiler/splat_tiler.hpp"
 #include "stipple/tiler/tiler.hpp"
 
 namespace stipple::app {
@@ -21,11 +25,15 @@ void add_tile_command(CLI::App& cli) {
     bool profile = false;
     bool page = false;
     std::string stats;
+    std::string splat_compression = "spz";
+    size_t max_leaf_splats = 65536;
   };
   auto args = std::make_shared<Args>();
   auto* cmd = cli.add_subcommand(
-      "tile", "Build a 3D Tiles tileset (octree, additive refinement) from LAS/LAZ files");
-  cmd->add_option("inputs", args->options.inputs, "Input .las/.laz files");
+      "tile",
+      "Build a 3D Tiles tileset from LAS/LAZ files (octree, additive refinement) or from Gaussian "
+      "splat files (octree of merged splats, replacement refinement)");
+  cmd->add_option("inputs", args->options.inputs, "Input .las/.laz files, or splat files");
   cmd->add_option("-o,--output", args->options.output, "Output directory");
   cmd->add_option("--format", args->format, "glb (3D Tiles 1.1) or pnts (3D Tiles 1.0)")
       ->check(CLI::IsMember({"glb", "pnts"}))
@@ -45,6 +53,15 @@ void add_tile_command(CLI::App& cli) {
                   "none, meshopt (glb: EXT_meshopt_compression) or draco (pnts: "
                   "3DTILES_draco_point_compression)")
       ->check(CLI::IsMember({"none", "meshopt", "draco"}))
+      ->capture_default_str();
+  cmd->add_option("--splat-compression", args->splat_compression,
+                  "Splat inputs: spz (KHR_gaussian_splatting_compression_spz_2, what CesiumJS "
+                  "reads) or none (float attributes)")
+      ->check(CLI::IsMember({"spz", "none"}))
+      ->capture_default_str();
+  cmd->add_option("--max-leaf-splats", args->max_leaf_splats,
+                  "Splat inputs: the most splats a leaf tile holds")
+      ->check(CLI::Range(size_t(16), size_t(1'000'000'000)))
       ->capture_default_str();
   cmd->add_flag("--implicit", args->options.implicit,
                 "Write 3D Tiles 1.1 implicit tiling (an octree of subtree files) instead of "
@@ -90,6 +107,35 @@ void add_tile_command(CLI::App& cli) {
       fail("--page is for a whole tileset, not a part (--subset): merge the parts first");
     // Found before tiling: a missing viewer is said at once, not after the work.
     if (args->page) find_web_viewer();
+    size_t splat_inputs = 0;
+    for (const std::string& in : args->options.inputs) splat_inputs += io::is_splat_path(in);
+    if (splat_inputs > 0) {
+      if (splat_inputs != args->options.inputs.size())
+        fail("tile: splat files and point clouds cannot be tiled together");
+      if (!args->subset.empty() || args->options.implicit || args->format != "glb")
+        fail("tile: --subset, --implicit and --format pnts are for point clouds, not splats");
+      // The web viewer streams tilesets of points only: its page would not draw this one.
+      if (args->page)
+        fail("tile: --page is for point tilesets; the web viewer draws no splat tilesets yet");
+      tiler::SplatTileOptions o;
+      o.inputs = args->options.inputs;
+      o.output = args->options.output;
+      o.compression = args->splat_compression == "none" ? tiler::SplatCompression::None
+                                                        : tiler::SplatCompression::Spz;
+      o.max_leaf_splats = args->max_leaf_splats;
+      o.max_memory = parse_size(args->memory);
+      o.threads = args->options.threads;
+      o.force = args->options.force;
+      const tiler::SplatTileStats s = tiler::build_splat_tileset(o);
+      std::printf(
+          "tiled %llu splats (SH degree %d) into %llu tiles (%llu leaves, depth %d, %zu chunks; "
+          "%llu merged splats in the inner tiles), %.1f MB of glb, in %.2f s\n",
+          static_cast<unsigned long long>(s.splats), s.sh_degree,
+          static_cast<unsigned long long>(s.tiles), static_cast<unsigned long long>(s.leaves),
+          s.depth, s.chunks, static_cast<unsigned long long>(s.merged_splats),
+          double(s.bytes) / 1e6, s.seconds);
+      return;
+    }
     if (!args->subset.empty())
       std::tie(args->options.subset_index, args->options.subset_count) =
           tiler::parse_subset(args->subset);

@@ -85,4 +85,10 @@ SplatSet decode_sog_meta(std::span<const uint8_t> meta, std::string_view name,
                          const std::function<std::vector<uint8_t>(const std::string&)>& file,
                          const SplatLimits& limits);
 
+// Splat tilesets (splat_tileset.cpp): whether the head of a .json file is a tileset of splat
+// content, and the cut of one read as a set (read_splats' tileset.json case).
+bool is_splat_tileset_json(std::span<const uint8_t> head);
+SplatSet read_splat_tileset(const std::string& path, std::span<const uint8_t> tileset_json,
+                            const SplatLimits& limits);
+
 }  // namespace stipple::io::splat_detail

@@ -115,7 +115,13 @@ bool is_splat_path(std::string_view path_or_url) {
   if (ext == ".splat" || ext == ".ksplat" || ext == ".spz" || ext == ".sog") return true;
   if (ext == ".json") {
     std::string p = uri_path(std::string(path_or_url));
-    return ends_with(p, "/meta.json") || p == "meta.json";
+    if (ends_with(p, "/meta.json") || p == "meta.json") return true;
+    if (is_url(path_or_url)) return false;
+    try {
+      return is_splat_tileset_json(file_head(std::string(path_or_url), 64 * 1024));
+    } catch (const Error&) {
+      return false;
+    }
   }
   if (ext != ".ply") return false;
   try {
@@ -180,6 +186,11 @@ SplatSet read_splats(const std::string& path_or_url, const SplatLimits& limits) 
   options.reject_html = true;
   std::vector<uint8_t> bytes = fetch(path_or_url, options);
   const std::string ext = lower_extension(path_or_url);
+  if (ext == ".json" && is_splat_tileset_json(bytes)) {
+    SplatSet s = read_splat_tileset(path_or_url, bytes, limits);
+    check_values(s, path_or_url);
+    return s;
+  }
   if (ext == ".json") {
     if (!sog_supported()) fail("{}: SOG files need libwebp, which this build lacks", path_or_url);
     SplatSet s = decode_sog_meta(

@@ -26,6 +26,8 @@ struct SplatLimits {
   size_t max_splats = size_t(1) << 28;
   // Decompressed bytes of one gzip/zstd/zip payload.
   size_t max_inflated_bytes = size_t(8) << 30;
+  // A splat tileset (read_splats of its tileset.json): the most splats of the cut it reads.
+  size_t tileset_splats = 6'000'000;
 };
 
 // Whether a path or URL names a splat file. By extension: .splat, .ksplat, .spz and .sog are
@@ -33,10 +35,15 @@ struct SplatLimits {
 // URL, fetched as a range) declares an INRIA splat vertex (f_dc_0, opacity, scale_0 and rot_0
 // properties) or PlayCanvas's compressed layout (element chunk and a vertex of packed_position);
 // other PLY files are point clouds. A .ply that cannot be read is not a splat file here (the
-// point-cloud path then reports the error). meta.json of an unbundled SOG counts too.
+// point-cloud path then reports the error). meta.json of an unbundled SOG counts too, and a
+// local .json file that is a tileset of KHR_gaussian_splatting content (a splat tileset, as
+// `stipple tile` writes from splat files; URLs of tilesets are not looked into).
 bool is_splat_path(std::string_view path_or_url);
 
-// Reads a file or an http(s) URL (through io::fetch) and decodes it.
+// Reads a file or an http(s) URL (through io::fetch) and decodes it. A splat tileset's
+// tileset.json reads as one set: a cut through its tree of at most limits.tileset_splats splats,
+// refined from the root, largest geometric error first (not for any view; its frame the root
+// tile's, its transform the root's transform seen from glTF's Y-up).
 SplatSet read_splats(const std::string& path_or_url, const SplatLimits& limits = {});
 
 // Decodes a whole file's bytes. The format is found from the bytes (magic numbers, PLY header,
