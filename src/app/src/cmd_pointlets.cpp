@@ -20,7 +20,7 @@ void add_pointlets_command(CLI::App& cli) {
     std::vector<std::filesystem::path> inputs;
     std::string cache_dir, order = "hilbert", memory = "1G", json;
     pc::PointletBuildOptions options;
-    bool rebuild = false;
+    bool rebuild = false, stats = false;
   };
   auto args = std::make_shared<Args>();
   auto* cmd = cli.add_subcommand(
@@ -44,6 +44,8 @@ void add_pointlets_command(CLI::App& cli) {
       ->capture_default_str();
   cmd->add_option("--threads", args->options.threads, "Sorting threads (default: all cores)");
   cmd->add_flag("--rebuild", args->rebuild, "Build the cache even if a current one exists");
+  cmd->add_flag("--stats", args->stats,
+                "Print the build's phases (read, sort, merge, encode, write) in seconds");
   cmd->add_option("--json", args->json, "Write the figures as JSON");
   cmd->callback([args] {
     pc::PointletBuildOptions o = args->options;
@@ -64,6 +66,7 @@ void add_pointlets_command(CLI::App& cli) {
                   static_cast<unsigned long long>(stats.runs), stats.runs == 1 ? "" : "s");
     else
       std::printf("reused %s (the inputs are unchanged)\n", path.string().c_str());
+    if (built && args->stats) std::printf("%s\n", pc::describe_build_phases(stats).c_str());
     std::printf(
         "%llu pointlets of k = %llu points (%s order); extent max %.3f, mean %.3f, std dev "
         "%.3f; mean squareness %.3f\n",
@@ -87,6 +90,8 @@ void add_pointlets_command(CLI::App& cli) {
         j["build_seconds"] = stats.seconds;
         j["read_seconds"] = stats.read_seconds;
         j["sort_seconds"] = stats.sort_seconds;
+        j["merge_seconds"] = stats.merge_seconds;
+        j["encode_seconds"] = stats.encode_seconds;
         j["write_seconds"] = stats.write_seconds;
         j["runs"] = stats.runs;
         j["peak_run_bytes"] = stats.peak_run_bytes;
