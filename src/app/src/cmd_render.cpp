@@ -45,6 +45,17 @@ void run_render(const RenderArgs& args) {
     j["pipelined"] = args.pipelined;
     j["renderer"] = r.compute ? "compute" : "billboard";
     j["load_s"] = r.load_seconds;
+    if (r.cache_built) {
+      const pc::PointletBuildStats& b = r.cache_build;
+      j["cache_build"] = {{"points", b.points},
+                          {"runs", b.runs},
+                          {"seconds", b.seconds},
+                          {"read_seconds", b.read_seconds},
+                          {"sort_seconds", b.sort_seconds},
+                          {"merge_seconds", b.merge_seconds},
+                          {"encode_seconds", b.encode_seconds},
+                          {"write_seconds", b.write_seconds}};
+    }
     j["passes"] = nlohmann::json::object();
     for (const auto& [name, ms] : stats.history) {
       j["passes"][name]["gpu_ms"] = ms;
