@@ -256,6 +256,49 @@ TEST(Pointlets, ContentIsThatOfTheFirstBuilder) {
   fs::remove_all(dir);
 }
 
+// A survey's tiles are one cache, with the points and pointlets of the merged file (the tiles
+// one after another); a header naming more sources than 4096 bytes hold grows by pages.
+TEST(Pointlets, TilesAreOneCacheEqualToTheMergedFile) {
+  fs::path dir = fresh_dir("tiles");
+  fs::path las = test::write_scene_las(dir / "scene.las", 60000);
+  pc::PointletBuildOptions o;
+  o.pointlets = 200;
+  o.progress = false;
+  o.threads = 2;
+  auto body = [](const fs::path& path) {
+    const auto cache = pc::PointletCache::open(path);
+    const auto bytes = bytes_of(path);
+    return std::vector<uint8_t>(bytes.begin() + ptrdiff_t(cache.info().points_offset), bytes.end());
+  };
+  {
+    const auto tiles = test::split_las_into_tiles(las, dir / "four", 2, 2, dir / "merged4.las");
+    ASSERT_EQ(tiles.size(), 4u);
+    pc::build_pointlet_cache(tiles, dir / "tiles4.pointlets", o);
+    pc::build_pointlet_cache({dir / "merged4.las"}, dir / "merged4.pointlets", o);
+    const auto cache = pc::PointletCache::open(dir / "tiles4.pointlets");
+    EXPECT_EQ(cache.info().point_count, 60000u);
+    EXPECT_EQ(cache.info().sources.size(), 4u);
+    EXPECT_EQ(cache.info().points_offset, pc::kPointletHeaderBytes);
+    EXPECT_EQ(cache_points(cache), source_points(las, cache.info().scale));
+    EXPECT_TRUE(body(dir / "tiles4.pointlets") == body(dir / "merged4.pointlets"));
+  }
+  {
+    // 10 x 10 tiles: more than the 64 sources a cache once held.
+    const auto tiles = test::split_las_into_tiles(las, dir / "many", 10, 10, dir / "merged.las");
+    ASSERT_GT(tiles.size(), 64u);
+    pc::build_pointlet_cache(tiles, dir / "tiles.pointlets", o);
+    pc::build_pointlet_cache({dir / "merged.las"}, dir / "merged.pointlets", o);
+    const auto cache = pc::PointletCache::open(dir / "tiles.pointlets");
+    EXPECT_EQ(cache.info().sources.size(), tiles.size());
+    EXPECT_EQ(cache.info().sources.back().path, fs::absolute(tiles.back()).string());
+    EXPECT_GT(cache.info().points_offset, pc::kPointletHeaderBytes);
+    EXPECT_EQ(cache.info().points_offset % pc::kPointletHeaderBytes, 0u);
+    EXPECT_TRUE(cache.matches(tiles, o));
+    EXPECT_TRUE(body(dir / "tiles.pointlets") == body(dir / "merged.pointlets"));
+  }
+  fs::remove_all(dir);
+}
+
 TEST(Pointlets, ReusedWhileUnchangedRebuiltWhenChangedOrDamaged) {
   fs::path dir = fresh_dir("reuse");
   fs::path las = test::write_scene_las(dir / "scene.las", 20000);

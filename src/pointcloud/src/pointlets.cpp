@@ -35,7 +35,9 @@ namespace {
 
 constexpr char kMagic[8] = {'S', 'T', 'P', 'L', 'T', 'C', 'H', 'E'};
 constexpr uint32_t kGridBits = 10;  // per axis: 30-bit Morton / Hilbert keys
-constexpr uint64_t kMaxSources = 64;
+// A survey delivered as tiles is one cache: the header grows (in pages) to name them all.
+constexpr uint64_t kMaxSources = 65536;
+constexpr uint64_t kMaxHeaderBytes = uint64_t(64) << 20;
 
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) {
@@ -70,7 +72,15 @@ constexpr size_t magic = 0, version = 8, header_bytes = 12, point_count = 16, po
                  pointlet_points = 32, requested = 40, order = 48, flags = 52, scale = 56,
                  bounds = 80, enu_origin = 128, points_offset = 152, table_offset = 160,
                  file_size = 168, table_crc = 176, source_count = 180, elevation_range = 184,
-                 intensity_range = 200, sources = 216, header_crc = kPointletHeaderBytes - 4;
+                 intensity_range = 200, sources = 216;
+}
+
+// The header's size: 4096 bytes, or whole pages more where the sources' names need them (its
+// last 4 bytes are its CRC).
+uint64_t header_bytes_for(const std::vector<PointletSource>& sources) {
+  uint64_t need = field::sources + 4;
+  for (const PointletSource& s : sources) need += 26 + s.path.size();
+  return (need + kPointletHeaderBytes - 1) / kPointletHeaderBytes * kPointletHeaderBytes;
 }
 
 template <typename T>
@@ -85,10 +95,12 @@ T get(const uint8_t* b, size_t at) {
 }
 
 std::vector<uint8_t> encode_header(const PointletCacheInfo& info, uint32_t table_crc) {
-  std::vector<uint8_t> b(kPointletHeaderBytes, 0);
+  const uint64_t header_bytes = header_bytes_for(info.sources);
+  const size_t header_crc = size_t(header_bytes - 4);
+  std::vector<uint8_t> b(header_bytes, 0);
   std::memcpy(b.data() + field::magic, kMagic, 8);
   put(b, field::version, info.version);
-  put(b, field::header_bytes, uint32_t(kPointletHeaderBytes));
+  put(b, field::header_bytes, uint32_t(header_bytes));
   put(b, field::point_count, info.point_count);
   put(b, field::pointlet_count, info.pointlet_count);
   put(b, field::pointlet_points, info.pointlet_points);
@@ -117,9 +129,7 @@ std::vector<uint8_t> encode_header(const PointletCacheInfo& info, uint32_t table
   size_t at = field::sources;
   for (const PointletSource& s : info.sources) {
     const size_t need = 8 + 8 + 8 + 2 + s.path.size();
-    if (at + need > field::header_crc)
-      fail("pointlet cache: the sources' names do not fit the header ({} bytes)",
-           kPointletHeaderBytes);
+    if (s.path.size() > UINT16_MAX) fail("{}: the path is too long for a pointlet cache", s.path);
     put(b, at, s.size);
     put(b, at + 8, s.mtime_ns);
     put(b, at + 16, s.points);
@@ -127,7 +137,7 @@ std::vector<uint8_t> encode_header(const PointletCacheInfo& info, uint32_t table
     std::memcpy(b.data() + at + 26, s.path.data(), s.path.size());
     at += need;
   }
-  put(b, field::header_crc, crc32_of(b.data(), field::header_crc));
+  put(b, header_crc, crc32_of(b.data(), header_crc));
   return b;
 }
 
@@ -353,7 +363,7 @@ class PointletWriter {
     stats_.encode_seconds += since(t);
     t = Clock::now();
     write_parallel(fd_, out, n * sizeof(PointletRecord),
-                   kPointletHeaderBytes + written_ * sizeof(PointletRecord), name_, pool_);
+                   info_.points_offset + written_ * sizeof(PointletRecord), name_, pool_);
     stats_.write_seconds += since(t);
     written_ += n;
   }
@@ -545,6 +555,7 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
       std::max({extent.x / scale.x, extent.y / scale.y, extent.z / scale.z, 1.0});
   const double cell_inverse = double(1u << kGridBits) / lattice_extent;
   info.pointlet_points = pointlet_size(info.point_count, info.requested_pointlets);
+  info.points_offset = header_bytes_for(info.sources);
 
   ThreadPool pool(options.threads ? options.threads
                                   : std::max(1u, std::thread::hardware_concurrency()));
@@ -744,8 +755,7 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
   }
   writer.flush();
   info.pointlet_count = writer.table.size();
-  info.points_offset = kPointletHeaderBytes;
-  info.table_offset = kPointletHeaderBytes + info.point_count * sizeof(PointletRecord);
+  info.table_offset = info.points_offset + info.point_count * sizeof(PointletRecord);
   info.file_size = info.table_offset + info.pointlet_count * sizeof(PointletEntry);
   info.source_bounds = {};
   for (const PointletEntry& e : writer.table) {
@@ -835,16 +845,22 @@ void PointletCache::load() {
   std::vector<uint8_t> h(kPointletHeaderBytes);
   storage_->read(n, 0, h.data(), h.size());
   if (std::memcmp(h.data(), kMagic, 8) != 0) fail("{}: not a pointlet cache (bad magic)", n);
+  // Whole pages, within the file: a header naming many sources is longer.
+  const uint32_t header_bytes = get<uint32_t>(h.data(), field::header_bytes);
+  if (header_bytes < kPointletHeaderBytes || header_bytes % kPointletHeaderBytes != 0 ||
+      header_bytes > kMaxHeaderBytes || header_bytes > storage_->size)
+    fail("{}: header size {} (expected a multiple of {} within the file)", n, header_bytes,
+         kPointletHeaderBytes);
+  h.resize(header_bytes);
+  storage_->read(n, 0, h.data(), h.size());
+  const size_t header_crc = header_bytes - 4;
   PointletCacheInfo& i = info_;
   i.version = get<uint32_t>(h.data(), field::version);
   if (i.version != kPointletCacheVersion)
     fail("{}: pointlet cache version {}, this build reads version {}", n, i.version,
          kPointletCacheVersion);
-  if (get<uint32_t>(h.data(), field::header_crc) != crc32_of(h.data(), field::header_crc))
+  if (get<uint32_t>(h.data(), header_crc) != crc32_of(h.data(), header_crc))
     fail("{}: the header's checksum does not match (corrupt cache)", n);
-  if (get<uint32_t>(h.data(), field::header_bytes) != kPointletHeaderBytes)
-    fail("{}: header size {} (expected {})", n, get<uint32_t>(h.data(), field::header_bytes),
-         kPointletHeaderBytes);
   i.point_count = get<uint64_t>(h.data(), field::point_count);
   i.pointlet_count = get<uint64_t>(h.data(), field::pointlet_count);
   i.pointlet_points = get<uint64_t>(h.data(), field::pointlet_points);
@@ -879,7 +895,7 @@ void PointletCache::load() {
       i.point_count > (uint64_t(1) << 40) || i.pointlet_count > (uint64_t(1) << 32))
     fail("{}: inconsistent counts ({} points, {} pointlets of {})", n, i.point_count,
          i.pointlet_count, i.pointlet_points);
-  if (i.points_offset != kPointletHeaderBytes ||
+  if (i.points_offset != header_bytes ||
       i.table_offset != i.points_offset + i.point_count * sizeof(PointletRecord) ||
       i.file_size != i.table_offset + i.pointlet_count * sizeof(PointletEntry))
     fail("{}: inconsistent offsets (points at {}, table at {}, {} bytes)", n, i.points_offset,
@@ -891,13 +907,13 @@ void PointletCache::load() {
   if (source_count > kMaxSources) fail("{}: {} sources (at most {})", n, source_count, kMaxSources);
   size_t at = field::sources;
   for (uint32_t s = 0; s < source_count; ++s) {
-    if (at + 26 > field::header_crc) fail("{}: the source list overruns the header", n);
+    if (at + 26 > header_crc) fail("{}: the source list overruns the header", n);
     PointletSource src;
     src.size = get<uint64_t>(h.data(), at);
     src.mtime_ns = get<int64_t>(h.data(), at + 8);
     src.points = get<uint64_t>(h.data(), at + 16);
     const uint16_t len = get<uint16_t>(h.data(), at + 24);
-    if (at + 26 + len > field::header_crc) fail("{}: the source list overruns the header", n);
+    if (at + 26 + len > header_crc) fail("{}: the source list overruns the header", n);
     src.path.assign(reinterpret_cast<const char*>(h.data() + at + 26), len);
     i.sources.push_back(std::move(src));
     at += 26 + len;
