@@ -11,13 +11,14 @@
 #include "stipple/core/error.hpp"
 #include "stipple/core/memory.hpp"
 #include "stipple/pointcloud/pointlets.hpp"
+#include "stipple/scene/scene.hpp"
 #include "stipple/tiler/tiler.hpp"
 
 namespace stipple::app {
 
 void add_pointlets_command(CLI::App& cli) {
   struct Args {
-    std::vector<std::filesystem::path> inputs;
+    std::vector<std::string> inputs;
     std::string cache_dir, order = "hilbert", memory = "1G", json;
     pc::PointletBuildOptions options;
     bool rebuild = false, stats = false;
@@ -27,9 +28,10 @@ void add_pointlets_command(CLI::App& cli) {
       "pointlets",
       "Sort LAS/LAZ/COPC files into a pointlet cache (reused by later runs while the inputs are "
       "unchanged) and print the pointlets' extent metrics");
-  cmd->add_option("inputs", args->inputs, "Input .las/.laz files")
+  cmd->add_option("inputs", args->inputs,
+                  "Input .las/.laz files and folders of them (a survey's tiles: one cache)")
       ->required()
-      ->check(CLI::ExistingFile);
+      ->check(CLI::ExistingPath);
   cmd->add_option("--cache", args->cache_dir,
                   "Folder of the cache (default: beside the first input, else ~/.cache/stipple)");
   cmd->add_option("--pointlets", args->options.pointlets,
@@ -51,12 +53,13 @@ void add_pointlets_command(CLI::App& cli) {
     pc::PointletBuildOptions o = args->options;
     o.order = args->order == "morton" ? pc::SpatialOrder::Morton : pc::SpatialOrder::Hilbert;
     o.memory_budget = parse_size(args->memory);
-    const auto path = pc::pointlet_cache_path(args->inputs, args->cache_dir, o);
+    std::vector<std::filesystem::path> inputs;
+    for (const std::string& in : scene::expand_input_folders(args->inputs)) inputs.push_back(in);
+    const auto path = pc::pointlet_cache_path(inputs, args->cache_dir, o);
     if (args->rebuild) std::filesystem::remove(path);
     bool built = false;
     pc::PointletBuildStats stats;
-    pc::PointletCache cache =
-        pc::open_pointlet_cache(args->inputs, args->cache_dir, o, &built, &stats);
+    pc::PointletCache cache = pc::open_pointlet_cache(inputs, args->cache_dir, o, &built, &stats);
     const auto& info = cache.info();
     const pc::PointletMetrics m = pc::pointlet_metrics(cache.pointlets());
     if (built)

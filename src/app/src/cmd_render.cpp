@@ -95,11 +95,12 @@ void add_render_command(CLI::App& cli) {
                          "built-in procedural scene");
   cmd->add_option(
          "inputs", args->scene.inputs,
-         "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json, Potree "
+         "Input files (.las, .laz, .copc.laz) and folders of LAS/LAZ tiles (one cloud), or one "
+         "3D Tiles tileset.json, Potree "
          "metadata.json or cloud.js, or EPT ept.json path or URL; Gaussian splat files (.ply, "
          ".splat, .spz, .ksplat, .sog) drawn with them or alone")
       ->check([](const std::string& in) {
-        return io::is_url(in) ? std::string() : CLI::ExistingFile(in);
+        return io::is_url(in) ? std::string() : CLI::ExistingPath(in);
       });
   cmd->add_option("-o,--output", args->output, "Output PNG")->capture_default_str();
   cmd->add_option("--width", args->width, "Image width in pixels")
