@@ -61,12 +61,20 @@ struct ZipHandle {
 class LaszipDecoder : public LazDecoder {
  public:
   LaszipDecoder(const std::string& name, const std::filesystem::path* path,
-                std::span<const uint8_t> memory, const RecordLayout& layout)
+                std::span<const uint8_t> memory, const RecordLayout& layout, bool drawn_fields_only)
       : name_(name), layout_(layout), buf_(memory), stream_(&buf_) {
     if (laszip_create(&handle_.zip) != 0 || !handle_.zip) {
       fail("{}: cannot create a LASzip reader", name_);
     }
     zip_ = handle_.zip;
+    // Layers of formats 6-10 left compressed: LASzip skips their bytes in each chunk (the
+    // fields read as zeros). Other formats have no layers and decode whole.
+    if (drawn_fields_only &&
+        laszip_decompress_selective(
+            zip_, laszip_DECOMPRESS_SELECTIVE_CHANNEL_RETURNS_XY | laszip_DECOMPRESS_SELECTIVE_Z |
+                      laszip_DECOMPRESS_SELECTIVE_CLASSIFICATION |
+                      laszip_DECOMPRESS_SELECTIVE_INTENSITY | laszip_DECOMPRESS_SELECTIVE_RGB) != 0)
+      fail("{}: LASzip: {}", name_, laszip_message(zip_));
     laszip_BOOL compressed = 0;
     const laszip_I32 rc = path ? laszip_open_reader(zip_, path->c_str(), &compressed)
                                : laszip_open_reader_stream(zip_, stream_, &compressed);
@@ -267,8 +275,8 @@ class LaszipEncoder : public LazEncoder {
 std::unique_ptr<LazDecoder> open_laz_decoder(const std::string& name,
                                              const std::filesystem::path* path,
                                              std::span<const uint8_t> memory,
-                                             const RecordLayout& layout) {
-  return std::make_unique<LaszipDecoder>(name, path, memory, layout);
+                                             const RecordLayout& layout, bool drawn_fields_only) {
+  return std::make_unique<LaszipDecoder>(name, path, memory, layout, drawn_fields_only);
 }
 
 std::unique_ptr<LazEncoder> open_laz_encoder(const std::filesystem::path& path,

@@ -639,7 +639,7 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
       pool.parallel_for(slices.size(), 1, [&](size_t begin, size_t end) {
         for (size_t k = begin; k < end; ++k) {
           const Slice& sl = slices[k];
-          io::LasReader reader(sources[sl.source]);
+          io::LasReader reader(sources[sl.source], true);  // the fields the cache keeps
           reader.seek(sl.first);
           const int rgb_bits = reader.header().rgb_bits;
           io::PointBatch batch;
