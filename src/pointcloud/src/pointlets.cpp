@@ -742,6 +742,14 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
                     pieces[i].count * sizeof(RunRecord), pieces[i].first * sizeof(RunRecord),
                     pieces[i].run->path.string());
         });
+        // What was read is not read again: its disk space is freed at once, so that the runs
+        // and the cache need not fit the disk together (1B points: 24 GB of runs, 20 GB of
+        // cache). Where the file system cannot, the runs go when the build ends.
+        for (const RunFile& r : runs.files)
+          if (r.starts[b1] > r.starts[b0])
+            ::fallocate(r.fd.fd, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE,
+                        off_t(r.starts[b0] * sizeof(RunRecord)),
+                        off_t((r.starts[b1] - r.starts[b0]) * sizeof(RunRecord)));
         stats.merge_seconds += since(t);
         t = Clock::now();
         RunRecord* sorted = radix_sort(window, scratch_arena.runs(), size, pool);
