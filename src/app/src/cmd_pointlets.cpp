@@ -1,5 +1,8 @@
 // `stipple pointlets`: organise LAS/LAZ/COPC files into a pointlet cache (seed 002, III-A) and
 // report how compact the pointlets are (the metrics of its Table I).
+#include <unistd.h>
+
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -19,7 +22,7 @@ namespace stipple::app {
 void add_pointlets_command(CLI::App& cli) {
   struct Args {
     std::vector<std::string> inputs;
-    std::string cache_dir, order = "hilbert", memory = "1G", json;
+    std::string cache_dir, order = "hilbert", memory, json;
     pc::PointletBuildOptions options;
     bool rebuild = false, stats = false;
   };
@@ -42,8 +45,8 @@ void add_pointlets_command(CLI::App& cli) {
       ->check(CLI::IsMember({"hilbert", "morton"}))
       ->capture_default_str();
   cmd->add_option("--host-memory", args->memory,
-                  "Points sorted in memory at once (larger inputs: sorted runs on disk, merged)")
-      ->capture_default_str();
+                  "Memory for sorting (larger inputs: sorted runs on disk, merged; default: what "
+                  "render and view give the build, an eighth of RAM up to 4G)");
   cmd->add_option("--threads", args->options.threads, "Sorting threads (default: all cores)");
   cmd->add_flag("--rebuild", args->rebuild, "Build the cache even if a current one exists");
   cmd->add_flag("--stats", args->stats,
@@ -52,7 +55,12 @@ void add_pointlets_command(CLI::App& cli) {
   cmd->callback([args] {
     pc::PointletBuildOptions o = args->options;
     o.order = args->order == "morton" ? pc::SpatialOrder::Morton : pc::SpatialOrder::Hilbert;
-    o.memory_budget = parse_size(args->memory);
+    // render and view build with half their host budget (a quarter of RAM), at most 4G.
+    const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+    const uint64_t ram = pages > 0 && page > 0 ? uint64_t(pages) * uint64_t(page) : 0;
+    o.memory_budget = !args->memory.empty() ? parse_size(args->memory)
+                      : ram > 0             ? std::min<uint64_t>(ram / 8, uint64_t(4) << 30)
+                                            : uint64_t(1) << 30;
     std::vector<std::filesystem::path> inputs;
     for (const std::string& in : scene::expand_input_folders(args->inputs)) inputs.push_back(in);
     const auto path = pc::pointlet_cache_path(inputs, args->cache_dir, o);
