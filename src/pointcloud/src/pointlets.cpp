@@ -165,10 +165,18 @@ uint32_t grid_key(const uint32_t q[3], const double cell_inverse, SpatialOrder o
 // Keys are 3 * kGridBits = 30 bits: three passes of 10-bit digits.
 constexpr uint32_t kKeyBits = 3 * kGridBits, kDigitBits = 10, kDigits = 1u << kDigitBits;
 // A sorted run is indexed by the top bits of its keys, so that the merge reads the same key
-// range of every run at once (a window) and sorts it in memory.
-constexpr uint32_t kPrefixBits = 16, kPrefixes = 1u << kPrefixBits;
-uint32_t key_prefix(uint32_t key) {
-  return key >> (kKeyBits - kPrefixBits);
+// range of every run at once (a window) and sorts it in memory: 16 bits where the tables fit an
+// eighth of the memory budget (8 bytes an entry per run), fewer for many runs in little memory
+// (coarser windows; a prefix over a run's worth is merged through a heap).
+struct PrefixBits {
+  uint32_t bits = 16;
+  uint32_t count() const { return 1u << bits; }
+  uint32_t of(uint32_t key) const { return key >> (kKeyBits - bits); }
+};
+PrefixBits prefix_bits(uint64_t runs, uint64_t memory_budget) {
+  PrefixBits p;
+  while (p.bits > 4 && runs * (uint64_t(p.count()) + 1) * 8 > memory_budget / 8) --p.bits;
+  return p;
 }
 
 // Memory for n records, not zeroed (the readers fill it on every core); seen as RunRecords or,
@@ -227,16 +235,17 @@ RunRecord* radix_sort(RunRecord* data, RunRecord* scratch, size_t n, ThreadPool&
   return src;
 }
 
-// starts[b]: the first record of a sorted run whose key prefix is at least b (b <= kPrefixes).
-std::vector<uint64_t> prefix_starts(const RunRecord* run, size_t n, ThreadPool& pool) {
-  std::vector<uint64_t> starts(kPrefixes + 1, n);
+// starts[b]: the first record of a sorted run whose key prefix is at least b (b <= count).
+std::vector<uint64_t> prefix_starts(const RunRecord* run, size_t n, PrefixBits prefix,
+                                    ThreadPool& pool) {
+  std::vector<uint64_t> starts(prefix.count() + 1, n);
   const size_t parts = std::max<size_t>(1, std::min<size_t>(pool.size(), n / 65536));
   // Each prefix's start is set by the one record where the prefix is reached.
   pool.parallel_for(parts, 1, [&](size_t begin, size_t end) {
     for (size_t p = begin; p < end; ++p)
       for (size_t i = part_begin(n, parts, p), e = part_begin(n, parts, p + 1); i < e; ++i) {
-        const uint32_t to = key_prefix(run[i].key);
-        for (uint32_t b = i == 0 ? 0 : key_prefix(run[i - 1].key) + 1; b <= to; ++b) starts[b] = i;
+        const uint32_t to = prefix.of(run[i].key);
+        for (uint32_t b = i == 0 ? 0 : prefix.of(run[i - 1].key) + 1; b <= to; ++b) starts[b] = i;
       }
   });
   return starts;
@@ -566,6 +575,8 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
                                 ? (cache_path.has_parent_path() ? cache_path.parent_path() : ".")
                                 : options.temp_dir;
   RunFiles runs;
+  const PrefixBits prefix =
+      prefix_bits((info.point_count + run_capacity - 1) / run_capacity, options.memory_budget);
   Arena run_arena(run_capacity), scratch_arena(run_capacity);
   RunRecord* run = run_arena.runs();
   uint64_t run_size = 0;
@@ -592,7 +603,7 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
     runs.files.push_back(std::move(f));
     RunFile& file = runs.files.back();
     file.count = run_size;
-    file.starts = prefix_starts(sorted, run_size, pool);
+    file.starts = prefix_starts(sorted, run_size, prefix, pool);
     write_parallel(file.fd.fd, sorted, run_size * sizeof(RunRecord), 0, file.path.string(), pool);
     stats.write_seconds += since(t);
     run_size = 0;
@@ -704,16 +715,17 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
     // The merge, in windows of key prefixes that hold at most a run's worth of points: each
     // window reads its part of every run (positional reads on every core), concatenated in run
     // order, and sorts it stably, so ties keep the runs' order, which is the input's.
-    std::vector<uint64_t> totals(kPrefixes, 0);
+    const uint32_t prefixes = prefix.count();
+    std::vector<uint64_t> totals(prefixes, 0);
     for (const RunFile& r : runs.files)
-      for (uint32_t b = 0; b < kPrefixes; ++b) totals[b] += r.starts[b + 1] - r.starts[b];
+      for (uint32_t b = 0; b < prefixes; ++b) totals[b] += r.starts[b + 1] - r.starts[b];
     Progress progress("writing pointlets", info.point_count);
     RunRecord* window = run_arena.runs();
     PointletRecord* encoded = scratch_arena.pointlets();
-    for (uint32_t b0 = 0; b0 < kPrefixes;) {
+    for (uint32_t b0 = 0; b0 < prefixes;) {
       uint32_t b1 = b0;
       uint64_t size = 0;
-      while (b1 < kPrefixes && size + totals[b1] <= run_capacity) size += totals[b1++];
+      while (b1 < prefixes && size + totals[b1] <= run_capacity) size += totals[b1++];
       if (b1 == b0) {
         // One prefix holds more than a run: merged by streaming its part of each run.
         merge_prefix(runs, b0, window, run_capacity, encoded, writer, stats);
