@@ -655,6 +655,11 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
           const int rgb_bits = reader.header().rgb_bits;
           io::PointBatch batch;
           uint64_t done = 0;
+          // Every sample_stride-th point of the input is sampled for the colour ramps: the
+          // next one's index in this slice (no division per point).
+          const uint64_t global = seen + sl.at;
+          uint64_t next_sample =
+              (global + sample_stride - 1) / sample_stride * sample_stride - global;
           while (done < sl.count) {
             batch.clear();
             const size_t n =
@@ -677,7 +682,8 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
               r.key = grid_key(r.q, cell_inverse, info.order);
               r.rgba = batch_rgba(batch, i, rgb_bits);
               r.attributes = batch_attributes(batch, i);
-              if ((seen + sl.at + done + i) % sample_stride == 0) {
+              if (done + i == next_sample) {
+                next_sample += sample_stride;
                 samples[k].elevation.push_back(p.z);
                 samples[k].intensity.push_back(
                     batch.intensity.empty() ? 0.0 : double(batch.intensity[i]));
