@@ -67,9 +67,11 @@ class LaszipDecoder : public LazDecoder {
       fail("{}: cannot create a LASzip reader", name_);
     }
     zip_ = handle_.zip;
-    // Layers of formats 6-10 left compressed: LASzip skips their bytes in each chunk (the
-    // fields read as zeros). Other formats have no layers and decode whole.
-    if (drawn_fields_only &&
+    // Layers of formats 6-10 left compressed: LASzip skips their bytes in each chunk (and
+    // leaves the chunk's first point's values there, so read() writes zeros instead). Other
+    // formats have no layers and decode whole.
+    drawn_only_ = drawn_fields_only && layout.extended();
+    if (drawn_only_ &&
         laszip_decompress_selective(
             zip_, laszip_DECOMPRESS_SELECTIVE_CHANNEL_RETURNS_XY | laszip_DECOMPRESS_SELECTIVE_Z |
                       laszip_DECOMPRESS_SELECTIVE_CLASSIFICATION |
@@ -110,6 +112,17 @@ class LaszipDecoder : public LazDecoder {
       uint8_t* r = out + i * layout_.record_length;
       std::memset(r, 0, layout_.record_length);
       const laszip_point& p = *point_;
+      if (drawn_only_) {  // the decoded layers' fields; the rest stay zero
+        store<int32_t>(r, p.X);
+        store<int32_t>(r + 4, p.Y);
+        store<int32_t>(r + 8, p.Z);
+        store<uint16_t>(r + 12, p.intensity);
+        r[14] =
+            static_cast<uint8_t>(p.extended_return_number | (p.extended_number_of_returns << 4));
+        r[16] = p.extended_classification;
+        if (layout_.rgb >= 0) std::memcpy(r + layout_.rgb, p.rgb, 6);
+        continue;
+      }
       if (!layout_.extended()) {
         // laszip_point begins with the 20-byte legacy record, bit fields included.
         std::memcpy(r, &p.X, 20);
@@ -145,6 +158,7 @@ class LaszipDecoder : public LazDecoder {
  private:
   std::string name_;
   RecordLayout layout_;
+  bool drawn_only_ = false;
   MemoryBuf buf_;
   std::istream stream_;
   ZipHandle handle_;
