@@ -1,14 +1,17 @@
 // `render` through the virtualized path (seed 002): a generated LAS drawn from its pointlet
 // cache equals the in-memory compute render when the bucket holds every point, draws at most B
-// points otherwise, reuses the cache, and is chosen by itself for inputs over the host budget.
+// points otherwise, reuses the cache, and is chosen by itself for inputs over the host budget;
+// a folder of tiles draws as the file of their points.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
 #include <regex>
 #include <string>
 
+#include "scene_las.hpp"
 #include "stipple/renderer/png.hpp"
 #include "test_util.hpp"
 
@@ -113,5 +116,59 @@ TEST(VirtualRender, GeographicInputMatchesTheInMemoryRender) {
   };
   for (size_t i = 0; i < size_t(a.width) * a.height; ++i) moved += covered(a, i) != covered(b, i);
   EXPECT_LT(double(moved) / (double(a.width) * a.height), 0.02);
+  fs::remove_all(dir);
+}
+
+// A survey delivered as tiles is one virtualized cloud with one cache: four LAS tiles split
+// from a file, given as a folder or as four files, draw what the file holding their points
+// draws; an empty folder, or one holding something else, is a clear error.
+TEST(VirtualRender, AFolderOfTilesDrawsAsTheMergedFile) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("stipple-virtual-tiles-" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string las = (dir / "scene.las").string();
+  ASSERT_EQ(test::run_stipple("generate -n 120000 -o " + las).exit_code, 0);
+  const fs::path folder = dir / "tiles", merged = dir / "merged.las";
+  const auto tiles = test::split_las_into_tiles(las, folder, 2, 2, merged);
+  ASSERT_EQ(tiles.size(), 4u);
+  const std::string common =
+      " --virtual --bucket 100000000 --pointlets 2000 --width 320 --height 240 --fill-radius 0";
+  auto whole = test::run_stipple("render " + merged.string() + common + " --cache " +
+                                 (dir / "cache").string() + " -o " + (dir / "merged.png").string());
+  ASSERT_EQ(whole.exit_code, 0) << whole.output;
+  // The four files: one cache, beside the first tile.
+  std::string files;
+  for (const auto& t : tiles) files += " " + t.string();
+  auto four = test::run_stipple("render" + files + common + " -o " + (dir / "four.png").string());
+  ASSERT_EQ(four.exit_code, 0) << four.output;
+  EXPECT_NE(four.output.find("built " + folder.string() + "/tile-00.las."), std::string::npos)
+      << four.output;
+  // The folder: the same tiles in name order, so the same cache (the cache file in the folder
+  // is passed over).
+  auto tree = test::run_stipple("render " + folder.string() + common + " -o " +
+                                (dir / "folder.png").string());
+  ASSERT_EQ(tree.exit_code, 0) << tree.output;
+  EXPECT_NE(tree.output.find("reused"), std::string::npos) << tree.output;
+  EXPECT_EQ(drawn_points(whole.output), 120000u) << whole.output;
+  EXPECT_EQ(drawn_points(four.output), 120000u) << four.output;
+  EXPECT_EQ(drawn_points(tree.output), 120000u) << tree.output;
+  // The same cache content, so the same image.
+  auto a = gpu::read_png(dir / "merged.png"), b = gpu::read_png(dir / "four.png"),
+       c = gpu::read_png(dir / "folder.png");
+  EXPECT_GT(test::coverage_stats(a, kBackground, 2).coverage, 0.1);
+  EXPECT_EQ(test::differing_fraction(a, b, 0), 0.0);
+  EXPECT_EQ(test::differing_fraction(a, c, 0), 0.0);
+
+  fs::create_directories(dir / "empty");
+  auto empty =
+      test::run_stipple("render " + (dir / "empty").string() + " -o " + (dir / "e.png").string());
+  EXPECT_NE(empty.exit_code, 0);
+  EXPECT_NE(empty.output.find("holds no .las or .laz file"), std::string::npos) << empty.output;
+  std::ofstream(folder / "readme.txt") << "survey notes";
+  auto other =
+      test::run_stipple("render " + folder.string() + common + " -o " + (dir / "o.png").string());
+  EXPECT_NE(other.exit_code, 0);
+  EXPECT_NE(other.output.find("readme.txt"), std::string::npos) << other.output;
   fs::remove_all(dir);
 }

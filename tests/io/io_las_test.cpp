@@ -812,3 +812,45 @@ TEST(LasRead, CrsFromMalformedWktIsBestEffort) {
     EXPECT_EQ(reader.header().crs.source, Crs::Source::Wkt);
   }
 }
+
+// drawn_fields_only (the pointlet cache's reads): LAZ of formats 6-10 gives the drawn fields
+// exactly and the undecoded layers' fields as zeros; other formats decode whole.
+TEST(LasRead, DrawnFieldsOnlySkipsTheOtherLayers) {
+  for (uint8_t format : {3, 7}) {
+    SCOPED_TRACE(testing::Message() << "format " << int(format));
+    const glm::dvec3 scale(0.01), offset(1000.0, 2000.0, 0.0);
+    const PointBatch in = random_points(format, 5000, 0, scale, offset, 7u + format);
+    LasWriteOptions o;
+    o.version_minor = 4;
+    o.point_format = format;
+    o.scale = scale;
+    o.offset = offset;
+    o.compress = true;
+    const fs::path path = temp_dir() / ("drawn_" + std::to_string(format) + ".laz");
+    {
+      LasWriter w(path, o);
+      w.write(in);
+      w.close();
+    }
+    LasReader reader(path, true);
+    const PointBatch out = read_all(reader, 777);
+    ASSERT_EQ(out.size(), in.size());
+    bool zeros = true, same_extras = true;
+    for (size_t i = 0; i < in.size(); ++i) {
+      ASSERT_EQ(out.positions[i], in.positions[i]) << i;
+      ASSERT_EQ(out.intensity[i], in.intensity[i]) << i;
+      ASSERT_EQ(out.classification[i], in.classification[i]) << i;
+      ASSERT_EQ(out.return_number[i], in.return_number[i]) << i;
+      ASSERT_EQ(out.number_of_returns[i], in.number_of_returns[i]) << i;
+      ASSERT_EQ(out.rgb[i], in.rgb[i]) << i;
+      zeros =
+          zeros && out.gps_time[i] == 0.0 && out.point_source_id[i] == 0 && out.user_data[i] == 0;
+      same_extras = same_extras && out.gps_time[i] == in.gps_time[i] &&
+                    out.point_source_id[i] == in.point_source_id[i];
+    }
+    if (format >= 6)
+      EXPECT_TRUE(zeros) << "GPS time, point source and user data are not decoded";
+    else
+      EXPECT_TRUE(same_extras) << "formats without layers decode whole";
+  }
+}

@@ -183,6 +183,122 @@ TEST(Pointlets, LasAndLazAndManyRunsGiveTheSamePointlets) {
   fs::remove_all(dir);
 }
 
+// FNV-1a of a cache's body (the points and the table, not the header that names the sources).
+uint64_t body_digest(const fs::path& cache) {
+  const auto bytes = bytes_of(cache);
+  uint64_t h = 1469598103934665603ull;
+  for (size_t i = pc::kPointletHeaderBytes; i < bytes.size(); ++i)
+    h = (h ^ bytes[i]) * 1099511628211ull;
+  return h;
+}
+
+// The cache's content is fixed: a faster builder must give the very same points and pointlets
+// (order, shuffles, boxes and CRCs) as the first one did, for LAS and LAZ, in one run or in
+// several runs on disk, and when a single curve cell holds more points than one run (the
+// merge's fallback). The digests were taken from the comparison-sort builder.
+TEST(Pointlets, ContentIsThatOfTheFirstBuilder) {
+  fs::path dir = fresh_dir("golden");
+  fs::path las = test::write_scene_las(dir / "scene.las", 150000);
+  fs::path laz = test::write_scene_las(dir / "scene.laz", 150000, true);
+  pc::PointletBuildOptions o;
+  o.pointlets = 1000;
+  o.progress = false;
+  o.threads = 2;
+  pc::build_pointlet_cache({las}, dir / "las.pointlets", o);
+  pc::build_pointlet_cache({laz}, dir / "laz.pointlets", o);
+  o.memory_budget = 20000 * 24;  // runs of 65,536 points (the least): three on disk
+  const auto runs = pc::build_pointlet_cache({las}, dir / "runs.pointlets", o);
+  EXPECT_EQ(runs.runs, 3u);
+  o.threads = 3;
+  pc::build_pointlet_cache({las}, dir / "runs3.pointlets", o);
+  pc::PointletCache cache = pc::PointletCache::open(dir / "las.pointlets");
+  EXPECT_EQ(cache.info().point_count, 150000u);
+  EXPECT_EQ(cache.info().pointlet_points, 128u);
+  EXPECT_EQ(cache.info().pointlet_count, 1172u);
+  uint64_t crcs = 0;
+  for (const auto& e : cache.pointlets()) crcs = crcs * 31 + e.crc;
+  EXPECT_EQ(crcs, 0xae9ed5d545748687ull);
+  const uint64_t expected = 0x8e45ae54a0860ab9ull;
+  EXPECT_EQ(body_digest(dir / "las.pointlets"), expected);
+  EXPECT_EQ(body_digest(dir / "laz.pointlets"), expected);
+  EXPECT_EQ(body_digest(dir / "runs.pointlets"), expected);
+  EXPECT_EQ(body_digest(dir / "runs3.pointlets"), expected);
+
+  // 100,000 points at one place among 60,000 spread ones: one curve cell holds more points than
+  // a run, so the merge cannot cut it into windows.
+  io::SceneParams scene;
+  fs::path dense = dir / "dense.las";
+  {
+    io::LasWriteOptions w;
+    w.version_minor = 4;
+    w.point_format = 7;
+    w.scale = {0.001, 0.001, 0.001};
+    w.offset = {scene.origin.x, scene.origin.y, 0.0};
+    io::LasWriter writer(dense, w);
+    io::PointBatch b;
+    io::generate_scene(scene, 0, 60000, b);
+    writer.write(b);
+    for (uint64_t first = 0; first < 100000; first += 10000) {
+      b.clear();
+      io::generate_scene(scene, 60000 + first, 10000, b);
+      for (auto& p : b.positions) p = scene.origin + glm::dvec3(5.0, 5.0, 1.0);
+      writer.write(b);
+    }
+    writer.close();
+  }
+  o.threads = 2;
+  o.memory_budget = uint64_t(1) << 30;
+  pc::build_pointlet_cache({dense}, dir / "dense1.pointlets", o);
+  o.memory_budget = 20000 * 24;
+  EXPECT_GT(pc::build_pointlet_cache({dense}, dir / "dense3.pointlets", o).runs, 1u);
+  EXPECT_EQ(body_digest(dir / "dense1.pointlets"), 0x615d4265c5b2866eull);
+  EXPECT_EQ(body_digest(dir / "dense3.pointlets"), 0x615d4265c5b2866eull);
+  fs::remove_all(dir);
+}
+
+// A survey's tiles are one cache, with the points and pointlets of the merged file (the tiles
+// one after another); a header naming more sources than 4096 bytes hold grows by pages.
+TEST(Pointlets, TilesAreOneCacheEqualToTheMergedFile) {
+  fs::path dir = fresh_dir("tiles");
+  fs::path las = test::write_scene_las(dir / "scene.las", 60000);
+  pc::PointletBuildOptions o;
+  o.pointlets = 200;
+  o.progress = false;
+  o.threads = 2;
+  auto body = [](const fs::path& path) {
+    const auto cache = pc::PointletCache::open(path);
+    const auto bytes = bytes_of(path);
+    return std::vector<uint8_t>(bytes.begin() + ptrdiff_t(cache.info().points_offset), bytes.end());
+  };
+  {
+    const auto tiles = test::split_las_into_tiles(las, dir / "four", 2, 2, dir / "merged4.las");
+    ASSERT_EQ(tiles.size(), 4u);
+    pc::build_pointlet_cache(tiles, dir / "tiles4.pointlets", o);
+    pc::build_pointlet_cache({dir / "merged4.las"}, dir / "merged4.pointlets", o);
+    const auto cache = pc::PointletCache::open(dir / "tiles4.pointlets");
+    EXPECT_EQ(cache.info().point_count, 60000u);
+    EXPECT_EQ(cache.info().sources.size(), 4u);
+    EXPECT_EQ(cache.info().points_offset, pc::kPointletHeaderBytes);
+    EXPECT_EQ(cache_points(cache), source_points(las, cache.info().scale));
+    EXPECT_TRUE(body(dir / "tiles4.pointlets") == body(dir / "merged4.pointlets"));
+  }
+  {
+    // 10 x 10 tiles: more than the 64 sources a cache once held.
+    const auto tiles = test::split_las_into_tiles(las, dir / "many", 10, 10, dir / "merged.las");
+    ASSERT_GT(tiles.size(), 64u);
+    pc::build_pointlet_cache(tiles, dir / "tiles.pointlets", o);
+    pc::build_pointlet_cache({dir / "merged.las"}, dir / "merged.pointlets", o);
+    const auto cache = pc::PointletCache::open(dir / "tiles.pointlets");
+    EXPECT_EQ(cache.info().sources.size(), tiles.size());
+    EXPECT_EQ(cache.info().sources.back().path, fs::absolute(tiles.back()).string());
+    EXPECT_GT(cache.info().points_offset, pc::kPointletHeaderBytes);
+    EXPECT_EQ(cache.info().points_offset % pc::kPointletHeaderBytes, 0u);
+    EXPECT_TRUE(cache.matches(tiles, o));
+    EXPECT_TRUE(body(dir / "tiles.pointlets") == body(dir / "merged.pointlets"));
+  }
+  fs::remove_all(dir);
+}
+
 TEST(Pointlets, ReusedWhileUnchangedRebuiltWhenChangedOrDamaged) {
   fs::path dir = fresh_dir("reuse");
   fs::path las = test::write_scene_las(dir / "scene.las", 20000);

@@ -293,7 +293,9 @@ void add_bench_virtual_command(CLI::App& bench) {
   auto* cmd = bench.add_subcommand(
       "virtual",
       "Virtualized rendering over the seed's camera path (seed 002, Table II, Figs. 14-17)");
-  cmd->add_option("inputs", a->inputs, "LAS/LAZ/COPC files (one cloud)")->required();
+  cmd->add_option("inputs", a->inputs,
+                  "LAS/LAZ/COPC files and folders of LAS/LAZ tiles (one cloud)")
+      ->required();
   cmd->add_option("--bucket", a->buckets, "Point buckets B to run (several: the sweep of Fig. 14)")
       ->capture_default_str();
   cmd->add_option("--width", a->width, "Image width")->capture_default_str();

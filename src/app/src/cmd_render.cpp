@@ -45,6 +45,17 @@ void run_render(const RenderArgs& args) {
     j["pipelined"] = args.pipelined;
     j["renderer"] = r.compute ? "compute" : "billboard";
     j["load_s"] = r.load_seconds;
+    if (r.cache_built) {
+      const pc::PointletBuildStats& b = r.cache_build;
+      j["cache_build"] = {{"points", b.points},
+                          {"runs", b.runs},
+                          {"seconds", b.seconds},
+                          {"read_seconds", b.read_seconds},
+                          {"sort_seconds", b.sort_seconds},
+                          {"merge_seconds", b.merge_seconds},
+                          {"encode_seconds", b.encode_seconds},
+                          {"write_seconds", b.write_seconds}};
+    }
     j["passes"] = nlohmann::json::object();
     for (const auto& [name, ms] : stats.history) {
       j["passes"][name]["gpu_ms"] = ms;
@@ -84,11 +95,12 @@ void add_render_command(CLI::App& cli) {
                          "built-in procedural scene");
   cmd->add_option(
          "inputs", args->scene.inputs,
-         "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json, Potree "
+         "Input files (.las, .laz, .copc.laz) and folders of LAS/LAZ tiles (one cloud), or one "
+         "3D Tiles tileset.json, Potree "
          "metadata.json or cloud.js, or EPT ept.json path or URL; Gaussian splat files (.ply, "
          ".splat, .spz, .ksplat, .sog) drawn with them or alone")
       ->check([](const std::string& in) {
-        return io::is_url(in) ? std::string() : CLI::ExistingFile(in);
+        return io::is_url(in) ? std::string() : CLI::ExistingPath(in);
       });
   cmd->add_option("-o,--output", args->output, "Output PNG")->capture_default_str();
   cmd->add_option("--width", args->width, "Image width in pixels")

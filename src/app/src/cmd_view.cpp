@@ -103,12 +103,13 @@ void add_view_command(CLI::App& cli) {
       "Esc quit");
   cmd->add_option(
          "inputs", args->scene.inputs,
-         "Input files (.las, .laz, .copc.laz), or one 3D Tiles tileset.json, Potree "
+         "Input files (.las, .laz, .copc.laz) and folders of LAS/LAZ tiles (one cloud), or one "
+         "3D Tiles tileset.json, Potree "
          "metadata.json or cloud.js, or EPT ept.json path or URL "
          "(streamed while the camera moves); Gaussian splat files (.ply, .splat, .spz, .ksplat, "
          ".sog) drawn with them or alone")
       ->check([](const std::string& in) {
-        return io::is_url(in) ? std::string() : CLI::ExistingFile(in);
+        return io::is_url(in) ? std::string() : CLI::ExistingPath(in);
       });
   cmd->add_option("--width", args->width, "Window width")
       ->check(CLI::Range(64u, 16384u))

@@ -58,11 +58,12 @@ class LazDecoder {
   // Positions before point `index` (LASzip jumps to its chunk through the chunk table).
   virtual void seek(uint64_t index) = 0;
 };
-// Exactly one of path / memory is used (path when non-null).
+// Exactly one of path / memory is used (path when non-null). drawn_fields_only: see LasReader.
 std::unique_ptr<LazDecoder> open_laz_decoder(const std::string& name,
                                              const std::filesystem::path* path,
                                              std::span<const uint8_t> memory,
-                                             const RecordLayout& layout);
+                                             const RecordLayout& layout,
+                                             bool drawn_fields_only = false);
 
 class LazEncoder {
  public:

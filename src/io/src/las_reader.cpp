@@ -396,7 +396,8 @@ struct LasReader::Impl {
   size_t prefix_points = 0, prefix_used = 0;
   uint64_t fetched = 0;  // records taken from the source so far
 
-  void open(const std::filesystem::path* path, std::span<const uint8_t> memory, bool decode_laz) {
+  void open(const std::filesystem::path* path, std::span<const uint8_t> memory, bool decode_laz,
+            bool drawn_fields_only = false) {
     const std::string name = header.path;
     Parser parser{*src, name};
     header = parser.parse();
@@ -406,7 +407,7 @@ struct LasReader::Impl {
     layout = detail::record_layout(header.point_format, header.point_record_length);
     if (header.compressed) {
       if (!decode_laz) fail("{}: LAZ decoding is disabled for this reader", header.path);
-      laz = detail::open_laz_decoder(header.path, path, memory, layout);
+      laz = detail::open_laz_decoder(header.path, path, memory, layout, drawn_fields_only);
     }
     if (header.has_rgb && header.point_count > 0) {
       const size_t n = static_cast<size_t>(
@@ -508,10 +509,13 @@ struct LasReader::Impl {
   }
 };
 
-LasReader::LasReader(const std::filesystem::path& path) : impl_(std::make_unique<Impl>()) {
+LasReader::LasReader(const std::filesystem::path& path) : LasReader(path, false) {}
+
+LasReader::LasReader(const std::filesystem::path& path, bool drawn_fields_only)
+    : impl_(std::make_unique<Impl>()) {
   impl_->header.path = path.string();
   impl_->src = std::make_unique<FileSource>(path, impl_->header.path);
-  impl_->open(&path, {}, true);
+  impl_->open(&path, {}, true, drawn_fields_only);
 }
 
 LasReader::LasReader(std::span<const uint8_t> bytes, std::string name, bool decode_laz)

@@ -61,12 +61,22 @@ struct ZipHandle {
 class LaszipDecoder : public LazDecoder {
  public:
   LaszipDecoder(const std::string& name, const std::filesystem::path* path,
-                std::span<const uint8_t> memory, const RecordLayout& layout)
+                std::span<const uint8_t> memory, const RecordLayout& layout, bool drawn_fields_only)
       : name_(name), layout_(layout), buf_(memory), stream_(&buf_) {
     if (laszip_create(&handle_.zip) != 0 || !handle_.zip) {
       fail("{}: cannot create a LASzip reader", name_);
     }
     zip_ = handle_.zip;
+    // Layers of formats 6-10 left compressed: LASzip skips their bytes in each chunk (and
+    // leaves the chunk's first point's values there, so read() writes zeros instead). Other
+    // formats have no layers and decode whole.
+    drawn_only_ = drawn_fields_only && layout.extended();
+    if (drawn_only_ &&
+        laszip_decompress_selective(
+            zip_, laszip_DECOMPRESS_SELECTIVE_CHANNEL_RETURNS_XY | laszip_DECOMPRESS_SELECTIVE_Z |
+                      laszip_DECOMPRESS_SELECTIVE_CLASSIFICATION |
+                      laszip_DECOMPRESS_SELECTIVE_INTENSITY | laszip_DECOMPRESS_SELECTIVE_RGB) != 0)
+      fail("{}: LASzip: {}", name_, laszip_message(zip_));
     laszip_BOOL compressed = 0;
     const laszip_I32 rc = path ? laszip_open_reader(zip_, path->c_str(), &compressed)
                                : laszip_open_reader_stream(zip_, stream_, &compressed);
@@ -102,6 +112,17 @@ class LaszipDecoder : public LazDecoder {
       uint8_t* r = out + i * layout_.record_length;
       std::memset(r, 0, layout_.record_length);
       const laszip_point& p = *point_;
+      if (drawn_only_) {  // the decoded layers' fields; the rest stay zero
+        store<int32_t>(r, p.X);
+        store<int32_t>(r + 4, p.Y);
+        store<int32_t>(r + 8, p.Z);
+        store<uint16_t>(r + 12, p.intensity);
+        r[14] =
+            static_cast<uint8_t>(p.extended_return_number | (p.extended_number_of_returns << 4));
+        r[16] = p.extended_classification;
+        if (layout_.rgb >= 0) std::memcpy(r + layout_.rgb, p.rgb, 6);
+        continue;
+      }
       if (!layout_.extended()) {
         // laszip_point begins with the 20-byte legacy record, bit fields included.
         std::memcpy(r, &p.X, 20);
@@ -137,6 +158,7 @@ class LaszipDecoder : public LazDecoder {
  private:
   std::string name_;
   RecordLayout layout_;
+  bool drawn_only_ = false;
   MemoryBuf buf_;
   std::istream stream_;
   ZipHandle handle_;
@@ -267,8 +289,8 @@ class LaszipEncoder : public LazEncoder {
 std::unique_ptr<LazDecoder> open_laz_decoder(const std::string& name,
                                              const std::filesystem::path* path,
                                              std::span<const uint8_t> memory,
-                                             const RecordLayout& layout) {
-  return std::make_unique<LaszipDecoder>(name, path, memory, layout);
+                                             const RecordLayout& layout, bool drawn_fields_only) {
+  return std::make_unique<LaszipDecoder>(name, path, memory, layout, drawn_fields_only);
 }
 
 std::unique_ptr<LazEncoder> open_laz_encoder(const std::filesystem::path& path,

@@ -6,16 +6,19 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
 #include <limits>
 #include <optional>
 #include <queue>
 #include <random>
+#include <utility>
+
+#include <fmt/format.h>
 
 #include "stipple/core/atomic_file.hpp"
 #include "stipple/core/error.hpp"
@@ -32,7 +35,9 @@ namespace {
 
 constexpr char kMagic[8] = {'S', 'T', 'P', 'L', 'T', 'C', 'H', 'E'};
 constexpr uint32_t kGridBits = 10;  // per axis: 30-bit Morton / Hilbert keys
-constexpr uint64_t kMaxSources = 64;
+// A survey delivered as tiles is one cache: the header grows (in pages) to name them all.
+constexpr uint64_t kMaxSources = 65536;
+constexpr uint64_t kMaxHeaderBytes = uint64_t(64) << 20;
 
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) {
@@ -67,7 +72,15 @@ constexpr size_t magic = 0, version = 8, header_bytes = 12, point_count = 16, po
                  pointlet_points = 32, requested = 40, order = 48, flags = 52, scale = 56,
                  bounds = 80, enu_origin = 128, points_offset = 152, table_offset = 160,
                  file_size = 168, table_crc = 176, source_count = 180, elevation_range = 184,
-                 intensity_range = 200, sources = 216, header_crc = kPointletHeaderBytes - 4;
+                 intensity_range = 200, sources = 216;
+}
+
+// The header's size: 4096 bytes, or whole pages more where the sources' names need them (its
+// last 4 bytes are its CRC).
+uint64_t header_bytes_for(const std::vector<PointletSource>& sources) {
+  uint64_t need = field::sources + 4;
+  for (const PointletSource& s : sources) need += 26 + s.path.size();
+  return (need + kPointletHeaderBytes - 1) / kPointletHeaderBytes * kPointletHeaderBytes;
 }
 
 template <typename T>
@@ -82,10 +95,12 @@ T get(const uint8_t* b, size_t at) {
 }
 
 std::vector<uint8_t> encode_header(const PointletCacheInfo& info, uint32_t table_crc) {
-  std::vector<uint8_t> b(kPointletHeaderBytes, 0);
+  const uint64_t header_bytes = header_bytes_for(info.sources);
+  const size_t header_crc = size_t(header_bytes - 4);
+  std::vector<uint8_t> b(header_bytes, 0);
   std::memcpy(b.data() + field::magic, kMagic, 8);
   put(b, field::version, info.version);
-  put(b, field::header_bytes, uint32_t(kPointletHeaderBytes));
+  put(b, field::header_bytes, uint32_t(header_bytes));
   put(b, field::point_count, info.point_count);
   put(b, field::pointlet_count, info.pointlet_count);
   put(b, field::pointlet_points, info.pointlet_points);
@@ -114,9 +129,7 @@ std::vector<uint8_t> encode_header(const PointletCacheInfo& info, uint32_t table
   size_t at = field::sources;
   for (const PointletSource& s : info.sources) {
     const size_t need = 8 + 8 + 8 + 2 + s.path.size();
-    if (at + need > field::header_crc)
-      fail("pointlet cache: the sources' names do not fit the header ({} bytes)",
-           kPointletHeaderBytes);
+    if (s.path.size() > UINT16_MAX) fail("{}: the path is too long for a pointlet cache", s.path);
     put(b, at, s.size);
     put(b, at + 8, s.mtime_ns);
     put(b, at + 16, s.points);
@@ -124,7 +137,7 @@ std::vector<uint8_t> encode_header(const PointletCacheInfo& info, uint32_t table
     std::memcpy(b.data() + at + 26, s.path.data(), s.path.size());
     at += need;
   }
-  put(b, field::header_crc, crc32_of(b.data(), field::header_crc));
+  put(b, header_crc, crc32_of(b.data(), header_crc));
   return b;
 }
 
@@ -149,120 +162,226 @@ uint32_t grid_key(const uint32_t q[3], const double cell_inverse, SpatialOrder o
   return order == SpatialOrder::Hilbert ? hilbert_from_morton(morton) : morton;
 }
 
-// Stable: equal keys keep their input order, so the cache does not depend on how the input
-// was cut into runs.
-void sort_run(std::vector<RunRecord>& run, ThreadPool& pool) {
-  auto less = [](const RunRecord& a, const RunRecord& b) { return a.key < b.key; };
-  const size_t parts = std::max<size_t>(1, std::min<size_t>(pool.size(), run.size() / 65536));
-  std::vector<size_t> bounds(parts + 1);
-  for (size_t i = 0; i <= parts; ++i) bounds[i] = run.size() * i / parts;
-  pool.parallel_for(parts, 1, [&](size_t begin, size_t end) {
-    for (size_t p = begin; p < end; ++p)
-      std::stable_sort(run.begin() + ptrdiff_t(bounds[p]), run.begin() + ptrdiff_t(bounds[p + 1]),
-                       less);
-  });
-  // Pairs of sorted parts merge in parallel, level by level (only the last merge is alone).
-  for (size_t width = 1; width < parts; width *= 2) {
-    const size_t pairs = (parts + 2 * width - 1) / (2 * width);
-    pool.parallel_for(pairs, 1, [&](size_t begin, size_t end) {
-      for (size_t q = begin; q < end; ++q) {
-        const size_t p = q * 2 * width;
-        if (p + width >= parts) continue;
-        std::inplace_merge(run.begin() + ptrdiff_t(bounds[p]),
-                           run.begin() + ptrdiff_t(bounds[p + width]),
-                           run.begin() + ptrdiff_t(bounds[std::min(parts, p + 2 * width)]), less);
-      }
-    });
-  }
+// Keys are 3 * kGridBits = 30 bits: three passes of 10-bit digits.
+constexpr uint32_t kKeyBits = 3 * kGridBits, kDigitBits = 10, kDigits = 1u << kDigitBits;
+// A sorted run is indexed by the top bits of its keys, so that the merge reads the same key
+// range of every run at once (a window) and sorts it in memory: 16 bits where the tables fit an
+// eighth of the memory budget (8 bytes an entry per run), fewer for many runs in little memory
+// (coarser windows; a prefix over a run's worth is merged through a heap).
+struct PrefixBits {
+  uint32_t bits = 16;
+  uint32_t count() const { return 1u << bits; }
+  uint32_t of(uint32_t key) const { return key >> (kKeyBits - bits); }
+};
+PrefixBits prefix_bits(uint64_t runs, uint64_t memory_budget) {
+  PrefixBits p;
+  while (p.bits > 4 && runs * (uint64_t(p.count()) + 1) * 8 > memory_budget / 8) --p.bits;
+  return p;
 }
 
-// Run files on disk, removed with the builder.
-struct RunFiles {
-  std::vector<fs::path> paths;
-  ~RunFiles() {
-    std::error_code ec;
-    for (const auto& p : paths) fs::remove(p, ec);
+// Memory for n records, not zeroed (the readers fill it on every core); seen as RunRecords or,
+// once those are encoded, as PointletRecords (fewer bytes each).
+struct Arena {
+  std::unique_ptr<unsigned char[]> bytes;
+  explicit Arena(uint64_t records) : bytes(new unsigned char[records * sizeof(RunRecord)]) {}
+  RunRecord* runs() { return reinterpret_cast<RunRecord*>(bytes.get()); }
+  PointletRecord* pointlets() { return reinterpret_cast<PointletRecord*>(bytes.get()); }
+};
+
+// [begin, end) of part p of n items cut into `parts`.
+size_t part_begin(size_t n, size_t parts, size_t p) {
+  return n * p / parts;
+}
+
+// Stable LSD radix sort by key on every core: equal keys keep their input order, so the cache
+// does not depend on how the input was cut into runs or windows. Digits that every key shares
+// are skipped. Returns which of `data` and `scratch` holds the sorted records.
+RunRecord* radix_sort(RunRecord* data, RunRecord* scratch, size_t n, ThreadPool& pool) {
+  const size_t parts = std::max<size_t>(1, std::min<size_t>(pool.size(), n / 65536));
+  std::vector<std::array<uint64_t, kDigits>> counts(parts);
+  RunRecord *src = data, *dst = scratch;
+  for (uint32_t shift = 0; shift < kKeyBits; shift += kDigitBits) {
+    pool.parallel_for(parts, 1, [&](size_t begin, size_t end) {
+      for (size_t p = begin; p < end; ++p) {
+        auto& c = counts[p];
+        c.fill(0);
+        for (size_t i = part_begin(n, parts, p), e = part_begin(n, parts, p + 1); i < e; ++i)
+          ++c[(src[i].key >> shift) & (kDigits - 1)];
+      }
+    });
+    // Where each part's records of each digit go: digit-major, then part (stable).
+    uint64_t at = 0;
+    bool shared = false;
+    for (uint32_t d = 0; d < kDigits; ++d) {
+      uint64_t total = 0;
+      for (size_t p = 0; p < parts; ++p) {
+        const uint64_t c = counts[p][d];
+        counts[p][d] = at;
+        at += c;
+        total += c;
+      }
+      shared = shared || total == n;
+    }
+    if (shared) continue;  // one digit for all: this pass would not move anything
+    pool.parallel_for(parts, 1, [&](size_t begin, size_t end) {
+      for (size_t p = begin; p < end; ++p) {
+        auto& o = counts[p];
+        for (size_t i = part_begin(n, parts, p), e = part_begin(n, parts, p + 1); i < e; ++i)
+          dst[o[(src[i].key >> shift) & (kDigits - 1)]++] = src[i];
+      }
+    });
+    std::swap(src, dst);
+  }
+  return src;
+}
+
+// starts[b]: the first record of a sorted run whose key prefix is at least b (b <= count).
+std::vector<uint64_t> prefix_starts(const RunRecord* run, size_t n, PrefixBits prefix,
+                                    ThreadPool& pool) {
+  std::vector<uint64_t> starts(prefix.count() + 1, n);
+  const size_t parts = std::max<size_t>(1, std::min<size_t>(pool.size(), n / 65536));
+  // Each prefix's start is set by the one record where the prefix is reached.
+  pool.parallel_for(parts, 1, [&](size_t begin, size_t end) {
+    for (size_t p = begin; p < end; ++p)
+      for (size_t i = part_begin(n, parts, p), e = part_begin(n, parts, p + 1); i < e; ++i) {
+        const uint32_t to = prefix.of(run[i].key);
+        for (uint32_t b = i == 0 ? 0 : prefix.of(run[i - 1].key) + 1; b <= to; ++b) starts[b] = i;
+      }
+  });
+  return starts;
+}
+
+// A file descriptor closed with its holder.
+struct Fd {
+  int fd = -1;
+  Fd() = default;
+  explicit Fd(int f) : fd(f) {}
+  Fd(Fd&& o) noexcept : fd(std::exchange(o.fd, -1)) {}
+  Fd& operator=(Fd&& o) noexcept {
+    std::swap(fd, o.fd);
+    return *this;
+  }
+  ~Fd() {
+    if (fd >= 0) ::close(fd);
   }
 };
 
-void write_run(const fs::path& path, const std::vector<RunRecord>& run) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(reinterpret_cast<const char*>(run.data()),
-            std::streamsize(run.size() * sizeof(RunRecord)));
-  out.close();
-  if (!out) fail("{}: cannot write a sort run (disk full?)", path.string());
+void write_at(int fd, const void* data, uint64_t n, uint64_t offset, const std::string& name) {
+  const auto* p = static_cast<const uint8_t*>(data);
+  while (n > 0) {
+    const ssize_t put = ::pwrite(fd, p, std::min<uint64_t>(n, uint64_t(1) << 30), off_t(offset));
+    if (put < 0 && errno == EINTR) continue;
+    if (put <= 0) fail("{}: cannot write: {} (disk full?)", name, std::strerror(errno));
+    p += put;
+    offset += uint64_t(put);
+    n -= uint64_t(put);
+  }
 }
 
-// Buffered sequential reader of one run file.
-class RunReader {
- public:
-  RunReader(const fs::path& path, size_t buffer_records)
-      : in_(path, std::ios::binary), buffer_(buffer_records) {
-    if (!in_) fail("{}: cannot reopen a sort run", path.string());
-    path_ = path.string();
-    refill();
+void read_at(int fd, void* data, uint64_t n, uint64_t offset, const std::string& name) {
+  auto* p = static_cast<uint8_t*>(data);
+  while (n > 0) {
+    const ssize_t got = ::pread(fd, p, std::min<uint64_t>(n, uint64_t(1) << 30), off_t(offset));
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0)
+      fail("{}: cannot read back a sort run: {}", name,
+           got < 0 ? std::strerror(errno) : "cut short");
+    p += got;
+    offset += uint64_t(got);
+    n -= uint64_t(got);
   }
-  bool done() const { return pos_ >= size_; }
-  const RunRecord& front() const { return buffer_[pos_]; }
-  void pop() {
-    if (++pos_ >= size_) refill();
-  }
+}
 
- private:
-  void refill() {
-    in_.read(reinterpret_cast<char*>(buffer_.data()),
-             std::streamsize(buffer_.size() * sizeof(RunRecord)));
-    const auto got = size_t(in_.gcount());
-    if (got % sizeof(RunRecord)) fail("{}: a sort run was cut short", path_);
-    size_ = got / sizeof(RunRecord);
-    pos_ = 0;
+// Large sequential writes from every core: the kernel's copy into the page cache is most of a
+// write's cost, and it runs on the writing thread.
+constexpr uint64_t kWritePiece = uint64_t(8) << 20;
+void write_parallel(int fd, const void* data, uint64_t n, uint64_t offset, const std::string& name,
+                    ThreadPool& pool) {
+  const auto* p = static_cast<const uint8_t*>(data);
+  pool.parallel_for(size_t((n + kWritePiece - 1) / kWritePiece), 1, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
+      const uint64_t at = i * kWritePiece;
+      write_at(fd, p + at, std::min(kWritePiece, n - at), offset + at, name);
+    }
+  });
+}
+
+// A sorted run on disk and where each key prefix starts in it; removed with the builder.
+struct RunFile {
+  fs::path path;
+  Fd fd;
+  uint64_t count = 0;
+  std::vector<uint64_t> starts;
+};
+struct RunFiles {
+  std::vector<RunFile> files;
+  ~RunFiles() {
+    std::error_code ec;
+    for (auto& f : files) {
+      f.fd = Fd();
+      fs::remove(f.path, ec);
+    }
   }
-  std::ifstream in_;
-  std::string path_;
-  std::vector<RunRecord> buffer_;
-  size_t size_ = 0, pos_ = 0;
 };
 
 // Cuts the sorted stream into pointlets: shuffles each (a prefix is then a uniform subsample),
-// computes its box and writes its records relative to the box. Records are gathered in blocks
-// of whole pointlets, which are encoded on every core and then written in order.
+// computes its box and writes its records relative to the box. The stream comes in pieces of
+// any length; whole pointlets are encoded on every core and written at their place in the
+// cache, also from every core; a pointlet cut between pieces waits in `carry_`.
 class PointletWriter {
  public:
-  PointletWriter(std::ofstream& out, const PointletCacheInfo& info, const glm::dvec3& origin,
-                 ThreadPool& pool, uint64_t block_bytes)
-      : out_(out), info_(info), origin_(origin), pool_(pool) {
-    // RunRecord in, PointletRecord out: 44 bytes a point while a block is encoded.
-    const uint64_t k = info.pointlet_points;
-    const uint64_t pointlets = std::clamp<uint64_t>(block_bytes / 44 / k, 1, (1u << 22) / k + 1);
-    block_records_ = pointlets * k;
-    pending_.reserve(std::min<uint64_t>(block_records_, info.point_count));
+  PointletWriter(int fd, std::string name, const PointletCacheInfo& info, const glm::dvec3& origin,
+                 ThreadPool& pool, PointletBuildStats& stats)
+      : fd_(fd), name_(std::move(name)), info_(info), origin_(origin), pool_(pool), stats_(stats) {}
+  // The next n records of the sorted stream (shuffled in place); `out` has room for n
+  // PointletRecords.
+  void add(RunRecord* records, size_t n, PointletRecord* out) {
+    const uint64_t k = info_.pointlet_points;
+    if (!carry_.empty()) {
+      const size_t take = std::min<size_t>(k - carry_.size(), n);
+      carry_.insert(carry_.end(), records, records + take);
+      records += take;
+      n -= take;
+      if (carry_.size() < k) return;
+      flush();
+    }
+    const size_t whole = n / k * k;
+    if (whole > 0) emit(records, whole, out);
+    carry_.assign(records + whole, records + n);
   }
-  void add(const RunRecord& r) {
-    pending_.push_back(r);
-    if (pending_.size() == block_records_) write_block();
+  // The last pointlet, which may be shorter.
+  void flush() {
+    if (carry_.empty()) return;
+    std::vector<PointletRecord> out(carry_.size());
+    emit(carry_.data(), carry_.size(), out.data());
+    carry_.clear();
   }
-  void flush() { write_block(); }
+
+  std::vector<PointletEntry> table;
 
  private:
-  void write_block() {
-    if (pending_.empty()) return;
+  void emit(RunRecord* records, size_t n, PointletRecord* out) {
     const uint64_t k = info_.pointlet_points;
-    const size_t base = table.size(), count = (pending_.size() + k - 1) / k;
+    const size_t base = table.size(), count = (n + k - 1) / k;
     table.resize(base + count);
-    records_.resize(pending_.size());
-    pool_.parallel_for(count, 8, [&](size_t begin, size_t end) {
-      for (size_t p = begin; p < end; ++p) encode(p, base + p);
+    auto t = Clock::now();
+    const size_t grain = std::max<size_t>(1, count / (size_t(pool_.size()) * 4));
+    pool_.parallel_for(count, grain, [&](size_t begin, size_t end) {
+      for (size_t p = begin; p < end; ++p) encode(records, n, out, p, base + p);
     });
-    const uint64_t bytes = records_.size() * sizeof(PointletRecord);
-    out_.write(reinterpret_cast<const char*>(records_.data()), std::streamsize(bytes));
-    written_ += records_.size();
-    pending_.clear();
+    stats_.encode_seconds += since(t);
+    t = Clock::now();
+    write_parallel(fd_, out, n * sizeof(PointletRecord),
+                   info_.points_offset + written_ * sizeof(PointletRecord), name_, pool_);
+    stats_.write_seconds += since(t);
+    written_ += n;
   }
-  // Pointlet `index` of the cache, the `p`th of the block.
-  void encode(size_t p, size_t index) {
+  // Pointlet `index` of the cache, the `p`th of these n records.
+  void encode(RunRecord* records, size_t total, PointletRecord* out_records, size_t p,
+              size_t index) {
     const uint64_t k = info_.pointlet_points;
-    const size_t first = p * k, n = std::min<size_t>(k, pending_.size() - first);
-    RunRecord* in = pending_.data() + first;
+    const size_t first = p * k, n = std::min<size_t>(k, total - first);
+    RunRecord* in = records + first;
     // Deterministic per pointlet: the same input gives the same cache.
     std::mt19937_64 rng(0x9e3779b97f4a7c15ull * (index + 1));
     std::shuffle(in, in + n, rng);
@@ -272,7 +391,7 @@ class PointletWriter {
         lo[a] = std::min(lo[a], in[i].q[a]);
         hi[a] = std::max(hi[a], in[i].q[a]);
       }
-    PointletRecord* out = records_.data() + first;
+    PointletRecord* out = out_records + first;
     for (size_t i = 0; i < n; ++i) {
       const RunRecord& r = in[i];
       out[i] = {{r.q[0] - lo[0], r.q[1] - lo[1], r.q[2] - lo[2]}, r.rgba, r.attributes};
@@ -288,19 +407,62 @@ class PointletWriter {
     e.crc = crc32_of(out, n * sizeof(PointletRecord));
   }
 
- public:
-  std::vector<PointletEntry> table;
-
- private:
-  std::ofstream& out_;
+  int fd_;
+  std::string name_;
   const PointletCacheInfo& info_;
   glm::dvec3 origin_;
   ThreadPool& pool_;
-  uint64_t block_records_ = 1;
-  std::vector<RunRecord> pending_;
-  std::vector<PointletRecord> records_;
+  PointletBuildStats& stats_;
+  std::vector<RunRecord> carry_;
   uint64_t written_ = 0;
 };
+
+// The merge of one key prefix that holds more points than a run (a dense spot, which windows
+// of prefixes cannot cut): its part of every run is streamed through a heap (ties go to the
+// earlier run, as in the windows' stable sort) and handed to the writer a run's worth at a time.
+void merge_prefix(const RunFiles& runs, uint32_t prefix, RunRecord* block, uint64_t capacity,
+                  PointletRecord* encoded, PointletWriter& writer, PointletBuildStats& stats) {
+  const auto t = Clock::now();
+  const double written = stats.encode_seconds + stats.write_seconds;
+  struct Cursor {
+    const RunFile* run;
+    uint64_t next, end;
+    std::vector<RunRecord> buffer;
+    size_t pos = 0;
+  };
+  auto refill = [](Cursor& c) {
+    const uint64_t n = std::min<uint64_t>(1 << 16, c.end - c.next);
+    c.buffer.resize(n);
+    read_at(c.run->fd.fd, c.buffer.data(), n * sizeof(RunRecord), c.next * sizeof(RunRecord),
+            c.run->path.string());
+    c.next += n;
+    c.pos = 0;
+  };
+  std::vector<Cursor> cursors;
+  for (const RunFile& r : runs.files)
+    if (r.starts[prefix] < r.starts[prefix + 1]) {
+      cursors.push_back({&r, r.starts[prefix], r.starts[prefix + 1], {}, 0});
+      refill(cursors.back());
+    }
+  using Head = std::pair<uint32_t, size_t>;  // key, cursor (in run order)
+  std::priority_queue<Head, std::vector<Head>, std::greater<>> heads;
+  for (size_t i = 0; i < cursors.size(); ++i) heads.push({cursors[i].buffer[0].key, i});
+  uint64_t filled = 0;
+  while (!heads.empty()) {
+    const size_t i = heads.top().second;
+    heads.pop();
+    Cursor& c = cursors[i];
+    block[filled++] = c.buffer[c.pos++];
+    if (c.pos == c.buffer.size() && c.next < c.end) refill(c);
+    if (c.pos < c.buffer.size()) heads.push({c.buffer[c.pos].key, i});
+    if (filled == capacity) {
+      writer.add(block, filled, encoded);
+      filled = 0;
+    }
+  }
+  if (filled > 0) writer.add(block, filled, encoded);
+  stats.merge_seconds += since(t) - (stats.encode_seconds + stats.write_seconds - written);
+}
 
 uint64_t fnv1a(std::string_view s, uint64_t h = 1469598103934665603ull) {
   for (unsigned char c : s) h = (h ^ c) * 1099511628211ull;
@@ -312,6 +474,15 @@ uint64_t fnv1a(std::string_view s, uint64_t h = 1469598103934665603ull) {
 uint64_t pointlet_size(uint64_t points, uint64_t pointlets) {
   if (pointlets == 0 || points <= pointlets) return 1;
   return std::bit_floor(points / pointlets);  // 2^floor(log2(n / m)) for integer n / m
+}
+
+std::string describe_build_phases(const PointletBuildStats& s) {
+  return fmt::format(
+      "cache build: {} points in {:.2f} s ({:.2f} M points/s); read {:.2f} s, sort {:.2f} s, "
+      "merge {:.2f} s, encode {:.2f} s, write {:.2f} s; {} run{}",
+      s.points, s.seconds, double(s.points) / std::max(s.seconds, 1e-9) / 1e6, s.read_seconds,
+      s.sort_seconds, s.merge_seconds, s.encode_seconds, s.write_seconds, s.runs,
+      s.runs == 1 ? "" : "s");
 }
 
 PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
@@ -393,38 +564,49 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
       std::max({extent.x / scale.x, extent.y / scale.y, extent.z / scale.z, 1.0});
   const double cell_inverse = double(1u << kGridBits) / lattice_extent;
   info.pointlet_points = pointlet_size(info.point_count, info.requested_pointlets);
+  info.points_offset = header_bytes_for(info.sources);
 
   ThreadPool pool(options.threads ? options.threads
                                   : std::max(1u, std::thread::hardware_concurrency()));
-  // A run takes two thirds of the budget: the stable sort's merges borrow up to half a run.
-  const uint64_t run_capacity =
-      std::max<uint64_t>(1 << 16, options.memory_budget / 3 * 2 / sizeof(RunRecord));
+  // A run takes half of the budget: the radix sort moves it into a buffer of its size.
+  const uint64_t run_capacity = std::min<uint64_t>(
+      info.point_count, std::max<uint64_t>(1 << 16, options.memory_budget / 2 / sizeof(RunRecord)));
   const fs::path temp_dir = options.temp_dir.empty()
                                 ? (cache_path.has_parent_path() ? cache_path.parent_path() : ".")
                                 : options.temp_dir;
   RunFiles runs;
-  std::vector<RunRecord> run;
-  run.reserve(std::min<uint64_t>(run_capacity, info.point_count));
+  const PrefixBits prefix =
+      prefix_bits((info.point_count + run_capacity - 1) / run_capacity, options.memory_budget);
+  Arena run_arena(run_capacity), scratch_arena(run_capacity);
+  RunRecord* run = run_arena.runs();
+  uint64_t run_size = 0;
   std::vector<double> elevation, intensity;
   const uint64_t sample_stride = std::max<uint64_t>(1, info.point_count / (1 << 20));
   uint64_t seen = 0;
 
-  auto finish_run = [&] {
+  // Sorts the run; returns where the sorted records are and where the other buffer is.
+  auto sort_run = [&] {
     const auto t = Clock::now();
-    sort_run(run, pool);
+    RunRecord* sorted = radix_sort(run, scratch_arena.runs(), run_size, pool);
     stats.sort_seconds += since(t);
-    stats.peak_run_bytes = std::max<uint64_t>(stats.peak_run_bytes, run.size() * sizeof(RunRecord));
+    stats.peak_run_bytes = std::max<uint64_t>(stats.peak_run_bytes, run_size * sizeof(RunRecord));
+    return sorted;
   };
   auto spill = [&] {
-    finish_run();
+    const RunRecord* sorted = sort_run();
     const auto t = Clock::now();
-    fs::path path =
-        temp_dir / (cache_path.filename().string() + ".run-" + std::to_string(::getpid()) + "-" +
-                    std::to_string(runs.paths.size()));
-    runs.paths.push_back(path);
-    write_run(path, run);
+    RunFile f;
+    f.path = temp_dir / (cache_path.filename().string() + ".run-" + std::to_string(::getpid()) +
+                         "-" + std::to_string(runs.files.size()));
+    f.fd = Fd(::open(f.path.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0600));
+    if (f.fd.fd < 0) fail("{}: cannot write a sort run: {}", f.path.string(), std::strerror(errno));
+    runs.files.push_back(std::move(f));
+    RunFile& file = runs.files.back();
+    file.count = run_size;
+    file.starts = prefix_starts(sorted, run_size, prefix, pool);
+    write_parallel(file.fd.fd, sorted, run_size * sizeof(RunRecord), 0, file.path.string(), pool);
     stats.write_seconds += since(t);
-    run.clear();
+    run_size = 0;
   };
 
   // The input in windows of at most one run; a window is read by every core, each thread with
@@ -463,16 +645,21 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
         local += take;
       }
       const auto t = Clock::now();
-      run.resize(window);
+      run_size = window;
       std::vector<Samples> samples(slices.size());
       pool.parallel_for(slices.size(), 1, [&](size_t begin, size_t end) {
         for (size_t k = begin; k < end; ++k) {
           const Slice& sl = slices[k];
-          io::LasReader reader(sources[sl.source]);
+          io::LasReader reader(sources[sl.source], true);  // the fields the cache keeps
           reader.seek(sl.first);
           const int rgb_bits = reader.header().rgb_bits;
           io::PointBatch batch;
           uint64_t done = 0;
+          // Every sample_stride-th point of the input is sampled for the colour ramps: the
+          // next one's index in this slice (no division per point).
+          const uint64_t global = seen + sl.at;
+          uint64_t next_sample =
+              (global + sample_stride - 1) / sample_stride * sample_stride - global;
           while (done < sl.count) {
             batch.clear();
             const size_t n =
@@ -495,7 +682,8 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
               r.key = grid_key(r.q, cell_inverse, info.order);
               r.rgba = batch_rgba(batch, i, rgb_bits);
               r.attributes = batch_attributes(batch, i);
-              if ((seen + sl.at + done + i) % sample_stride == 0) {
+              if (done + i == next_sample) {
+                next_sample += sample_stride;
                 samples[k].elevation.push_back(p.z);
                 samples[k].intensity.push_back(
                     batch.intensity.empty() ? 0.0 : double(batch.intensity[i]));
@@ -520,62 +708,101 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
 
   // The cache, written under a temporary name: the points, the table, then the header.
   AtomicFile file(cache_path);
-  std::ofstream out(file.temp_path(), std::ios::binary | std::ios::trunc);
-  if (!out) fail("{}: cannot write", cache_path.string());
-  out.write(std::string(kPointletHeaderBytes, '\0').data(), std::streamsize(kPointletHeaderBytes));
-  PointletWriter writer(out, info, origin, pool,
-                        std::max<uint64_t>(options.memory_budget / 4, 1 << 20));
-  const auto write_start = Clock::now();
-  if (runs.paths.empty()) {
-    finish_run();
-    for (const RunRecord& r : run) writer.add(r);
+  const std::string name = cache_path.string();
+  Fd out(::open(file.temp_path().c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666));
+  if (out.fd < 0) fail("{}: cannot write: {}", name, std::strerror(errno));
+  PointletWriter writer(out.fd, name, info, origin, pool, stats);
+  if (runs.files.empty()) {
+    RunRecord* sorted = sort_run();
+    RunRecord* other = sorted == run ? scratch_arena.runs() : run;
+    writer.add(sorted, run_size, reinterpret_cast<PointletRecord*>(other));
   } else {
-    if (!run.empty()) spill();
-    std::vector<RunRecord>().swap(run);
-    // k-way merge; ties go to the earlier run, which holds the earlier input points.
-    const size_t buffer = std::max<size_t>(4096, run_capacity / (runs.paths.size() + 1));
-    std::vector<std::unique_ptr<RunReader>> readers;
-    for (const auto& p : runs.paths) readers.push_back(std::make_unique<RunReader>(p, buffer));
-    using Head = std::pair<uint32_t, size_t>;  // key, run
-    std::priority_queue<Head, std::vector<Head>, std::greater<>> heads;
-    for (size_t i = 0; i < readers.size(); ++i)
-      if (!readers[i]->done()) heads.push({readers[i]->front().key, i});
+    if (run_size > 0) spill();
+    // The merge, in windows of key prefixes that hold at most a run's worth of points: each
+    // window reads its part of every run (positional reads on every core), concatenated in run
+    // order, and sorts it stably, so ties keep the runs' order, which is the input's.
+    const uint32_t prefixes = prefix.count();
+    std::vector<uint64_t> totals(prefixes, 0);
+    for (const RunFile& r : runs.files)
+      for (uint32_t b = 0; b < prefixes; ++b) totals[b] += r.starts[b + 1] - r.starts[b];
     Progress progress("writing pointlets", info.point_count);
-    uint64_t merged = 0;
-    while (!heads.empty()) {
-      const size_t i = heads.top().second;
-      heads.pop();
-      writer.add(readers[i]->front());
-      readers[i]->pop();
-      if (!readers[i]->done()) heads.push({readers[i]->front().key, i});
-      if (++merged % (1 << 20) == 0) progress.set(merged);
+    RunRecord* window = run_arena.runs();
+    PointletRecord* encoded = scratch_arena.pointlets();
+    for (uint32_t b0 = 0; b0 < prefixes;) {
+      uint32_t b1 = b0;
+      uint64_t size = 0;
+      while (b1 < prefixes && size + totals[b1] <= run_capacity) size += totals[b1++];
+      if (b1 == b0) {
+        // One prefix holds more than a run: merged by streaming its part of each run.
+        merge_prefix(runs, b0, window, run_capacity, encoded, writer, stats);
+        progress.advance(totals[b0]);
+        ++b0;
+        continue;
+      }
+      if (size > 0) {
+        struct Piece {
+          const RunFile* run;
+          uint64_t first, count, at;  // records of the run; index in the window
+        };
+        constexpr uint64_t kPieceRecords = kWritePiece / sizeof(RunRecord);
+        std::vector<Piece> pieces;
+        uint64_t at = 0;
+        for (const RunFile& r : runs.files)
+          for (uint64_t i = r.starts[b0]; i < r.starts[b1]; i += kPieceRecords) {
+            const uint64_t n = std::min(kPieceRecords, r.starts[b1] - i);
+            pieces.push_back({&r, i, n, at});
+            at += n;
+          }
+        auto t = Clock::now();
+        pool.parallel_for(pieces.size(), 1, [&](size_t begin, size_t end) {
+          for (size_t i = begin; i < end; ++i)
+            read_at(pieces[i].run->fd.fd, window + pieces[i].at,
+                    pieces[i].count * sizeof(RunRecord), pieces[i].first * sizeof(RunRecord),
+                    pieces[i].run->path.string());
+        });
+        // What was read is not read again: its disk space is freed at once, so that the runs
+        // and the cache need not fit the disk together (1B points: 24 GB of runs, 20 GB of
+        // cache). Where the file system cannot, the runs go when the build ends.
+        for (const RunFile& r : runs.files)
+          if (r.starts[b1] > r.starts[b0])
+            ::fallocate(r.fd.fd, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE,
+                        off_t(r.starts[b0] * sizeof(RunRecord)),
+                        off_t((r.starts[b1] - r.starts[b0]) * sizeof(RunRecord)));
+        stats.merge_seconds += since(t);
+        t = Clock::now();
+        RunRecord* sorted = radix_sort(window, scratch_arena.runs(), size, pool);
+        stats.sort_seconds += since(t);
+        RunRecord* other = sorted == window ? scratch_arena.runs() : window;
+        writer.add(sorted, size, reinterpret_cast<PointletRecord*>(other));
+        progress.advance(size);
+      }
+      b0 = b1;
     }
   }
   writer.flush();
-  stats.write_seconds += since(write_start);
   info.pointlet_count = writer.table.size();
-  info.points_offset = kPointletHeaderBytes;
-  info.table_offset = kPointletHeaderBytes + info.point_count * sizeof(PointletRecord);
+  info.table_offset = info.points_offset + info.point_count * sizeof(PointletRecord);
   info.file_size = info.table_offset + info.pointlet_count * sizeof(PointletEntry);
   info.source_bounds = {};
   for (const PointletEntry& e : writer.table) {
     info.source_bounds.extend(glm::dvec3(e.min[0], e.min[1], e.min[2]));
     info.source_bounds.extend(glm::dvec3(e.max[0], e.max[1], e.max[2]));
   }
+  const auto t = Clock::now();
   const uint64_t table_bytes = writer.table.size() * sizeof(PointletEntry);
-  out.write(reinterpret_cast<const char*>(writer.table.data()), std::streamsize(table_bytes));
+  write_at(out.fd, writer.table.data(), table_bytes, info.table_offset, name);
   const std::vector<uint8_t> header =
       encode_header(info, crc32_of(writer.table.data(), table_bytes));
-  out.seekp(0);
-  out.write(reinterpret_cast<const char*>(header.data()), std::streamsize(header.size()));
-  out.close();
-  if (!out) fail("{}: cannot write (disk full?)", cache_path.string());
+  write_at(out.fd, header.data(), header.size(), 0, name);
+  if (::close(std::exchange(out.fd, -1)) != 0)
+    fail("{}: cannot write: {} (disk full?)", name, std::strerror(errno));
   file.commit();
+  stats.write_seconds += since(t);
 
   stats.points = info.point_count;
   stats.pointlets = info.pointlet_count;
   stats.pointlet_points = info.pointlet_points;
-  stats.runs = std::max<uint64_t>(1, runs.paths.size());
+  stats.runs = std::max<uint64_t>(1, runs.files.size());
   stats.seconds = since(start);
   return stats;
 }
@@ -644,16 +871,22 @@ void PointletCache::load() {
   std::vector<uint8_t> h(kPointletHeaderBytes);
   storage_->read(n, 0, h.data(), h.size());
   if (std::memcmp(h.data(), kMagic, 8) != 0) fail("{}: not a pointlet cache (bad magic)", n);
+  // Whole pages, within the file: a header naming many sources is longer.
+  const uint32_t header_bytes = get<uint32_t>(h.data(), field::header_bytes);
+  if (header_bytes < kPointletHeaderBytes || header_bytes % kPointletHeaderBytes != 0 ||
+      header_bytes > kMaxHeaderBytes || header_bytes > storage_->size)
+    fail("{}: header size {} (expected a multiple of {} within the file)", n, header_bytes,
+         kPointletHeaderBytes);
+  h.resize(header_bytes);
+  storage_->read(n, 0, h.data(), h.size());
+  const size_t header_crc = header_bytes - 4;
   PointletCacheInfo& i = info_;
   i.version = get<uint32_t>(h.data(), field::version);
   if (i.version != kPointletCacheVersion)
     fail("{}: pointlet cache version {}, this build reads version {}", n, i.version,
          kPointletCacheVersion);
-  if (get<uint32_t>(h.data(), field::header_crc) != crc32_of(h.data(), field::header_crc))
+  if (get<uint32_t>(h.data(), header_crc) != crc32_of(h.data(), header_crc))
     fail("{}: the header's checksum does not match (corrupt cache)", n);
-  if (get<uint32_t>(h.data(), field::header_bytes) != kPointletHeaderBytes)
-    fail("{}: header size {} (expected {})", n, get<uint32_t>(h.data(), field::header_bytes),
-         kPointletHeaderBytes);
   i.point_count = get<uint64_t>(h.data(), field::point_count);
   i.pointlet_count = get<uint64_t>(h.data(), field::pointlet_count);
   i.pointlet_points = get<uint64_t>(h.data(), field::pointlet_points);
@@ -688,7 +921,7 @@ void PointletCache::load() {
       i.point_count > (uint64_t(1) << 40) || i.pointlet_count > (uint64_t(1) << 32))
     fail("{}: inconsistent counts ({} points, {} pointlets of {})", n, i.point_count,
          i.pointlet_count, i.pointlet_points);
-  if (i.points_offset != kPointletHeaderBytes ||
+  if (i.points_offset != header_bytes ||
       i.table_offset != i.points_offset + i.point_count * sizeof(PointletRecord) ||
       i.file_size != i.table_offset + i.pointlet_count * sizeof(PointletEntry))
     fail("{}: inconsistent offsets (points at {}, table at {}, {} bytes)", n, i.points_offset,
@@ -700,13 +933,13 @@ void PointletCache::load() {
   if (source_count > kMaxSources) fail("{}: {} sources (at most {})", n, source_count, kMaxSources);
   size_t at = field::sources;
   for (uint32_t s = 0; s < source_count; ++s) {
-    if (at + 26 > field::header_crc) fail("{}: the source list overruns the header", n);
+    if (at + 26 > header_crc) fail("{}: the source list overruns the header", n);
     PointletSource src;
     src.size = get<uint64_t>(h.data(), at);
     src.mtime_ns = get<int64_t>(h.data(), at + 8);
     src.points = get<uint64_t>(h.data(), at + 16);
     const uint16_t len = get<uint16_t>(h.data(), at + 24);
-    if (at + 26 + len > field::header_crc) fail("{}: the source list overruns the header", n);
+    if (at + 26 + len > header_crc) fail("{}: the source list overruns the header", n);
     src.path.assign(reinterpret_cast<const char*>(h.data() + at + 26), len);
     i.sources.push_back(std::move(src));
     at += 26 + len;

@@ -173,6 +173,11 @@ RenderResult render_image(const RenderOptions& args) {
   result.transient_textures_created = pool.stats.textures_created;
   result.transient_buffers_created = pool.stats.buffers_created;
   result.load_seconds = std::chrono::duration<double>(load_end - start).count();
+  if (const auto* cache = engine.main().try_resource<pc::VirtualCloudCache>();
+      cache && cache->built) {
+    result.cache_built = true;
+    result.cache_build = cache->build;
+  }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }

@@ -3,7 +3,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <filesystem>
 #include <stdexcept>
 #include <utility>
 
@@ -220,15 +222,54 @@ void resolve_sun(SceneOptions& options, const SceneSource& source) {
                where->y, sun.azimuth_deg, sun.elevation_deg);
 }
 
+std::vector<std::string> expand_input_folders(const std::vector<std::string>& inputs) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> out;
+  for (const std::string& in : inputs) {
+    std::error_code ec;
+    if (io::is_url(in) || !fs::is_directory(in, ec)) {
+      out.push_back(in);
+      continue;
+    }
+    auto lower_extension = [](const fs::path& p) {
+      std::string e = p.extension().string();
+      for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+      return e;
+    };
+    std::vector<std::string> tiles, others;
+    for (const fs::directory_entry& e : fs::directory_iterator(in)) {
+      const std::string name = e.path().filename().string();
+      // The collection's own pointlet cache lives beside its first tile (and its temporaries
+      // while it is built); hidden files are no survey's data.
+      if (name.starts_with(".") || name.find(".pointlets") != std::string::npos) continue;
+      const std::string ext = lower_extension(e.path());
+      if (e.is_directory() || (ext != ".las" && ext != ".laz"))
+        others.push_back(name);
+      else
+        tiles.push_back(e.path().string());
+    }
+    if (!others.empty()) {
+      std::sort(others.begin(), others.end());
+      fail("{}: a folder input holds LAS/LAZ tiles only, but it holds {}{}", in, others.front(),
+           others.size() > 1 ? fmt::format(" (and {} more)", others.size() - 1) : "");
+    }
+    if (tiles.empty()) fail("{}: the folder holds no .las or .laz file", in);
+    std::sort(tiles.begin(), tiles.end());
+    out.insert(out.end(), tiles.begin(), tiles.end());
+  }
+  return out;
+}
+
 ScenePlan plan_scene(const SceneOptions& options, const gpu::Context& ctx) {
   ScenePlan plan;
   plan.options = options;
+  plan.options.inputs = expand_input_folders(options.inputs);
   plan.renderer_auto = options.renderer == Renderer::Auto;
   // Splat files read here and drawn beside whatever the other inputs are; alone, over an empty
   // cloud (so the frame, its camera and the summary are those of a point scene).
   if (!options.points) {
     std::vector<std::string> others;
-    for (const auto& in : options.inputs) {
+    for (const auto& in : plan.options.inputs) {
       if (io::is_splat_path(in))
         plan.splats.push_back(std::make_shared<const io::SplatSet>(io::read_splats(in)));
       else

@@ -37,13 +37,15 @@ void add_virtual_scene(Engine& engine, const ScenePlan& plan) {
   v.render = options.render;
   engine.add_plugin(std::move(v));
   const auto& c = engine.main().resource<pc::VirtualCloudCache>();
-  if (c.built)
+  if (c.built) {
     std::printf("built %s: %llu points in %llu pointlets of %llu in %.2f s\n", c.path.c_str(),
                 static_cast<unsigned long long>(c.points),
                 static_cast<unsigned long long>(c.pointlets),
                 static_cast<unsigned long long>(c.pointlet_points), c.build.seconds);
-  else
+    std::printf("%s\n", pc::describe_build_phases(c.build).c_str());
+  } else {
     std::printf("reused %s (the input is unchanged)\n", c.path.c_str());
+  }
 }
 
 void fit_virtual_scene(ViewFit& fit, Registry& main) {

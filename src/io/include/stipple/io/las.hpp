@@ -133,6 +133,11 @@ class LasReader {
  public:
   // Throws stipple::Error "<path>: <problem>" for anything that is not a valid LAS/LAZ file.
   explicit LasReader(const std::filesystem::path& path);
+  // With drawn_fields_only, LAZ of formats 6-10 (layered compression) decodes only positions,
+  // returns, classification, intensity and RGB, what drawing needs; the other fields (GPS time,
+  // scan angle, user data, point source, flags, NIR, wave packets, extra bytes) read as zeros.
+  // Their layers are most of the decoding (the pointlet cache's builder reads this way).
+  LasReader(const std::filesystem::path& path, bool drawn_fields_only);
   // Reads from memory (e.g. a fuzzer's input); `bytes` must outlive the reader. `name` is used
   // in error messages. LAZ is decoded too unless decode_laz is false, in which case compressed
   // input is rejected after the header and VLRs have been parsed.

@@ -89,11 +89,20 @@ struct PointletBuildOptions {
   std::filesystem::path temp_dir;  // runs; empty: beside the cache
 };
 
+// The build's phases, wall seconds each (every phase runs on every core): read (the inputs
+// decoded and their curve keys), sort (radix sorts of the runs and of the merge's windows),
+// merge (sorted runs read back from disk), encode (shuffles, boxes, CRCs) and write (runs and
+// the cache).
 struct PointletBuildStats {
   uint64_t points = 0, pointlets = 0, pointlet_points = 0, runs = 0;
-  double read_seconds = 0, sort_seconds = 0, write_seconds = 0, seconds = 0;
+  double read_seconds = 0, sort_seconds = 0, merge_seconds = 0, encode_seconds = 0,
+         write_seconds = 0, seconds = 0;
   uint64_t peak_run_bytes = 0;  // the largest run held in memory
 };
+
+// One line: "cache build: N M points/s; read a s, sort b s, merge c s, encode d s, write e s,
+// R runs" (the --stats of `stipple pointlets` and of the virtualized render).
+std::string describe_build_phases(const PointletBuildStats& stats);
 
 // Builds the cache of `sources` (LAS/LAZ/COPC, read whole) at `cache_path`, atomically: the
 // file appears complete or not at all. Throws stipple::Error naming the file at fault.

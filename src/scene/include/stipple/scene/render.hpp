@@ -10,6 +10,7 @@
 
 #include "stipple/engine/render_plugins.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
+#include "stipple/pointcloud/pointlets.hpp"
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/scene/scene.hpp"
 
@@ -41,6 +42,8 @@ struct RenderResult {
   RenderStats stats;  // every frame's pass times
   uint64_t transient_textures_created = 0, transient_buffers_created = 0;
   double load_seconds = 0, seconds = 0;
+  bool cache_built = false;            // the virtualized path built its pointlet cache
+  pc::PointletBuildStats cache_build;  // and how (its phases), when it did
 };
 
 // Renders the scene of `options` headless and returns the last frame. Throws stipple::Error

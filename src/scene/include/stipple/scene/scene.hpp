@@ -126,7 +126,14 @@ std::optional<glm::dvec3> scene_lon_lat(const SceneOptions& options, const Scene
 // (then --sun AZ,EL is needed). Logs where and when.
 void resolve_sun(SceneOptions& options, const SceneSource& source);
 
-// classify_scene + apply_filters + resolve_renderer for `ctx` (and resolve_sun).
+// A survey's tiles as one cloud: each input that is a folder becomes its .las/.laz files (in
+// name order; pointlet caches and their temporaries beside them are passed over), other inputs
+// stay as they are. Throws stipple::Error naming the folder when it holds no LAS/LAZ file, or
+// a file that is not one.
+std::vector<std::string> expand_input_folders(const std::vector<std::string>& inputs);
+
+// expand_input_folders + classify_scene + apply_filters + resolve_renderer for `ctx` (and
+// resolve_sun).
 ScenePlan plan_scene(const SceneOptions& options, const gpu::Context& ctx);
 
 // Reads the clip polygons and puts the filters and clip region into options.render; throws
