@@ -374,6 +374,7 @@ void select_points(Registry& render) {
   stats.pending_loads = r.pending.load();
   stats.loads = r.loads.load();
   stats.points_read = r.points_read.load();
+  stats.touched_pointlets = uint32_t(r.count);  // every pointlet is revisited
   stats.settled = !requested && stats.pending_loads == 0 && !v.transfer_pending && current &&
                   !v.lod_due && !gpu::readback_busy(*v.lod_ring);
   ++stats.selections;

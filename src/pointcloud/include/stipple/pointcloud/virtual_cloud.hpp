@@ -84,6 +84,7 @@ struct VirtualCloudStats {
   uint64_t heap_free_bytes = 0;  // free bytes held in malloc's arenas (glibc), every 64th selection
   // GPU ms of the last frame in the five stages of seed 002, Fig. 15 (kStageNames).
   std::array<double, 5> stage_ms{};
+  uint32_t touched_pointlets = 0;  // the last selection: pointlets whose wanted prefix it revisited
 };
 inline constexpr std::array<std::string_view, 5> kStageNames{"lod", "compaction", "projection",
                                                              "resolve", "fill"};
