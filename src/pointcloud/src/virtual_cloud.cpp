@@ -8,6 +8,7 @@
 #include <condition_variable>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <memory>
 #include <mutex>
 #include <numeric>
@@ -30,6 +31,17 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+// CPU time of the calling thread (ms), where the platform has it: unlike wall time, not
+// lengthened by other threads and processes taking the cores.
+double thread_cpu_ms() {
+#ifdef CLOCK_THREAD_CPUTIME_ID
+  timespec t{};
+  if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t) == 0)
+    return double(t.tv_sec) * 1e3 + t.tv_nsec * 1e-6;
+#endif
+  return 0;
 }
 
 }  // namespace
@@ -163,9 +175,7 @@ bool same_view(const ExtractedCamera& a, const ExtractedCamera& b) {
 // The new points of an update, copied from the pointlets' host buffers (each under its lock).
 FreshWriter fresh_writer(VirtualResidency& r, ThreadPool& pool) {
   return [&r, &pool](std::span<const FreshRange> ranges, uint32_t* words) {
-    // A few chunks per worker: a task per range would cost more than the range.
-    const size_t grain = std::max<size_t>(16, ranges.size() / (size_t(pool.size()) * 4 + 1));
-    pool.parallel_for(ranges.size(), grain, [&](size_t begin, size_t end) {
+    auto copy = [&](size_t begin, size_t end) {
       for (size_t k = begin; k < end; ++k) {
         const FreshRange& f = ranges[k];
         VirtualResidency::Slot& slot = r.slots[f.pointlet];
@@ -177,7 +187,13 @@ FreshWriter fresh_writer(VirtualResidency& r, ThreadPool& pool) {
                     slot.words.data() + uint64_t(f.first) * kStoreWords,
                     uint64_t(f.count) * kStoreWords * 4);
       }
-    });
+    };
+    // A few megabytes are copied sooner here than handed to workers (which may be busy).
+    const uint64_t points = ranges.empty() ? 0 : uint64_t(ranges.back().at) + ranges.back().count;
+    if (points < (uint64_t(1) << 18)) return copy(0, ranges.size());
+    // A few chunks per worker: a task per range would cost more than the range.
+    const size_t grain = std::max<size_t>(16, ranges.size() / (size_t(pool.size()) * 4 + 1));
+    pool.parallel_for(ranges.size(), grain, copy);
   };
 }
 
@@ -394,7 +410,13 @@ void select_points(Registry& render) {
   std::vector<uint32_t>& draw = v.draw;
   uint64_t planned = r.bytes.load();
   // In index order, as a full pass would take them: the budget goes to the same pointlets.
-  std::sort(touched.begin(), touched.end());
+  // Rebuilt from the marks (a byte scan, cheaper than a sort) when loads, the waiting or unloads
+  // added to it out of order.
+  if (!std::is_sorted(touched.begin(), touched.end())) {
+    touched.clear();
+    for (uint32_t i = 0; i < r.count; ++i)
+      if (v.marked[i]) touched.push_back(i);
+  }
   for (uint32_t i : touched) {
     v.marked[i] = 0;
     visit(i);
@@ -460,8 +482,10 @@ void queue_virtual_cloud(Registry& render) {
   auto& v = render.resource<VirtualCloudRender>();
   v.lod_gpu_ms = 0;
   const auto select_start = Clock::now();
+  const double select_cpu = thread_cpu_ms();
   select_points(render);
   render.resource<VirtualCloudStats>().select_ms = ms_since(select_start);
+  render.resource<VirtualCloudStats>().select_cpu_ms = thread_cpu_ms() - select_cpu;
   gather_stage_times(render.resource<RenderStats>(), v.lod_gpu_ms,
                      render.resource<VirtualCloudStats>());
   const auto& target = render.resource<RenderTarget>();
