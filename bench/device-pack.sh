@@ -9,7 +9,10 @@ set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bin=${1:-$root/build/stipple}
 name=${2:-stipple}
-grep -qx '/.devpkg/' "$root/.git/info/exclude" 2>/dev/null || echo '/.devpkg/' >>"$root/.git/info/exclude"
+# (.gitignore lists it too; a worktree's .git is a file, without info/)
+if [ -d "$root/.git/info" ]; then
+  grep -qx '/.devpkg/' "$root/.git/info/exclude" 2>/dev/null || echo '/.devpkg/' >>"$root/.git/info/exclude"
+fi
 stage=$(mktemp -d)/$name-pkg
 mkdir -p "$stage/lib"
 strip -o "$stage/stipple" "$bin"

@@ -62,6 +62,7 @@ struct Mode {
   bool wait_for_gpu = true;
   uint32_t timer_slots = 4;
   bool pipelined = false;
+  uint32_t max_frames_in_flight = 0;
 };
 
 // (backend, pipelined)
@@ -85,6 +86,7 @@ class RenderTiming : public ::testing::TestWithParam<std::tuple<std::string, boo
     graph.keep_history = true;
     graph.wait_for_gpu = setup.wait_for_gpu;
     graph.timer_slots = setup.timer_slots;
+    graph.max_frames_in_flight = setup.max_frames_in_flight;
     engine.add_plugin(std::move(graph));
     engine.add_plugin(NamedPassesPlugin{std::move(names)});
     engine.add_plugin(HeadlessTargetPlugin{32, 32, "", 0});
@@ -142,6 +144,31 @@ TEST_P(RenderTiming, FramesThatDoNotWaitHaveEveryTimeAfterADrain) {
   EXPECT_EQ(stats.wall_ms.size(), kFrames);
   expect_valid_times(stats);
   engine.shutdown();
+}
+
+// Frames that do not wait for the GPU still end with at most max_frames_in_flight of them
+// unfinished on it (as a swapchain bounds them): one means each frame ends with its work done,
+// two that the one before it is. Unbounded (0), frames are not tracked at all.
+TEST_P(RenderTiming, FramesInFlightAreBounded) {
+  for (uint32_t bound : {1u, 2u, 0u}) {
+    SCOPED_TRACE("max frames in flight " + std::to_string(bound));
+    Engine engine;
+    make(engine, {.wait_for_gpu = false, .timer_slots = 4, .max_frames_in_flight = bound},
+         [](uint64_t) { return std::vector<std::string>{"a"}; });
+    for (uint64_t frame = 1; frame <= 5; ++frame) {
+      engine.update();
+      engine.wait_for_render();  // the frame has ended (pipelined: on the render thread)
+      const gpu::FrameFence& fence = engine.render().resource<FrameGraph>().fence;
+      if (bound == 0) {
+        EXPECT_EQ(fence.submitted(), 0u);
+        continue;
+      }
+      EXPECT_EQ(fence.submitted(), frame);
+      EXPECT_GE(fence.completed() + bound, frame + 1) << "frame " << frame;
+    }
+    drain_pass_times(engine);
+    engine.shutdown();
+  }
 }
 
 // The pass list changes every frame (a on odd frames, b and c on even ones, "both" always, each

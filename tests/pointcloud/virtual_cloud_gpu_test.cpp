@@ -1,11 +1,14 @@
 // The virtualized point cloud (seed 002) in a headless engine over a camera flight: the LoD's
 // selection is loaded asynchronously into per-pointlet host buffers within the host budget,
 // loaded prefixes are reused (only missing points are read again), and once settled the frame
-// draws what the LoD asked for, or all the budget allows.
+// draws what the LoD asked for, or all the budget allows; the pipelined engine (render world on
+// its own thread) draws the same images as the sequential one.
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -153,6 +156,59 @@ TEST_P(VirtualCloud, AProcessBudgetLowersThePointsBudget) {
   // What was loaded before the budget was lowered is thinned to it.
   EXPECT_LE(s.host_bytes, s.host_budget);
   engine.shutdown();
+}
+
+// Seed 000's pipelined mode (the render world draws frame N on its own thread while the main
+// world builds N+1) changes when a frame is drawn, not what: at each of three views, once the
+// selection settled, pipelined and sequential engines draw byte-equal images.
+TEST_P(VirtualCloud, PipelinedAndSequentialDrawTheSameImages) {
+  std::vector<gpu::Image> images[2];
+  for (const bool pipelined : {false, true}) {
+    SCOPED_TRACE(pipelined ? "pipelined" : "sequential");
+    Engine engine;
+    if (pipelined) engine.add_plugin(PipelinedRenderingPlugin{});
+    add_virtual_cloud(engine, GetParam(), dir_, uint64_t(64) << 20, 0, 0);
+    Registry& main = engine.main();
+    Registry& render = engine.render();
+    const Aabb box = main.resource<pc::SceneInfo>().world_bounds;
+    const Entity camera = main.create();
+    main.emplace<Camera>(camera, frame_box(box, 1.6));
+    for (int view = 0; view < 3; ++view) {
+      main.get<Camera>(camera) =
+          frame_box(box, 1.6, 30.0 + 110.0 * view, 30.0 + 10.0 * view, 45.0 - 10.0 * view);
+      bool settled = false;
+      for (int i = 0; i < 400 && !settled; ++i) {
+        engine.update();
+        engine.wait_for_render();  // the render world is idle: its resources may be read
+        const auto& s = render.resource<pc::VirtualCloudStats>();
+        settled = s.settled && s.selections > 0;
+        if (!settled) pc::wait_for_virtual_loads(main.resource<pc::VirtualCloudHandle>(), 0.05);
+      }
+      EXPECT_TRUE(settled) << "view " << view;
+      auto image = std::make_shared<gpu::Image>();
+      render.insert_resource(
+          FrameCapture{[image](uint64_t, const gpu::Image& frame) { *image = frame; }});
+      engine.update();
+      engine.wait_for_render();
+      render.insert_resource(FrameCapture{});
+      ASSERT_EQ(image->width, 320u);
+      images[pipelined].push_back(*image);
+    }
+    engine.shutdown();
+  }
+  for (size_t view = 0; view < images[0].size(); ++view) {
+    const gpu::Image &a = images[0][view], &b = images[1][view];
+    ASSERT_EQ(a.rgba.size(), b.rgba.size());
+    size_t differing = 0, drawn = 0;
+    for (size_t p = 0; p < a.rgba.size(); p += 4) {
+      differing += !std::equal(&a.rgba[p], &a.rgba[p] + 4, &b.rgba[p]);
+      drawn += !std::equal(&a.rgba[p], &a.rgba[p] + 3, &a.rgba[0]);  // not the corner's colour
+    }
+    EXPECT_EQ(differing, 0u) << "view " << view;
+    EXPECT_GT(drawn, a.rgba.size() / 4 / 20) << "view " << view << ": hardly any points drawn";
+  }
+  // The views differ, so equal images are not an image that ignores the view.
+  EXPECT_NE(images[0][0].rgba, images[0][1].rgba);
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, VirtualCloud, ::testing::Values("dawn", "wgpu"),

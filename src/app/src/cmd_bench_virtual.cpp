@@ -5,9 +5,13 @@
 // five GPU stages of Fig. 15, the memory in use, and optionally the PSNR of settled views
 // against the full-detail image, with and without hole filling (Figs. 16-17).
 //
-// A frame's time is the wall time of one engine update: the CPU work of the frame (LoD and its
-// readback, planning, staging), its GPU work and the read of its timestamps, one after the
-// other (no overlap of frames, so FPS is a lower bound of what a pipelined viewer reaches). Loads
+// A frame's time is the wall time of one engine update. By default that is the CPU work of the
+// frame (LoD and its readback, planning, staging), its GPU work and the read of its timestamps,
+// one after the other (no overlap of frames, so FPS is a lower bound of what a pipelined viewer
+// reaches). With --pipelined the render world runs on its own thread (seed 000's pipelined mode:
+// the main world builds frame N+1 while N is drawn) and frames do not wait for the GPU: their
+// timestamps are read back a few frames later, and at most two frames are unfinished on the GPU
+// (as a swapchain would allow); --no-gpu-wait does the latter without the render thread. Loads
 // run on the worker pool meanwhile, as in an interactive session: frames do not wait for them.
 #include <algorithm>
 #include <chrono>
@@ -52,11 +56,19 @@ struct VirtualBenchArgs {
   uint32_t psnr_views = 0;
   std::string cache_dir, host_memory, gpu_memory, backend, json;
   uint64_t pointlets = pc::kDefaultPointlets;
+  bool pipelined = false;
+  bool no_gpu_wait = false;
 };
 
 std::unique_ptr<Engine> make_engine(const VirtualBenchArgs& a, uint64_t bucket, uint32_t fill) {
   auto engine = std::make_unique<Engine>();
-  add_engine_core(*engine, {a.backend, false, true, ""});  // per-frame GPU times
+  EngineCore core;
+  core.backend = a.backend;
+  core.pipelined = a.pipelined;
+  core.keep_history = true;  // per-frame GPU times
+  core.wait_for_gpu = !a.pipelined && !a.no_gpu_wait;
+  core.max_frames_in_flight = 2;
+  add_engine_core(*engine, core);
   SceneOptions scene;
   scene.inputs = a.inputs;
   scene.force_virtual = true;
@@ -78,7 +90,11 @@ struct FlightResult {
   std::vector<uint64_t> drawn;
   std::array<double, 5> stage_sum{};
   double select_ms = 0, lod_ms = 0, update_ms = 0, residency_ms = 0, wait_ms = 0,
-         write_ms = 0;  // CPU, summed over frames
+         write_ms = 0;                   // CPU, summed over frames
+  double select_cpu_ms = 0;              // the selection's thread CPU time, summed
+  double main_ms = 0;                    // CPU of the main world's stages, summed
+  std::array<double, 5> render_ms{};     // CPU of each render stage, summed
+  uint64_t new_points = 0, touched = 0;  // summed over selections
   uint64_t peak_host = 0, peak_gpu = 0, staging = 0, points = 0;
   uint64_t peak_process = 0, peak_heap_free = 0, host_budget = 0;
   double load_s = 0, trim_ms = 0;
@@ -99,24 +115,22 @@ FlightResult fly(const VirtualBenchArgs& a, uint64_t bucket) {
   Registry& render = engine->render();
   Progress progress(fmt::format("B = {:.1f} M", bucket / 1e6), a.frames, "frames");
   uint64_t selections = 0;
-  for (uint32_t f = 0; f < a.frames; ++f) {
-    main.get<Camera>(camera) = path_camera(a.path, world, double(f) / a.frames, aspect);
-    const auto t0 = std::chrono::steady_clock::now();
-    engine->update();
-    const auto& rs = render.resource<RenderStats>();
-    const auto& vs = render.resource<pc::VirtualCloudStats>();
-    out.wall_ms.push_back(
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-    out.gpu_ms.push_back(rs.gpu_ms.empty() ? 0.0 : rs.gpu_ms.back());
-    out.drawn.push_back(rs.points_drawn);
+  // Each frame's statistics as the main world sees them after the sync point (those of the
+  // frame before: in pipelined mode the render world is drawing this one meanwhile); the last
+  // frame's are taken once the render world is idle.
+  auto account = [&](const pc::VirtualCloudStats& vs, uint64_t drawn) {
+    out.drawn.push_back(drawn);
     for (size_t s = 0; s < 5; ++s) out.stage_sum[s] += vs.stage_ms[s];
     out.select_ms += vs.select_ms;
+    out.select_cpu_ms += vs.select_cpu_ms;
     if (vs.selections != selections) {  // this frame made a selection
       out.lod_ms += vs.lod_ms;
       out.update_ms += vs.upload_ms;
       out.residency_ms += vs.residency_ms;
       out.wait_ms += vs.staging_wait_ms;
       out.write_ms += vs.fresh_write_ms;
+      out.new_points += vs.new_points;
+      out.touched += vs.touched_pointlets;
       selections = vs.selections;
     }
     out.peak_host = std::max(out.peak_host, vs.host_bytes);
@@ -127,8 +141,23 @@ FlightResult fly(const VirtualBenchArgs& a, uint64_t bucket) {
     out.trim_ms = vs.trim_ms;
     out.staging = vs.staging_bytes;
     if (vs.bucket) out.bucket = vs.bucket;  // lowered when it does not fit --gpu-memory
+  };
+  for (uint32_t f = 0; f < a.frames; ++f) {
+    main.get<Camera>(camera) = path_camera(a.path, world, double(f) / a.frames, aspect);
+    const auto t0 = std::chrono::steady_clock::now();
+    engine->update();
+    out.wall_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    if (f > 0)
+      account(main.resource<pc::VirtualCloudStats>(),
+              main.resource<RenderStatsSnapshot>().points_drawn);
     progress.advance(1);
   }
+  drain_pass_times(*engine);  // waits for the render world and every frame's timestamps
+  account(render.resource<pc::VirtualCloudStats>(), render.resource<RenderStats>().points_drawn);
+  out.gpu_ms = render.resource<RenderStats>().gpu_ms;
+  out.main_ms = engine->main_cpu_ms();
+  out.render_ms = engine->render_cpu_ms();
   progress.finish();
   engine->shutdown();
   return out;
@@ -187,6 +216,8 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
   j["fov_deg"] = {a.path.fov_min, a.path.fov_max};
   j["fill_radius"] = a.fill_radius;
   j["occlusion_beta"] = a.occlusion_beta;
+  j["pipelined"] = a.pipelined;
+  j["gpu_wait"] = !a.pipelined && !a.no_gpu_wait;
   j["runs"] = nlohmann::json::array();
   std::printf("%10s %8s %8s %8s %8s %8s %8s %9s %9s %9s %9s\n", "B", "FPS avg", "min", "max",
               "1% low", "0.1% low", "GPU FPS", "drawn M", "host MiB", "GPU MiB", "RSS MiB");
@@ -226,10 +257,21 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
           r.stage_sum[s] / std::max<size_t>(1, r.wall_ms.size());
     run["stage_gpu_ms_mean"] = stages;
     const double frames = double(std::max<size_t>(1, r.wall_ms.size()));
-    run["cpu_ms_mean"] = {
-        {"selection", r.select_ms / frames},    {"lod", r.lod_ms / frames},
-        {"residency", r.residency_ms / frames}, {"store_update", r.update_ms / frames},
-        {"staging_wait", r.wait_ms / frames},   {"new_points_write", r.write_ms / frames}};
+    run["cpu_ms_mean"] = {{"selection", r.select_ms / frames},
+                          {"selection_thread_cpu", r.select_cpu_ms / frames},
+                          {"lod", r.lod_ms / frames},
+                          {"residency", r.residency_ms / frames},
+                          {"store_update", r.update_ms / frames},
+                          {"staging_wait", r.wait_ms / frames},
+                          {"new_points_write", r.write_ms / frames},
+                          {"main_stages", r.main_ms / frames},
+                          {"render_prepare", r.render_ms[0] / frames},
+                          {"render_queue", r.render_ms[1] / frames},
+                          {"render_predraw", r.render_ms[2] / frames},
+                          {"render_draw", r.render_ms[3] / frames},
+                          {"render_postdraw", r.render_ms[4] / frames}};
+    run["new_points_mean"] = double(r.new_points) / frames;
+    run["touched_pointlets_mean"] = double(r.touched) / frames;
     run["peak_host_points_bytes"] = r.peak_host;
     run["peak_gpu_bytes"] = r.peak_gpu;
     run["staging_bytes"] = r.staging;
@@ -251,6 +293,14 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
         r.select_ms / frames_n, r.lod_ms / frames_n, r.residency_ms / frames_n,
         r.update_ms / frames_n, r.wait_ms / frames_n, r.write_ms / frames_n,
         std::accumulate(r.wall_ms.begin(), r.wall_ms.end(), 0.0) / frames_n);
+    std::printf(
+        "           %s, CPU ms a frame by stage: main %.3f | render Prepare %.3f, Queue %.3f, "
+        "PreDraw %.3f, Draw %.3f, PostDraw %.3f; new points %.0f, pointlets touched %.0f a "
+        "frame; selection as thread CPU time %.3f ms\n",
+        a.pipelined ? "pipelined" : (a.no_gpu_wait ? "sequential, no GPU wait" : "sequential"),
+        r.main_ms / frames_n, r.render_ms[0] / frames_n, r.render_ms[1] / frames_n,
+        r.render_ms[2] / frames_n, r.render_ms[3] / frames_n, r.render_ms[4] / frames_n,
+        double(r.new_points) / frames_n, double(r.touched) / frames_n, r.select_cpu_ms / frames_n);
   }
   if (a.psnr_views > 0) {
     // Views spread over the path; the reference draws every point (B = n).
@@ -319,6 +369,11 @@ void add_bench_virtual_command(CLI::App& bench) {
   cmd->add_option("--gpu-memory", a->gpu_memory, "Device memory budget for the points, e.g. 4G");
   cmd->add_option("--backend", a->backend, "WebGPU implementation: dawn or wgpu")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
+  cmd->add_flag("--pipelined", a->pipelined,
+                "Render world on its own thread (drawing frame N while the main world builds "
+                "N+1); frames do not wait for the GPU");
+  cmd->add_flag("--no-gpu-wait", a->no_gpu_wait,
+                "Frames do not wait for the GPU (timestamps read back later), on one thread");
   cmd->add_option("--json", a->json, "Write the results (and every frame's times) as JSON");
   cmd->callback([a] {
     check_camera_path(a->path);

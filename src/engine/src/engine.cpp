@@ -1,6 +1,7 @@
 #include "stipple/engine/engine.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <utility>
 
 #include <fmt/format.h>
@@ -8,6 +9,14 @@
 #include "stipple/core/log.hpp"
 
 namespace stipple {
+namespace {
+
+double ms_between(std::chrono::steady_clock::time_point a,
+                  std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+}  // namespace
 
 Engine::Engine() {
   install_render_sync(main_.registry);
@@ -83,10 +92,14 @@ void Engine::build() {
 void Engine::update() {
   if (stopped_) fail("the engine was shut down");
   build();
+  const auto start = std::chrono::steady_clock::now();
   for (MainStage stage :
        {MainStage::Input, MainStage::PreUpdate, MainStage::Update, MainStage::PostUpdate})
     main_.run_stage(size_t(stage));
   extract();
+  // Sequential: the render stages ran inside extract() and are counted there, not here.
+  main_cpu_ms_ += ms_between(start, std::chrono::steady_clock::now()) - last_inline_render_ms_;
+  last_inline_render_ms_ = 0;
   ++frames_;
 }
 
@@ -126,9 +139,16 @@ void Engine::extract() {
 }
 
 void Engine::run_render_stages() {
+  auto t = std::chrono::steady_clock::now();
+  const auto start = t;
   for (RenderStage stage : {RenderStage::Prepare, RenderStage::Queue, RenderStage::PreDraw,
-                            RenderStage::Draw, RenderStage::PostDraw})
+                            RenderStage::Draw, RenderStage::PostDraw}) {
     render_.run_stage(size_t(stage));
+    const auto now = std::chrono::steady_clock::now();
+    render_cpu_ms_[size_t(stage)] += ms_between(t, now);
+    t = now;
+  }
+  if (!pipelined_) last_inline_render_ms_ = ms_between(start, t);
 }
 
 void Engine::render_thread_main() {

@@ -144,6 +144,11 @@ void finish_render_frame(Registry& render) {
   // A frame waited for has its times by now; one without any is waited for all the same, so
   // that wall times mean the same either way.
   if (fg.wait_for_gpu && !fg.timed) ctx.wait_idle();
+  if (!fg.wait_for_gpu && fg.max_frames_in_flight > 0) {
+    const uint64_t serial = fg.fence.mark(ctx);
+    ctx.wait_until(
+        [&] { return fg.fence.completed() + fg.max_frames_in_flight > serial || ctx.lost; });
+  }
   if (stats.keep_history) {
     for (uint32_t p : fg.graph.plan().order) stats.history[fg.graph.passes()[p].name];
     keep(stats.wall_ms, (now_seconds() - stats.frame_start) * 1e3, stats.history_limit);
@@ -185,6 +190,7 @@ void RenderGraphPlugin::build(Engine& engine) {
   fg.wait_for_gpu = wait_for_gpu;
   // Frames waited for have one timer in use at a time.
   fg.timer_slots = wait_for_gpu ? 1 : std::max(1u, timer_slots);
+  fg.max_frames_in_flight = max_frames_in_flight;
   fg.dump_path = dump_graph;
   engine.render().insert_resource(std::move(fg));
   RenderStats stats;

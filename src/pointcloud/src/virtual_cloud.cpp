@@ -2,13 +2,13 @@
 
 #include <malloc.h>
 
-#include <malloc.h>
-
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdlib>
+#include <cstring>
+#include <ctime>
 #include <memory>
 #include <mutex>
 #include <numeric>
@@ -33,21 +33,36 @@ double ms_since(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
 
+// CPU time of the calling thread (ms), where the platform has it: unlike wall time, not
+// lengthened by other threads and processes taking the cores.
+double thread_cpu_ms() {
+#ifdef CLOCK_THREAD_CPUTIME_ID
+  timespec t{};
+  if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t) == 0)
+    return double(t.tv_sec) * 1e3 + t.tv_nsec * 1e-6;
+#endif
+  return 0;
+}
+
 }  // namespace
 
 // The host side of the virtual memory system (seed 002, III-C): per pointlet, the loaded
-// prefix of its (shuffled) points. Load tasks on a worker pool grow a prefix to what the LoD
-// asks for, up to 25% more while the host budget allows; prefixes no longer asked for shrink
-// when the budget runs short. Each pointlet has its own lock, and a task re-checks the state it
-// was made for, so a stale task does nothing.
+// prefix of its (shuffled) points, held as the point store's words (kStoreWords a point, as many
+// bytes as a cache record): a load task converts what it reads, so a frame's new points are
+// copied to staging as they are, and the conversion runs on the loaders, off the frame. Load tasks
+// on a worker pool grow a prefix to what the LoD asks for, up to 25% more while the host budget
+// allows; prefixes no longer asked for shrink when the budget runs short. Each pointlet has its own
+// lock, and a task re-checks the state it was made for, so a stale task does nothing.
+static_assert(sizeof(PointletRecord) == kStoreWords * 4, "budgets count a point as its record");
 struct VirtualResidency {
   struct Slot {
     std::mutex mutex;
-    std::vector<PointletRecord> records;  // the loaded prefix
+    std::vector<uint32_t> words;  // the loaded prefix, kStoreWords a point
     std::atomic<uint32_t> loaded{0};
     std::atomic<bool> in_flight{false};
   };
   std::shared_ptr<const PointletCache> cache;
+  std::vector<Aabb> boxes;  // per pointlet, world space: what the store quantizes against
   std::unique_ptr<Slot[]> slots;
   size_t count = 0;
   uint64_t budget = 0;  // bytes of records
@@ -57,7 +72,9 @@ struct VirtualResidency {
   std::mutex progress_mutex;
   std::condition_variable progress;
   std::atomic<uint64_t> completed{0};  // load tasks finished (a new selection is due)
-  std::string error;                   // the first failed load (under progress_mutex)
+  std::mutex finished_mutex;
+  std::vector<uint32_t> finished;  // pointlets whose load ended since the selection took them
+  std::string error;               // the first failed load (under progress_mutex)
 
   void load(uint32_t index, uint32_t target) {
     Slot& slot = slots[index];
@@ -66,8 +83,15 @@ struct VirtualResidency {
       const uint32_t have = slot.loaded.load();
       if (target > have) {
         // Exactly what is counted: a vector grown by doubling would hold up to twice that.
-        slot.records.reserve(target);
-        cache->read(index, have, target - have, slot.records);
+        slot.words.reserve(uint64_t(target) * kStoreWords);
+        thread_local std::vector<PointletRecord> records;
+        records.clear();
+        cache->read(index, have, target - have, records);
+        if (records.size() != target - have)
+          fail("pointlet {}: {} points read, {} asked for", index, records.size(), target - have);
+        slot.words.resize(uint64_t(target) * kStoreWords);
+        pointlet_words(*cache, cache->pointlets()[index], boxes[index], records,
+                       slot.words.data() + uint64_t(have) * kStoreWords);
         slot.loaded.store(target);
         bytes += uint64_t(target - have) * sizeof(PointletRecord);
         points_read += target - have;
@@ -78,6 +102,11 @@ struct VirtualResidency {
       if (error.empty()) error = e.what();
     }
     slot.in_flight.store(false);
+    {
+      // Before `completed` moves: a selection that sees the count has this pointlet to visit.
+      std::lock_guard lock(finished_mutex);
+      finished.push_back(index);
+    }
     --pending;
     ++completed;
     progress.notify_all();
@@ -87,8 +116,8 @@ struct VirtualResidency {
     std::lock_guard lock(slot.mutex);
     const uint32_t have = slot.loaded.load();
     if (keep >= have) return;
-    slot.records.resize(keep);
-    slot.records.shrink_to_fit();
+    slot.words.resize(uint64_t(keep) * kStoreWords);
+    slot.words.shrink_to_fit();
     slot.loaded.store(keep);
     bytes -= uint64_t(have - keep) * sizeof(PointletRecord);
     unloaded_since_trim += uint64_t(have - keep) * sizeof(PointletRecord);
@@ -106,10 +135,18 @@ struct LodView {
 // Render-world resource.
 struct VirtualCloudRender {
   std::shared_ptr<VirtualResidency> residency;
-  std::vector<uint32_t> desired;   // the last LoD
-  std::vector<uint32_t> draw;      // what the host holds of it (reused every frame)
-  std::vector<uint32_t> incoming;  // a LoD result as it arrives
-  uint64_t selected_after = 0;     // residency.completed when the drawn selection was built
+  std::vector<uint32_t> desired;  // the last LoD
+  std::vector<uint32_t> draw;     // what the host holds of it (reused every frame)
+  // The selection is incremental: per pointlet what its last visit saw (the LoD's count and what
+  // was missing of it), sums over every pointlet kept up to date from those, and the pointlets
+  // to visit next time besides those whose count changed (loads the budget had no room for).
+  std::vector<uint32_t> seen_want, seen_lack;
+  std::vector<uint8_t> marked;
+  std::vector<uint32_t> touched, waiting, finished;
+  uint64_t lacking = 0, wanted = 0;  // points: sum of seen_lack, of seen_want
+  uint32_t visible = 0;              // pointlets with seen_want > 0
+  std::vector<uint32_t> incoming;    // a LoD result as it arrives
+  uint64_t selected_after = 0;       // residency.completed when the drawn selection was built
   VirtualCloudOptions options;
   CloudAttributes attributes;  // the cache's: which colour modes it can show, default ramps
   std::unique_ptr<GpuPointlets> pointlets;
@@ -135,25 +172,28 @@ bool same_view(const ExtractedCamera& a, const ExtractedCamera& b) {
          a.near_plane == b.near_plane;
 }
 
-// The new points of an update, from the pointlets' host buffers (each under its lock).
-FreshWriter fresh_writer(VirtualResidency& r, const std::vector<Aabb>& boxes, ThreadPool& pool) {
-  return [&r, &boxes, &pool](std::span<const FreshRange> ranges, uint32_t* words) {
-    const auto& table = r.cache->pointlets();
-    // A few chunks per worker: a task per range would cost more than the range.
-    const size_t grain = std::max<size_t>(16, ranges.size() / (size_t(pool.size()) * 4 + 1));
-    pool.parallel_for(ranges.size(), grain, [&](size_t begin, size_t end) {
+// The new points of an update, copied from the pointlets' host buffers (each under its lock).
+FreshWriter fresh_writer(VirtualResidency& r, ThreadPool& pool) {
+  return [&r, &pool](std::span<const FreshRange> ranges, uint32_t* words) {
+    auto copy = [&](size_t begin, size_t end) {
       for (size_t k = begin; k < end; ++k) {
         const FreshRange& f = ranges[k];
         VirtualResidency::Slot& slot = r.slots[f.pointlet];
         std::lock_guard lock(slot.mutex);
-        if (slot.records.size() < uint64_t(f.first) + f.count)
+        if (slot.words.size() < (uint64_t(f.first) + f.count) * kStoreWords)
           fail("virtual memory: pointlet {} holds {} points, {} asked for", f.pointlet,
-               slot.records.size(), uint64_t(f.first) + f.count);
-        pointlet_words(*r.cache, table[f.pointlet], boxes[f.pointlet],
-                       std::span(slot.records).subspan(f.first, f.count),
-                       words + uint64_t(f.at) * kStoreWords);
+               slot.words.size() / kStoreWords, uint64_t(f.first) + f.count);
+        std::memcpy(words + uint64_t(f.at) * kStoreWords,
+                    slot.words.data() + uint64_t(f.first) * kStoreWords,
+                    uint64_t(f.count) * kStoreWords * 4);
       }
-    });
+    };
+    // A few megabytes are copied sooner here than handed to workers (which may be busy).
+    const uint64_t points = ranges.empty() ? 0 : uint64_t(ranges.back().at) + ranges.back().count;
+    if (points < (uint64_t(1) << 18)) return copy(0, ranges.size());
+    // A few chunks per worker: a task per range would cost more than the range.
+    const size_t grain = std::max<size_t>(16, ranges.size() / (size_t(pool.size()) * 4 + 1));
+    pool.parallel_for(ranges.size(), grain, copy);
   };
 }
 
@@ -226,8 +266,8 @@ void select_points(Registry& render) {
     v.lod_ring = std::make_unique<gpu::ReadbackRing>(
         gpu::create_readback_ring(ctx, uint64_t(std::max<size_t>(r.count, 1)) * 4, 3));
     v.options.bucket = fit_bucket(ctx, v.options, uint32_t(r.count), v.pointlets->bytes);
-    v.store = std::make_unique<GpuPointStore>(create_point_store(
-        ctx, v.options.bucket, pointlet_world_boxes(*r.cache), v.options.staging_bytes));
+    v.store = std::make_unique<GpuPointStore>(
+        create_point_store(ctx, v.options.bucket, r.boxes, v.options.staging_bytes));
     if (v.options.gpu_budget > 0 && v.store->gpu_bytes + v.pointlets->bytes > v.options.gpu_budget)
       fail("--gpu-memory {} MiB is too small for the point store ({} MiB at B = {})",
            v.options.gpu_budget >> 20, (v.store->gpu_bytes + v.pointlets->bytes) >> 20,
@@ -282,23 +322,67 @@ void select_points(Registry& render) {
   stats.host_budget = r.budget;
   stats.process_bytes = resident_bytes();
   const uint64_t completed = r.completed.load();
-  // Unload first: what the view no longer needs goes when what it needs would not fit.
+  // Which pointlets to visit: those whose LoD count changed, whose load ended, or that waited
+  // for room in the budget; every one at the first selection. The others keep their state (a
+  // pointlet's loaded prefix only changes by its load, or by an unload here), so a frame's work
+  // follows what changed, not the number of pointlets.
   const auto& table = v.residency->cache->pointlets();
-  uint64_t needed = 0;
-  for (uint32_t i = 0; i < r.count; ++i) {
-    const uint32_t have = r.slots[i].loaded.load();
-    if (v.desired[i] > have) needed += uint64_t(v.desired[i] - have) * sizeof(PointletRecord);
+  std::vector<uint32_t>& touched = v.touched;
+  touched.clear();
+  auto touch = [&](uint32_t i) {
+    if (!v.marked[i]) {
+      v.marked[i] = 1;
+      touched.push_back(i);
+    }
+  };
+  if (v.seen_want.size() != r.count) {
+    v.draw.assign(r.count, 0);
+    v.seen_want.assign(r.count, 0);
+    v.seen_lack.assign(r.count, 0);
+    v.marked.assign(r.count, 0);
+    v.lacking = v.wanted = v.visible = 0;
+    v.waiting.clear();
+    for (uint32_t i = 0; i < r.count; ++i) touch(i);
+  } else {
+    if (lod_new)
+      for (uint32_t i = 0; i < r.count; ++i)
+        if (v.desired[i] != v.seen_want[i]) touch(i);
+    {
+      std::lock_guard lock(r.finished_mutex);
+      v.finished.swap(r.finished);
+    }
+    for (uint32_t i : v.finished) touch(i);
+    v.finished.clear();
+    for (uint32_t i : v.waiting) touch(i);
+    v.waiting.clear();
   }
+  // What a visit learns of a pointlet: the sums move by the difference to its last visit.
+  auto visit = [&](uint32_t i) {
+    const uint32_t want = v.desired[i], have = r.slots[i].loaded.load();
+    const uint32_t lack = want > have ? want - have : 0;
+    v.lacking += uint64_t(lack) - v.seen_lack[i];
+    v.wanted += uint64_t(want) - v.seen_want[i];
+    v.visible += uint32_t(want > 0) - uint32_t(v.seen_want[i] > 0);
+    v.seen_lack[i] = lack;
+    v.seen_want[i] = want;
+  };
+  for (uint32_t i : touched) visit(i);
+  // Unload first: what the view no longer needs goes when what it needs would not fit.
+  const uint64_t needed = v.lacking * sizeof(PointletRecord);
   for (uint32_t i = 0; i < r.count && r.bytes.load() + needed > r.budget; ++i)
-    if (!r.slots[i].in_flight.load() && r.slots[i].loaded.load() > v.desired[i])
+    if (!r.slots[i].in_flight.load() && r.slots[i].loaded.load() > v.desired[i]) {
       r.unload(i, v.desired[i]);
+      touch(i);
+    }
   // Still over (the budget was lowered under what the view holds): every pointlet keeps the
   // same share of its prefix, so the view thins out evenly.
   if (const uint64_t bytes = r.bytes.load(); bytes > r.budget) {
     const double share = double(r.budget) / double(bytes);
     for (uint32_t i = 0; i < r.count; ++i)
-      if (!r.slots[i].in_flight.load())
+      if (!r.slots[i].in_flight.load()) {
         r.unload(i, uint32_t(double(r.slots[i].loaded.load()) * share));
+        touch(i);
+      }
   }
   // Freed pointlet buffers stay in malloc's arenas (loads allocate on the workers, unloads free
   // on this thread), resident but unused: past 256 MiB of them they are handed back, so the
@@ -324,16 +408,28 @@ void select_points(Registry& render) {
   };
   std::vector<Load> loads;
   std::vector<uint32_t>& draw = v.draw;
-  draw.assign(r.count, 0);
   uint64_t planned = r.bytes.load();
-  for (uint32_t i = 0; i < r.count; ++i) {
+  // In index order, as a full pass would take them: the budget goes to the same pointlets.
+  // Rebuilt from the marks (a byte scan, cheaper than a sort) when loads, the waiting or unloads
+  // added to it out of order.
+  if (!std::is_sorted(touched.begin(), touched.end())) {
+    touched.clear();
+    for (uint32_t i = 0; i < r.count; ++i)
+      if (v.marked[i]) touched.push_back(i);
+  }
+  for (uint32_t i : touched) {
+    v.marked[i] = 0;
+    visit(i);
     const uint32_t want = v.desired[i], have = r.slots[i].loaded.load();
     draw[i] = std::min(want, have);
-    if (want <= have || r.slots[i].in_flight.load()) continue;
+    if (want <= have || r.slots[i].in_flight.load()) continue;  // in flight: visited when done
     const uint32_t extra = std::min<uint32_t>(table[i].count, want + want / 4);
     uint32_t goal =
         planned + uint64_t(extra - have) * sizeof(PointletRecord) <= r.budget ? extra : want;
-    if (planned + uint64_t(goal - have) * sizeof(PointletRecord) > r.budget) continue;  // full
+    if (planned + uint64_t(goal - have) * sizeof(PointletRecord) > r.budget) {
+      v.waiting.push_back(i);  // full: tried again at the next selection
+      continue;
+    }
     planned += uint64_t(goal - have) * sizeof(PointletRecord);
     r.slots[i].in_flight.store(true);
     ++r.pending;
@@ -355,8 +451,7 @@ void select_points(Registry& render) {
   }
   stats.residency_ms = ms_since(residency_start);
   t = Clock::now();
-  StoreUpdate update =
-      update_point_store(ctx, *v.store, draw, fresh_writer(r, v.store->boxes, *v.workers));
+  StoreUpdate update = update_point_store(ctx, *v.store, draw, fresh_writer(r, *v.workers));
   stats.upload_ms = ms_since(t);
   v.transfer_pending = update.limited;
   stats.staging_wait_ms = update.wait_ms;
@@ -366,14 +461,14 @@ void select_points(Registry& render) {
   stats.gpu_bytes = v.store->gpu_bytes + v.pointlets->bytes;
   stats.staging_bytes = gpu::staging_bytes(v.store->staging);
   stats.selected_points = v.store->layout.total;
-  stats.visible_pointlets =
-      uint32_t(std::count_if(v.desired.begin(), v.desired.end(), [](uint32_t c) { return c > 0; }));
-  stats.desired_points = std::accumulate(v.desired.begin(), v.desired.end(), uint64_t(0));
+  stats.visible_pointlets = v.visible;
+  stats.desired_points = v.wanted;
   stats.host_bytes = r.bytes.load();
   stats.peak_host_bytes = std::max(stats.peak_host_bytes, stats.host_bytes);
   stats.pending_loads = r.pending.load();
   stats.loads = r.loads.load();
   stats.points_read = r.points_read.load();
+  stats.touched_pointlets = uint32_t(touched.size());
   stats.settled = !requested && stats.pending_loads == 0 && !v.transfer_pending && current &&
                   !v.lod_due && !gpu::readback_busy(*v.lod_ring);
   ++stats.selections;
@@ -387,8 +482,10 @@ void queue_virtual_cloud(Registry& render) {
   auto& v = render.resource<VirtualCloudRender>();
   v.lod_gpu_ms = 0;
   const auto select_start = Clock::now();
+  const double select_cpu = thread_cpu_ms();
   select_points(render);
   render.resource<VirtualCloudStats>().select_ms = ms_since(select_start);
+  render.resource<VirtualCloudStats>().select_cpu_ms = thread_cpu_ms() - select_cpu;
   gather_stage_times(render.resource<RenderStats>(), v.lod_gpu_ms,
                      render.resource<VirtualCloudStats>());
   const auto& target = render.resource<RenderTarget>();
@@ -522,6 +619,7 @@ void VirtualPointCloudPlugin::build(Engine& engine) {
   auto residency = std::make_shared<VirtualResidency>();
   residency->cache = cache;
   residency->count = cache->pointlets().size();
+  residency->boxes = pointlet_world_boxes(*cache);
   residency->slots = std::make_unique<VirtualResidency::Slot[]>(residency->count);
   residency->budget = options.host_budget;
   engine.main().insert_resource(VirtualCloudHandle{residency});

@@ -316,6 +316,7 @@ void add_engine_core(Engine& engine, const EngineCore& core) {
   graph.dump_graph = core.dump_graph;
   graph.wait_for_gpu = core.wait_for_gpu;
   graph.history_limit = core.history_limit;
+  graph.max_frames_in_flight = core.max_frames_in_flight;
   engine.add_plugin(std::move(graph));
 }
 

@@ -11,6 +11,7 @@
 //   static constexpr std::array<std::string_view, N> dependencies, optional_dependencies;
 // Declared dependencies are checked by name at build(), so a replacement plugin that declares
 // the same name satisfies the plugins that depend on the original.
+#include <array>
 #include <concepts>
 #include <exception>
 #include <memory>
@@ -139,6 +140,11 @@ class Engine {
   // The engine can no longer update afterwards.
   void shutdown();
   uint64_t frames() const { return frames_; }  // completed update() calls
+  // CPU milliseconds summed over every frame so far: of the main stages (Input..Extract, the
+  // wait for the render world at the sync point included) and of each render stage (indexed by
+  // RenderStage; read them while the render world is idle: after wait_for_render()).
+  double main_cpu_ms() const { return main_cpu_ms_; }
+  const std::array<double, 5>& render_cpu_ms() const { return render_cpu_ms_; }
 
  private:
   struct PluginEntry {
@@ -161,6 +167,9 @@ class Engine {
   bool built_ = false;
   bool stopped_ = false;
   uint64_t frames_ = 0;
+  double main_cpu_ms_ = 0;
+  std::array<double, 5> render_cpu_ms_{};
+  double last_inline_render_ms_ = 0;  // sequential: the render stages inside this update()
 
   // Pipelining: the main thread acquires render_idle_ at the sync point (the render thread
   // released it when it finished the previous frame), extracts, then releases render_start_.

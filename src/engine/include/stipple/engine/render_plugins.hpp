@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "stipple/engine/registry.hpp"
+#include "stipple/renderer/frame_fence.hpp"
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/renderer/gpu_timer.hpp"
 #include "stipple/renderer/render_graph.hpp"
@@ -76,9 +77,11 @@ struct FrameGraph {
   bool timing = true;
   bool wait_for_gpu = true;  // RenderGraphPlugin's
   uint32_t timer_slots = 1;
-  std::string dump_path;  // write the first frame's graph as DOT
-  bool executed = false;  // this frame
-  bool timed = false;     // this frame's passes are being timed
+  uint32_t max_frames_in_flight = 0;  // RenderGraphPlugin's
+  gpu::FrameFence fence;              // frames submitted and finished, when that is bounded
+  std::string dump_path;              // write the first frame's graph as DOT
+  bool executed = false;              // this frame
+  bool timed = false;                 // this frame's passes are being timed
 };
 
 // Render-world resource: statistics of the frames drawn so far.
@@ -148,6 +151,11 @@ struct RenderGraphPlugin {
   // every slot in flight goes untimed); drain_pass_times waits for those still on their way.
   bool wait_for_gpu = true;
   uint32_t timer_slots = 4;
+  // Without wait_for_gpu: a frame ends by waiting until at most this many frames (its own
+  // included) are unfinished on the GPU, so the CPU runs ahead of the GPU by a bounded amount,
+  // as a swapchain's present does (a headless benchmark has none). 0: unbounded (the web page,
+  // which must not block).
+  uint32_t max_frames_in_flight = 0;
   void build(Engine& engine);
   void finish(Engine& engine);
 };

@@ -84,6 +84,8 @@ struct VirtualCloudStats {
   uint64_t heap_free_bytes = 0;  // free bytes held in malloc's arenas (glibc), every 64th selection
   // GPU ms of the last frame in the five stages of seed 002, Fig. 15 (kStageNames).
   std::array<double, 5> stage_ms{};
+  uint32_t touched_pointlets = 0;  // the last selection: pointlets whose wanted prefix it revisited
+  double select_cpu_ms = 0;        // select_ms as the thread's CPU time (0 where unavailable)
 };
 inline constexpr std::array<std::string_view, 5> kStageNames{"lod", "compaction", "projection",
                                                              "resolve", "fill"};

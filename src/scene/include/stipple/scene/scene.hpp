@@ -169,6 +169,7 @@ struct EngineCore {
   // Each frame waits for the GPU to finish it (RenderGraphPlugin::wait_for_gpu): off in the web
   // page, where each wait is a round trip through the browser's GPU process.
   bool wait_for_gpu = true;
+  uint32_t max_frames_in_flight = 0;  // RenderGraphPlugin's (without wait_for_gpu)
 };
 void add_engine_core(Engine& engine, const EngineCore& core);
 

@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# Issue 47's frame goal on the GPU machine: the virtualized path over the seed's camera path
+# (1B generated points, B = 25M, 1920x1080, 600 frames, 4G host and GPU budgets), today's build
+# and this one side by side on the same instance, from the repository root there. Needs
+# .devpkg/stipple.tar.xz (this build) and .devpkg/stipple-old.tar.xz (the build to compare with),
+# both packed here by bench/device-pack.sh:
+#   bash bench/device-pack.sh /path/to/old/stipple stipple-old && bash bench/device-pack.sh
+#   bench/virtual_frame_device.sh [POINTS] [FRAMES]          (default 1000000000 600)
+# Runs, each in a fresh process with the cache reused: old (sequential, as the issue measured),
+# new sequential, new with --no-gpu-wait, new --pipelined. Writes $OUT (or
+# /tmp/virtual-frame-out)/NAME.json and prints each run's table and CPU phases. The input
+# (/dev/shm, 26 GB at 1B) and the cache (/tmp/vf-cache, 20 GB) are kept for later calls on the
+# same machine, so a call cut short repeats without redoing them; STEP=prepare stops once they
+# exist (generating and sorting 1B points takes minutes: a call of its own keeps each under the
+# 10-minute limit). PKGS, DATA and CACHE move the unpacked packages (/tmp), the input
+# (/dev/shm) and the cache (/tmp/vf-cache).
+set -uo pipefail
+n=${1:-1000000000}
+frames=${2:-600}
+out=${OUT:-/tmp/virtual-frame-out}
+pkgs=${PKGS:-/tmp}            # where the packages are unpacked
+in=${DATA:-/dev/shm}/g$n.las
+cache=${CACHE:-/tmp/vf-cache}
+mkdir -p "$out" "$pkgs"
+for p in stipple stipple-old; do
+  [ -x $pkgs/$p-pkg/run ] || tar xf .devpkg/$p.tar.xz -C "$pkgs" || exit 1
+done
+if [ ! -s "$in" ]; then
+  part=${in%.las}.part.las
+  $pkgs/stipple-pkg/run generate -n "$n" --point-format 2 -o "$part" | tail -1 && mv "$part" "$in" || exit 1
+fi
+# Both builds read the same cache when its format did not change; otherwise each builds its own
+# beside it (the cache's name carries its format).
+for p in stipple-old stipple; do
+  echo "== $p pointlets"
+  (time $pkgs/$p-pkg/run pointlets "$in" --cache "$cache" --host-memory 40G) 2>&1 | tail -6
+done
+[ "${STEP:-}" = prepare ] && exit 0
+common=(bench virtual "$in" --bucket 25000000 --frames "$frames" --host-memory 4G --gpu-memory 4G
+        --cache "$cache")
+for run in "old stipple-old" "new stipple" "new-no-gpu-wait stipple --no-gpu-wait" \
+           "new-pipelined stipple --pipelined"; do
+  set -- $run
+  name=$1 pkg=$2
+  shift 2
+  echo "== $name ($pkg $*)"
+  $pkgs/$pkg-pkg/run "${common[@]}" "$@" --json "$out/$name.json" 2>&1 |
+    grep -vE '^\s*$|frames \[|%\|' | tail -8
+done
+python3 - "$out" <<'PY'
+import json, sys, pathlib
+rows = []
+for name in ["old", "new", "new-no-gpu-wait", "new-pipelined"]:
+    p = pathlib.Path(sys.argv[1]) / f"{name}.json"
+    if not p.exists():
+        continue
+    r = json.loads(p.read_text())["runs"][0]
+    f, c = r["fps"], r["cpu_ms_mean"]
+    rows.append(f"| {name} | {f['average']:.1f} | {f['low_1pct']:.1f} | {f['gpu_average']:.1f} | "
+                f"{c['selection']:.2f} | {c['store_update']:.2f} | {c['residency']:.2f} | "
+                f"{c.get('render_queue', float('nan')):.2f} | {c.get('render_draw', float('nan')):.2f} |")
+print("| build | FPS avg | 1% low | GPU FPS | selection ms | store update | residency | Queue | Draw |")
+print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+print("\n".join(rows))
+PY
