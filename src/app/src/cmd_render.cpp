@@ -64,9 +64,12 @@ void run_render(const RenderArgs& args) {
   if (args.frames > 1)
     std::printf("%u frames: GPU %.3f ms, wall %.3f ms per frame (median)\n", args.frames,
                 median(stats.gpu_ms), median(stats.wall_ms));
-  const std::string drawn = stats.points_drawn > 0 && stats.points_drawn < stats.points_total
+  // The count is what the last frame drew: a frame that drew none says so.
+  const std::string drawn = stats.points_drawn != stats.points_total
                                 ? fmt::format("{} of {}", stats.points_drawn, stats.points_total)
                                 : std::to_string(stats.points_total);
+  if (stats.points_drawn == 0 && stats.points_total > 0)
+    STIPPLE_WARN("no points were drawn: the image shows the background only");
   const std::string splats = r.splats > 0 ? fmt::format(" and {} splats", r.splats) : "";
   std::printf("rendered %s points%s (%s colour, %.1f px) with %s on %s to %s (%ux%u) in %.2f s\n",
               drawn.c_str(), splats.c_str(), r.color_source.c_str(), double(r.point_size),
