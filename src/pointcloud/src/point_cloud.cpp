@@ -310,6 +310,7 @@ uint64_t read_las_sample(io::LasReader& reader, uint64_t want,
     const uint64_t thin = std::clamp<uint64_t>(chunk / per, 1, 8);
     std::vector<uint8_t> keep;
     for (uint64_t c = 0; c < chunks; ++c) {
+      if (batch.size() >= (1 << 16)) flush();  // before `before`: read_at must not flush
       const size_t before = batch.size();
       read_at(c * chunk, std::min(per * thin, n - c * chunk));
       if (thin == 1 || batch.size() <= before) continue;
