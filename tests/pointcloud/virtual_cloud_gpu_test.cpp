@@ -10,11 +10,14 @@
 #include <filesystem>
 #include <memory>
 #include <random>
+#include <regex>
+#include <string>
 
 #include <gtest/gtest.h>
 
 #include "scene_las.hpp"
 
+#include "stipple/core/error.hpp"
 #include "stipple/core/memory.hpp"
 #include "stipple/engine/camera.hpp"
 #include "stipple/engine/engine.hpp"
@@ -61,14 +64,16 @@ class VirtualCloud : public ::testing::TestWithParam<std::string> {
 fs::path VirtualCloud::dir_;
 
 // A headless engine drawing the generated scan from its cache (m = 2000, B = 40,000) at
-// 320x200 with the given budgets.
+// 320x200 with the given budgets. process_over: a process budget of this much over what the
+// process holds once the device is up (0: none), with 8 MiB staging slots.
 void add_virtual_cloud(Engine& engine, const std::string& backend, const fs::path& dir,
-                       uint64_t host_budget, uint64_t gpu_budget, uint64_t process_budget) {
+                       uint64_t host_budget, uint64_t gpu_budget, uint64_t process_over) {
   engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
   GpuPlugin gpu;
   gpu.options.backend = backend;
   engine.add_plugin(std::move(gpu));
   engine.add_plugin(RenderGraphPlugin{});
+  const uint64_t process_budget = process_over > 0 ? resident_bytes() + process_over : 0;
   pc::VirtualPointCloudPlugin v;
   v.options.files = {dir / "scene.las"};
   v.options.cache_dir = dir / "cache";
@@ -78,6 +83,7 @@ void add_virtual_cloud(Engine& engine, const std::string& backend, const fs::pat
   v.options.host_budget = host_budget;
   v.options.gpu_budget = gpu_budget;
   v.options.process_budget = process_budget;
+  if (process_over > 0) v.options.staging_bytes = uint64_t(8) << 20;
   engine.add_plugin(std::move(v));
   engine.add_plugin(HeadlessTargetPlugin{320, 200, "", 0});
 }
@@ -132,15 +138,37 @@ TEST_P(VirtualCloud, FlightStaysInBudgetAndReusesLoadedPoints) {
   }
 }
 
-// A process budget just over what the process holds once its GPU buffers exist lowers what the
-// points may take (measured after the first frame) below the host budget, and the loaded points
-// keep to it.
+// A process budget under what the process holds before any point loads (its baseline) is an
+// error that names the least budget that works.
+TEST_P(VirtualCloud, AProcessBudgetUnderTheBaselineIsAnError) {
+  Engine engine;
+  // 16 MiB over what the process holds with its device up: less than the staging slots, the
+  // margin and room for points need.
+  try {
+    add_virtual_cloud(engine, GetParam(), dir_, uint64_t(64) << 20, 0, uint64_t(16) << 20);
+    ADD_FAILURE() << "the process budget was accepted";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("is below what this process needs"), std::string::npos) << what;
+    // The minimum named is over the budget given.
+    std::smatch given, least;
+    ASSERT_TRUE(std::regex_search(what, given, std::regex("--host-memory (\\d+) MiB"))) << what;
+    ASSERT_TRUE(std::regex_search(what, least, std::regex("at least (\\d+) MiB"))) << what;
+    EXPECT_GT(std::stoull(least[1]), std::stoull(given[1])) << what;
+  }
+  engine.shutdown();
+}
+
+// A process budget over the baseline but short of what the points could take lowers what the
+// points may take (measured after the first frame) below the host budget, and the loaded
+// points keep to it.
 TEST_P(VirtualCloud, AProcessBudgetLowersThePointsBudget) {
   Engine engine;
-  // The process (driver, libraries) takes far more than 16 MiB, so this is over what it holds
-  // now by less than the margin: nothing is left for more points.
-  add_virtual_cloud(engine, GetParam(), dir_, uint64_t(64) << 20, 0,
-                    resident_bytes() + (uint64_t(16) << 20));
+  // 160 MiB over what the process holds with its device up: what the frames add, the staging
+  // slots (16 MiB), the point store and the margin (32 MiB) leave the points less than the
+  // 256 MiB host budget.
+  constexpr uint64_t kHostBudget = uint64_t(256) << 20;
+  add_virtual_cloud(engine, GetParam(), dir_, kHostBudget, 0, uint64_t(160) << 20);
   Registry& main = engine.main();
   const Aabb box = main.resource<pc::SceneInfo>().world_bounds;
   const Entity camera = main.create();
@@ -152,9 +180,9 @@ TEST_P(VirtualCloud, AProcessBudgetLowersThePointsBudget) {
   }
   const auto& s = engine.render().resource<pc::VirtualCloudStats>();
   EXPECT_GT(s.process_bytes, 0u);
-  EXPECT_LT(s.host_budget, uint64_t(64) << 20);
-  // What was loaded before the budget was lowered is thinned to it.
+  EXPECT_LT(s.host_budget, kHostBudget);
   EXPECT_LE(s.host_bytes, s.host_budget);
+  EXPECT_GT(s.selected_points, 0u);
   engine.shutdown();
 }
 

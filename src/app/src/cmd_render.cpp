@@ -1,6 +1,8 @@
 // `stipple render`: headless rendering of LAS/LAZ/COPC files (or the built-in scene) to PNG:
 // scene::render_image (libstipple) draws the image, this writes it and the summary.
+#include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 
@@ -23,10 +25,35 @@ namespace {
 struct RenderArgs : scene::RenderOptions {
   std::string output = "stipple.png";
   std::string stats;
+  bool progressive = false;
+  std::string progressive_first;          // empty: the output's name with "-first"
+  uint64_t progressive_points = 1 << 18;  // the first image's sample
 };
 
+// The first image's file: given, else beside the output ("out.png" -> "out-first.png").
+std::string first_image_path(const RenderArgs& args) {
+  if (!args.progressive_first.empty()) return args.progressive_first;
+  const std::filesystem::path out(args.output);
+  return (out.parent_path() / (out.stem().string() + "-first" + out.extension().string())).string();
+}
+
+scene::RenderResult render(const RenderArgs& args) {
+  if (!args.progressive) return scene::render_image(args);
+  const auto start = std::chrono::steady_clock::now();
+  return scene::render_progressive(
+      args, args.progressive_points, [&](const scene::RenderResult& first) {
+        const std::string path = first_image_path(args);
+        gpu::write_png(path, first.image);
+        std::printf(
+            "first image: %llu points read across the input, written to %s in %.2f s\n",
+            static_cast<unsigned long long>(first.stats.points_total), path.c_str(),
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        std::fflush(stdout);
+      });
+}
+
 void run_render(const RenderArgs& args) {
-  const scene::RenderResult r = scene::render_image(args);
+  const scene::RenderResult r = render(args);
   gpu::write_png(args.output, r.image);
   STIPPLE_INFO("wrote {} ({}x{})", args.output, r.image.width, r.image.height);
   const auto& stats = r.stats;
@@ -75,9 +102,12 @@ void run_render(const RenderArgs& args) {
   if (args.frames > 1)
     std::printf("%u frames: GPU %.3f ms, wall %.3f ms per frame (median)\n", args.frames,
                 median(stats.gpu_ms), median(stats.wall_ms));
-  const std::string drawn = stats.points_drawn > 0 && stats.points_drawn < stats.points_total
+  // The count is what the last frame drew: a frame that drew none says so.
+  const std::string drawn = stats.points_drawn != stats.points_total
                                 ? fmt::format("{} of {}", stats.points_drawn, stats.points_total)
                                 : std::to_string(stats.points_total);
+  if (stats.points_drawn == 0 && stats.points_total > 0)
+    STIPPLE_WARN("no points were drawn: the image shows the background only");
   const std::string splats = r.splats > 0 ? fmt::format(" and {} splats", r.splats) : "";
   std::printf("rendered %s points%s (%s colour, %.1f px) with %s on %s to %s (%ux%u) in %.2f s\n",
               drawn.c_str(), splats.c_str(), r.color_source.c_str(), double(r.point_size),
@@ -138,6 +168,17 @@ void add_render_command(CLI::App& cli) {
                   "wall ms per frame) as JSON");
   cmd->add_option("--dump-graph", args->dump_graph,
                   "Write the frame's render graph as Graphviz DOT (culled passes dashed)");
+  cmd->add_flag("--progressive", args->progressive,
+                "LAS/LAZ: write a first image at once, drawn from a sample read across the whole "
+                "input (LAS: records at a stride; LAZ: the first points of every chunk) while "
+                "the pointlet cache builds (virtualized path), then the full image to --output");
+  cmd->add_option("--progressive-first", args->progressive_first,
+                  "--progressive: the first image's PNG (default: the output's name with "
+                  "'-first', e.g. stipple-first.png)");
+  cmd->add_option("--progressive-points", args->progressive_points,
+                  "--progressive: about how many points the first image reads")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))
+      ->capture_default_str();
   cmd->add_flag("--pipelined", args->pipelined,
                 "Run the render world on its own thread (the same images as without)");
   add_scene_options(cmd, args->scene);

@@ -47,7 +47,9 @@ void add_scene_options(CLI::App* cmd, SceneOptions& options) {
                   "~/.cache/stipple)");
   cmd->add_option("--host-memory", options.host_memory,
                   "Host memory budget, e.g. 4G (default: a quarter of RAM): larger inputs take the "
-                  "virtualized path");
+                  "virtualized path, which keeps the whole process under it (on a CPU adapter the "
+                  "device's buffers too, and the bucket is lowered to fit); a budget under what "
+                  "the process needs for itself is an error naming the least that works");
   cmd->add_option("--gpu-memory", options.gpu_memory,
                   "Virtualized: device memory for the points, e.g. 2G (default: what the bucket "
                   "needs, 32 bytes a point); a bucket that does not fit is lowered");

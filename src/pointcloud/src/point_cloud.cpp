@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <numeric>
 #include <optional>
 
@@ -281,6 +282,51 @@ void fit_cloud(ViewFit& fit, const PointCloud& cloud) {
   fit_chunks(fit, chunks);
 }
 
+uint64_t read_las_sample(io::LasReader& reader, uint64_t want,
+                         const std::function<void(io::PointBatch&)>& take) {
+  const io::LasHeader& header = reader.header();
+  const uint64_t n = header.point_count;
+  io::PointBatch batch;
+  uint64_t read = 0;
+  auto flush = [&] {
+    if (batch.size() > 0) take(batch);
+    batch.clear();
+  };
+  // Reads append to the batch, handed on in blocks (a batch per record would cost more than
+  // the record).
+  auto read_at = [&](uint64_t first, uint64_t count) {
+    if (batch.size() >= (1 << 16)) flush();
+    reader.seek(first);
+    read += reader.read(batch, size_t(count));
+  };
+  if (want >= n) {
+    for (uint64_t first = 0; first < n; first += 1 << 16) read_at(first, 1 << 16);
+  } else if (header.compressed && header.laz_chunk_points > 0) {
+    const uint64_t chunk = header.laz_chunk_points;
+    const uint64_t chunks = (n + chunk - 1) / chunk;
+    const uint64_t per = std::clamp<uint64_t>((want + chunks - 1) / chunks, 1, chunk);
+    // Every 8th point of a chunk's first 8 * per: a chunk's first points are a run along a
+    // scan line, and a run 8 times as long covers more ground for a little more decoding.
+    const uint64_t thin = std::clamp<uint64_t>(chunk / per, 1, 8);
+    std::vector<uint8_t> keep;
+    for (uint64_t c = 0; c < chunks; ++c) {
+      if (batch.size() >= (1 << 16)) flush();  // before `before`: read_at must not flush
+      const size_t before = batch.size();
+      read_at(c * chunk, std::min(per * thin, n - c * chunk));
+      if (thin == 1 || batch.size() <= before) continue;
+      keep.assign(batch.size(), 1);
+      for (size_t i = before; i < keep.size(); ++i) keep[i] = (i - before) % thin == 0;
+      batch.compact(keep);
+      read -= batch.size() < keep.size() ? keep.size() - batch.size() : 0;
+    }
+  } else {
+    // Single records at a stride: runs of consecutive records would draw scan lines as dashes.
+    for (uint64_t i = 0; i < want; ++i) read_at(uint64_t(double(i) * double(n) / double(want)), 1);
+  }
+  flush();
+  return read;
+}
+
 PointCloud load_point_cloud(const std::vector<std::filesystem::path>& files,
                             const LoadOptions& options) {
   PointCloud cloud;
@@ -312,7 +358,7 @@ PointCloud load_point_cloud(const std::vector<std::filesystem::path>& files,
     enu.emplace(*cloud.enu_origin);
   }
 
-  Progress progress("reading", total);
+  Progress progress("reading", options.sample > 0 ? std::min(options.sample, total) : total);
   io::PointBatch batch;
   bool all_uniform = true;
   for (size_t f = 0; f < files.size(); ++f) {
@@ -328,6 +374,18 @@ PointCloud load_point_cloud(const std::vector<std::filesystem::path>& files,
           files[f].string(), header.rgb_probed, c[0], c[1], c[2]);
     }
     all_uniform = all_uniform && header.has_rgb && header.rgb_uniform.has_value();
+    if (options.sample > 0) {
+      // This file's share of the sample, by its points.
+      const uint64_t want =
+          total > 0 ? std::max<uint64_t>(1, options.sample * header.point_count / total) : 0;
+      read_las_sample(reader, want, [&](io::PointBatch& b) {
+        if (enu)
+          for (auto& p : b.positions) p = enu->from_geodetic(p);
+        append_batch(cloud, b, header.rgb_bits, options.chunk_points);
+        progress.advance(b.size());
+      });
+      continue;
+    }
     while (true) {
       batch.clear();
       size_t n = reader.read(batch, options.chunk_points);

@@ -12,6 +12,7 @@
 #include <memory>
 #include <mutex>
 #include <numeric>
+#include <string_view>
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
@@ -24,11 +25,21 @@
 #include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_store.hpp"
 #include "stipple/pointcloud/scene.hpp"
+#include "stipple/renderer/gpu.hpp"
 
 namespace stipple::pc {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// The process's resident memory once malloc has handed its free memory back (a cache build
+// leaves hundreds of MiB free in its arenas): a baseline of what is in use.
+uint64_t trimmed_resident_bytes() {
+#ifdef __GLIBC__
+  if (!std::getenv("STIPPLE_NO_MALLOC_TRIM")) malloc_trim(0);
+#endif
+  return resident_bytes();
+}
 double ms_since(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
@@ -158,6 +169,12 @@ struct VirtualCloudRender {
   bool transfer_pending = false;  // the last update could not bring every new point
   double lod_gpu_ms = 0;          // this frame's LoD, when it ran
   bool process_measured = false;  // the process budget has been turned into a points budget
+  // Under a process budget: the baseline and the point store's share of it (the store's
+  // buffers are resident only once written); what the process holds besides its points is
+  // never taken as less. The first selection loads nothing, so that the first frame's own
+  // memory (pipelines, the target) is measured before points take the rest.
+  uint64_t held_before_points = 0;
+  bool loads_held = false;
   std::unique_ptr<gpu::ReadbackRing> lod_ring;  // LoD counts back from the GPU, unwaited
   bool have_lod = false, lod_due = false;
   uint64_t lod_tag = 0;
@@ -244,6 +261,79 @@ void gather_stage_times(const RenderStats& frame, double lod_ms, VirtualCloudSta
                     ms({"raster-clear", "raster-occlusion", "raster-fill", "raster-display"})};
 }
 
+// What the frames add to the baseline once they run (the driver's pipelines, the targets,
+// tables that grow): 40-60 MiB measured on lavapipe.
+constexpr uint64_t kFrameGrowth = uint64_t(64) << 20;
+// Host bytes a drawn point costs: its record, and a quarter more read ahead.
+constexpr uint64_t kHostPointBytes = sizeof(PointletRecord) * 5 / 4;
+
+uint64_t store_host_bytes(uint64_t bucket, uint64_t pointlets, uint64_t staging_bytes,
+                          bool device_in_host);
+
+// Fails when the process budget leaves no room for even the smallest selection (its point
+// store and points), naming the least that works.
+void check_process_budget(const VirtualCloudOptions& options, uint64_t baseline,
+                          uint64_t point_count, uint64_t pointlets, std::string_view holding) {
+  const uint64_t points =
+      std::min<uint64_t>(kMinimumBudgetPoints, std::max<uint64_t>(point_count, 1));
+  const uint64_t minimum = minimum_process_budget(
+      baseline + kFrameGrowth +
+      store_host_bytes(points, pointlets, options.staging_bytes, options.device_in_host) +
+      points * kHostPointBytes);
+  if (options.process_budget < minimum)
+    fail(
+        "--host-memory {} MiB is below what this process needs: {} MiB are resident before any "
+        "point loads (the device{} {}); at least {} MiB are needed to draw points",
+        options.process_budget >> 20, baseline >> 20,
+        options.device_in_host ? ", whose buffers are host memory on this CPU adapter," : "",
+        holding, (minimum + (1 << 20) - 1) >> 20);
+}
+
+// What the point store of a bucket takes of the host (a sizing estimate that follows
+// create_point_store): its two mapped staging slots, each the compaction info and new points,
+// and on a CPU adapter also its device buffers (both frames' point words and batches, the new
+// points and the info).
+uint64_t store_host_bytes(uint64_t bucket, uint64_t pointlets, uint64_t staging_bytes,
+                          bool device_in_host) {
+  const uint64_t info = (bucket / 256 + 8) * 4 + (pointlets + 1) * 32;
+  const uint64_t slot = std::max(staging_bytes, info + 256 + kStoreWords * 4 * 1024);
+  const uint64_t fresh = std::min<uint64_t>(slot - info, bucket * kStoreWords * 4);
+  const uint64_t device =
+      2 * (bucket * kStoreWords * 4 + (bucket / kBatchPoints + pointlets + 1) * 32) + fresh + info;
+  return 2 * (info + 256 + fresh) + (device_in_host ? device : 0);
+}
+
+// Turns the process budget into the parts it pays for, once the baseline (what the process
+// holds before points load) is known: a budget that leaves no room for even the smallest
+// selection is an error naming the least that works; on a CPU adapter without --gpu-memory the
+// bucket is lowered so that its point store (host memory there) and its points on the host
+// (with a quarter more read ahead) fit what the baseline leaves.
+void plan_process_budget(VirtualCloudOptions& options, const VirtualResidency& r,
+                         uint64_t baseline) {
+  check_process_budget(options, baseline, r.cache->info().point_count, r.count,
+                       "and the cache's tables");
+  if (!options.device_in_host || options.gpu_budget > 0) return;
+  // What the frames add once they run is measured then; the bucket leaves room for it.
+  const uint64_t growth = kFrameGrowth + options.process_budget / 16;
+  const uint64_t left = points_budget(options.process_budget, baseline + growth, 0, ~uint64_t(0));
+  auto fits = [&](uint64_t bucket) {
+    return store_host_bytes(bucket, r.count, options.staging_bytes, true) +
+               bucket * kHostPointBytes <=
+           left;
+  };
+  if (fits(options.bucket)) return;
+  uint64_t lo = 1, hi = options.bucket;  // fits(lo) holds (check_process_budget), fits(hi) not
+  while (hi - lo > 1) {
+    const uint64_t mid = lo + (hi - lo) / 2;
+    (fits(mid) ? lo : hi) = mid;
+  }
+  STIPPLE_WARN(
+      "--bucket {} does not fit --host-memory {} MiB on this CPU adapter (its buffers "
+      "are host memory, {} MiB resident before points): using {}",
+      options.bucket, options.process_budget >> 20, baseline >> 20, lo);
+  options.bucket = lo;
+}
+
 bool same_lod_view(const LodView& a, const ExtractedCamera& camera, uint32_t w, uint32_t h) {
   return same_view(a.camera, camera) && a.width == w && a.height == h;
 }
@@ -265,9 +355,26 @@ void select_points(Registry& render) {
     v.lod = std::make_unique<PointletLodPipeline>(create_pointlet_lod_pipeline(ctx));
     v.lod_ring = std::make_unique<gpu::ReadbackRing>(
         gpu::create_readback_ring(ctx, uint64_t(std::max<size_t>(r.count, 1)) * 4, 3));
+    // The baseline: what the process holds with the device, the cache's tables and the
+    // pointlets' buffers up, before any point loads.
+    const uint64_t baseline = v.options.process_budget > 0 ? trimmed_resident_bytes() : 0;
+    if (v.options.process_budget > 0 && baseline > 0) plan_process_budget(v.options, r, baseline);
     v.options.bucket = fit_bucket(ctx, v.options, uint32_t(r.count), v.pointlets->bytes);
     v.store = std::make_unique<GpuPointStore>(
         create_point_store(ctx, v.options.bucket, r.boxes, v.options.staging_bytes));
+    if (v.options.process_budget > 0 && baseline > 0) {
+      // What the store takes of the process budget: its mapped staging, and on a CPU adapter
+      // its buffers (host memory that is not resident until first written, so not measured
+      // yet). The points get the rest.
+      const uint64_t store = gpu::staging_bytes(v.store->staging) +
+                             (v.options.device_in_host ? v.store->gpu_bytes : 0);
+      v.held_before_points = baseline + store;
+      r.budget = points_budget(v.options.process_budget, v.held_before_points, 0, r.budget);
+      STIPPLE_INFO(
+          "host budget: {} MiB resident before points, {} MiB for the point store (B = "
+          "{}), {} MiB for the points",
+          baseline >> 20, store >> 20, v.options.bucket, r.budget >> 20);
+    }
     if (v.options.gpu_budget > 0 && v.store->gpu_bytes + v.pointlets->bytes > v.options.gpu_budget)
       fail("--gpu-memory {} MiB is too small for the point store ({} MiB at B = {})",
            v.options.gpu_budget >> 20, (v.store->gpu_bytes + v.pointlets->bytes) >> 20,
@@ -297,7 +404,9 @@ void select_points(Registry& render) {
   v.lod_due = !same_lod_view(v.lod_requested_for, *extracted, target.width, target.height);
   const bool loads_done = r.completed.load() != v.selected_after;
   const bool current = same_lod_view(v.desired_for, *extracted, target.width, target.height);
-  if (!lod_new && !loads_done && !v.transfer_pending) {
+  const bool first_held = v.loads_held;
+  v.loads_held = v.options.process_budget > 0 && stats.selections == 0;
+  if (!lod_new && !loads_done && !v.transfer_pending && !first_held) {
     stats.settled =
         r.pending.load() == 0 && current && !v.lod_due && !gpu::readback_busy(*v.lod_ring);
     return;
@@ -307,8 +416,24 @@ void select_points(Registry& render) {
   // process grows as the flight goes on (driver, tables). It only ever lowers the points'
   // budget, so the view does not thin and thicken back and forth.
   if (v.options.process_budget > 0 && stats.selections >= 1) {
-    if (const uint64_t rss = resident_bytes(); rss > 0) {
-      const uint64_t left = points_budget(v.options.process_budget, rss, r.bytes.load(), r.budget);
+    uint64_t rss = resident_bytes();
+    const uint64_t loaded = r.bytes.load();
+#ifdef __GLIBC__
+    // Freed and regrown record buffers leave free memory in malloc's arenas, resident: when the
+    // process holds more besides its points than planned, it goes back first, so that the
+    // points' budget is not lowered for memory nobody uses (which would free more of it).
+    if (rss > v.held_before_points + loaded + (uint64_t(16) << 20) &&
+        !std::getenv("STIPPLE_NO_MALLOC_TRIM")) {
+      const auto t_trim = Clock::now();
+      malloc_trim(0);
+      stats.trim_ms += ms_since(t_trim);
+      r.unloaded_since_trim = 0;
+      rss = resident_bytes();
+    }
+#endif
+    if (rss > 0) {
+      const uint64_t left = points_budget(
+          v.options.process_budget, std::max(rss, v.held_before_points + loaded), loaded, r.budget);
       if (left < r.budget) {
         if (!v.process_measured || left + r.budget / 20 < r.budget)
           STIPPLE_INFO(
@@ -423,6 +548,10 @@ void select_points(Registry& render) {
     const uint32_t want = v.desired[i], have = r.slots[i].loaded.load();
     draw[i] = std::min(want, have);
     if (want <= have || r.slots[i].in_flight.load()) continue;  // in flight: visited when done
+    if (v.loads_held) {  // the first selection loads nothing: visited again at the next
+      v.waiting.push_back(i);
+      continue;
+    }
     const uint32_t extra = std::min<uint32_t>(table[i].count, want + want / 4);
     uint32_t goal =
         planned + uint64_t(extra - have) * sizeof(PointletRecord) <= r.budget ? extra : want;
@@ -469,8 +598,8 @@ void select_points(Registry& render) {
   stats.loads = r.loads.load();
   stats.points_read = r.points_read.load();
   stats.touched_pointlets = uint32_t(touched.size());
-  stats.settled = !requested && stats.pending_loads == 0 && !v.transfer_pending && current &&
-                  !v.lod_due && !gpu::readback_busy(*v.lod_ring);
+  stats.settled = !requested && !v.loads_held && stats.pending_loads == 0 && !v.transfer_pending &&
+                  current && !v.lod_due && !gpu::readback_busy(*v.lod_ring);
   ++stats.selections;
   stats.bucket = v.options.bucket;
   v.selected_after = completed;
@@ -554,6 +683,11 @@ uint64_t points_budget(uint64_t process_budget, uint64_t resident, uint64_t load
   return std::min(left, host_budget);
 }
 
+uint64_t minimum_process_budget(uint64_t need) {
+  // points_budget keeps a margin of 5% of the budget, at least 32 MiB, out of it.
+  return std::max(need + (uint64_t(32) << 20), need + need / 19 + 1);
+}
+
 void wait_for_virtual_loads(const VirtualCloudHandle& handle, double timeout_s) {
   VirtualResidency& r = *handle.residency;
   std::unique_lock lock(r.progress_mutex);
@@ -586,6 +720,12 @@ void fit_virtual_cloud(ViewFit& fit, const VirtualCloudHandle& handle) {
 
 void VirtualPointCloudPlugin::build(Engine& engine) {
   if (options.files.empty()) fail("VirtualPointCloudPlugin: no input");
+  options.device_in_host = gpu::is_cpu_adapter(engine.render().resource<GpuContext>()->description);
+  // A budget the process exceeds already fails before the cache is built (minutes, for a large
+  // input); select_points checks again once the cache's tables are up.
+  if (options.process_budget > 0)
+    if (const uint64_t baseline = trimmed_resident_bytes(); baseline > 0)
+      check_process_budget(options, baseline, kMinimumBudgetPoints, 0, "and the libraries");
   bool built = false;
   PointletBuildStats build_stats;
   auto cache = std::make_shared<const PointletCache>(

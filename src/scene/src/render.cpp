@@ -7,7 +7,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <exception>
+#include <filesystem>
+#include <memory>
+#include <thread>
 #include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -20,6 +25,7 @@
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/virtual_cloud.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
+#include "virtual_scene.hpp"
 
 namespace stipple::scene {
 
@@ -180,6 +186,47 @@ RenderResult render_image(const RenderOptions& args) {
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
+}
+
+RenderResult render_progressive(const RenderOptions& options, uint64_t sample_points,
+                                const std::function<void(const RenderResult&)>& first) {
+  const SceneSource source = classify_scene(options.scene);
+  if (source.kind != SourceKind::PointFiles) return render_image(options);
+  // The cache builds beside the first image only where the full render needs one.
+  std::exception_ptr build_error;
+  std::thread builder;
+  try {
+    // The sample is read before the build starts: on few cores the build's reads and sorting
+    // would hold the sample's up several times over.
+    pc::LoadOptions load;
+    load.sample = std::max<uint64_t>(sample_points, 1);
+    load.chunk_points = options.scene.chunk_points;
+    load.progress = false;
+    load.keep_extras = options.scene.keep_extras || options.scene.render.filter.needs_extras();
+    const std::vector<std::filesystem::path> files(options.scene.inputs.begin(),
+                                                   options.scene.inputs.end());
+    RenderOptions sample = options;
+    sample.scene.points = std::make_shared<const pc::PointCloud>(pc::load_point_cloud(files, load));
+    sample.scene.inputs.clear();
+    sample.scene.force_virtual = false;
+    sample.frames = 1;
+    sample.quiet = true;
+    if (source.virtualized)
+      builder = std::thread([&] {
+        try {
+          build_virtual_cache(options.scene, source.host_budget);
+        } catch (...) {
+          build_error = std::current_exception();
+        }
+      });
+    first(render_image(sample));
+  } catch (...) {
+    if (builder.joinable()) builder.join();
+    throw;
+  }
+  if (builder.joinable()) builder.join();
+  if (build_error) std::rethrow_exception(build_error);
+  return render_image(options);
 }
 
 }  // namespace stipple::scene

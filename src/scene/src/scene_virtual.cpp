@@ -1,13 +1,35 @@
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <utility>
+#include <vector>
 
 #include "stipple/core/memory.hpp"
 #include "stipple/engine/engine.hpp"
+#include "stipple/pointcloud/pointlets.hpp"
 #include "stipple/pointcloud/virtual_cloud.hpp"
 #include "virtual_scene.hpp"
 
 namespace stipple::scene {
+
+namespace {
+
+// How the cache is built under a host budget: the sort's runs take at most half of it.
+pc::PointletBuildOptions build_options(const SceneOptions& options, uint64_t budget) {
+  pc::PointletBuildOptions build;
+  build.pointlets = options.pointlets;
+  build.memory_budget = std::min<uint64_t>(budget / 2, uint64_t(4) << 30);
+  return build;
+}
+
+}  // namespace
+
+void build_virtual_cache(const SceneOptions& options, uint64_t host_budget) {
+  pc::PointletBuildOptions build = build_options(options, host_budget);
+  build.progress = false;
+  const std::vector<std::filesystem::path> files(options.inputs.begin(), options.inputs.end());
+  pc::open_pointlet_cache(files, options.cache_dir, build);
+}
 
 void add_virtual_scene(Engine& engine, const ScenePlan& plan) {
   const SceneOptions& options = plan.options;
@@ -18,9 +40,8 @@ void add_virtual_scene(Engine& engine, const ScenePlan& plan) {
   pc::VirtualPointCloudPlugin v;
   v.options.files.assign(options.inputs.begin(), options.inputs.end());
   v.options.cache_dir = options.cache_dir;
-  v.options.build.pointlets = options.pointlets;
   const uint64_t budget = plan.source.host_budget;
-  v.options.build.memory_budget = std::min<uint64_t>(budget / 2, uint64_t(4) << 30);
+  v.options.build = build_options(options, budget);
   // The host budget is the process's: the loaded points get what the two mapped staging
   // slots leave, and once the first frame has run, at most what the rest of the process
   // (libraries, driver, tables, and the GPU buffers on a software GPU) leaves of it.

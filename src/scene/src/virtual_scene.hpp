@@ -11,6 +11,11 @@ namespace stipple::scene {
 // host budget, and says on stdout whether the cache was built or reused.
 void add_virtual_scene(Engine& engine, const ScenePlan& plan);
 
+// Builds the pointlet cache add_virtual_scene would open for these options and this host
+// budget (or finds it current), quietly: render --progressive runs it on another thread while
+// its first image is drawn. Native only.
+void build_virtual_cache(const SceneOptions& options, uint64_t host_budget);
+
 // Fits `fit` to a virtualized cloud's points, where the scene has one.
 void fit_virtual_scene(ViewFit& fit, Registry& main);
 

@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -19,6 +20,10 @@
 
 namespace stipple::io {
 struct SceneParams;
+}
+
+namespace stipple::io {
+class LasReader;
 }
 
 namespace stipple::pc {
@@ -108,7 +113,17 @@ struct LoadOptions {
   size_t chunk_points = 1 << 20;
   bool progress = true;
   bool keep_extras = false;  // PointChunk::extras (GPS time, point source, flags, user data)
+  // Read only about this many points spread across the whole of the inputs (0: all): a first
+  // image of a large file at once (render --progressive). See read_las_sample.
+  uint64_t sample = 0;
 };
+
+// Reads about `want` points spread across the whole file behind `reader`, handing each batch to
+// `take` in file order. LAZ with fixed-size chunks: the first points of every chunk (decoding
+// starts at each chunk through the chunk table, nothing is decoded twice); otherwise runs of
+// records at a stride. Returns the points read; `want` >= the file's points reads them all.
+uint64_t read_las_sample(io::LasReader& reader, uint64_t want,
+                         const std::function<void(io::PointBatch&)>& take);
 
 // Adds the chunks' points to a view fit (world space): the outermost chunks first, and chunks
 // whose bounds cannot widen the fit are not read, so a large cloud reads few of its points.

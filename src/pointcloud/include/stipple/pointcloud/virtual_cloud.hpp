@@ -42,6 +42,9 @@ struct VirtualCloudOptions {
   // besides the loaded points is measured, and the points get what is left of this (less a
   // margin for later growth), if that is below host_budget.
   uint64_t process_budget = 0;
+  // The device's buffers are host memory (a CPU adapter: gpu::is_cpu_adapter, set by build()):
+  // the process budget pays for them, and without gpu_budget the bucket is fitted to it.
+  bool device_in_host = false;
   uint32_t fill_radius = 1;     // hole filling (seed 002, III-D1); 0: off
   float occlusion_beta = 0.0f;  // occlusion check (eq. 4) threshold in radians; 0: off
   // Device memory the point store and the pointlets may use; 0: what B needs. A bucket that
@@ -95,6 +98,11 @@ inline constexpr std::array<std::string_view, 5> kStageNames{"lod", "compaction"
 // more than host_budget.
 uint64_t points_budget(uint64_t process_budget, uint64_t resident, uint64_t loaded,
                        uint64_t host_budget);
+// The least process budget that leaves `need` bytes after points_budget's margin. A budget
+// under the baseline (what the process holds before points load), the staging and room for
+// kMinimumBudgetPoints points (on a CPU adapter, on the device too) is an error naming it.
+uint64_t minimum_process_budget(uint64_t need);
+inline constexpr uint64_t kMinimumBudgetPoints = uint64_t(1) << 18;
 
 // Main-world resource: waits for the loads in flight (a headless render waits until settled).
 struct VirtualResidency;

@@ -4,6 +4,7 @@
 // function for both so that they draw the same pixels for the same points and options.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -49,6 +50,17 @@ struct RenderResult {
 // Renders the scene of `options` headless and returns the last frame. Throws stipple::Error
 // (naming the input) for what cannot be read or drawn.
 RenderResult render_image(const RenderOptions& options);
+
+// render --progressive: a first image at once, then the full one. The first is drawn in memory
+// from about `sample_points` points read across the whole input (pc::read_las_sample: LAS
+// records at a stride, LAZ the first points of every chunk) and handed to `first` as soon as it
+// is drawn, while the pointlet cache the virtualized path needs builds on another thread (from
+// when the sample has been read); the
+// full render follows once the cache is ready (the same image as render_image alone). Inputs
+// other than LAS/LAZ files (COPC, tilesets) stream as they do without it, and `first` is not
+// called. Returns the full render.
+RenderResult render_progressive(const RenderOptions& options, uint64_t sample_points,
+                                const std::function<void(const RenderResult&)>& first);
 
 // A column of a caller's point array: `count` values of T, `stride` bytes apart (null: absent).
 template <typename T>
