@@ -39,6 +39,9 @@ struct SplatLimits {
 // local .json file that is a tileset of KHR_gaussian_splatting content (a splat tileset, as
 // `stipple tile` writes from splat files; URLs of tilesets are not looked into).
 bool is_splat_path(std::string_view path_or_url);
+// Of those, a local splat tileset's tileset.json (the front ends stream it: tiles3d's
+// SplatTilesetPlugin) rather than a file read whole.
+bool is_splat_tileset_path(std::string_view path_or_url);
 
 // Reads a file or an http(s) URL (through io::fetch) and decodes it. A splat tileset's
 // tileset.json reads as one set: a cut through its tree of at most limits.tileset_splats splats,
