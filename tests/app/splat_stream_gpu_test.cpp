@@ -6,9 +6,11 @@
 
 #include <unistd.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <system_error>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -26,6 +28,10 @@ namespace {
 // 2000, so a few levels of merged tiles above them.
 struct Fixture {
   fs::path dir, spz, tileset;
+  ~Fixture() {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
 };
 
 const Fixture& fixture() {
@@ -87,11 +93,13 @@ TEST(SplatStream, FineMaxSseEqualsTheSourceFile) {
   EXPECT_EQ(streamed.splats, 20000u) << streamed.output;
   const auto covered = test::coverage_stats(source.image, kBlack, 4);
   EXPECT_GT(covered.coverage, 0.2) << "the view shows the scene";
-  // The leaves' SPZ re-encoding moves centres by its fixed point (under a millimetre here) and
-  // the sort sees the tiles' splats in another order: equal ties blend in another order. Within
-  // 8 levels a channel, all but 1% of the pixels.
-  const double differing = test::differing_fraction(source.image, streamed.image, 8);
-  EXPECT_LT(differing, 0.01) << "differing " << differing;
+  // Tolerance: all but 0.2% of the pixels within 2 levels a channel (lavapipe: none differ).
+  // The leaves re-encode the SPZ input's fixed point, and the tiles' splats reach the sort in
+  // another order than the file's, so splats at equal depth may blend in another order.
+  const double differing = test::differing_fraction(source.image, streamed.image, 2);
+  std::printf("coverage %.3f; pixels differing by more than 2 levels %.4f\n", covered.coverage,
+              differing);
+  EXPECT_LT(differing, 0.002) << "differing " << differing;
 }
 
 TEST(SplatStream, CoarseMaxSseDrawsFewerSplats) {
@@ -102,6 +110,8 @@ TEST(SplatStream, CoarseMaxSseDrawsFewerSplats) {
   EXPECT_EQ(fine.splats, 20000u);
   EXPECT_GT(coarse.splats, 0u) << coarse.output;
   EXPECT_LT(coarse.splats, fine.splats / 2) << coarse.output;
+  std::printf("splats drawn: fine %llu, coarse %llu\n", (unsigned long long)fine.splats,
+              (unsigned long long)coarse.splats);
   EXPECT_NE(coarse.output.find(fmt::format("{} splats", coarse.splats)), std::string::npos)
       << coarse.output;
   // Coarse tiles still cover the scene (merged splats, not holes).
