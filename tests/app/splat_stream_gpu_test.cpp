@@ -150,3 +150,22 @@ TEST(SplatStream, PointsAndASplatTilesetInOneFrame) {
   EXPECT_GT(test::differing_fraction(both.image, points.image, 8), 0.05);
   EXPECT_GT(test::differing_fraction(both.image, splats.image, 8), 0.05);
 }
+
+TEST(SplatStream, BenchStreamFliesASplatTileset) {
+  const Fixture& f = fixture();
+  ASSERT_TRUE(fs::exists(f.tileset));
+  const fs::path json = f.dir / "bench.json";
+  const auto r = test::run_stipple(fmt::format(
+      "bench stream {} --renderer billboard --width 64 --height 48 --frames 8 --splat-budget 5000 "
+      "--json {}",
+      f.tileset.string(), json.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("M splats a frame"), std::string::npos) << r.output;
+  std::ifstream in(json);
+  const auto j = nlohmann::json::parse(in);
+  EXPECT_EQ(j.at("frames").get<uint32_t>(), 8u);
+  // Frames do not wait for loads: some frames draw splats, none more than the budget.
+  EXPECT_GT(j.at("splats_drawn_mean").get<double>(), 0.0);
+  EXPECT_LE(j.at("splats_drawn_mean").get<double>(), 5000.0);
+  EXPECT_GT(j.at("loads").get<uint64_t>(), 0u);
+}
