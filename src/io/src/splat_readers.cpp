@@ -111,7 +111,7 @@ std::vector<uint8_t> file_head(const std::string& path_or_url, size_t bytes) {
 }  // namespace
 
 bool is_splat_tileset_path(std::string_view path_or_url) {
-  if (lower_extension(path_or_url) != ".json" || is_url(path_or_url)) return false;
+  if (lower_extension(path_or_url) != ".json") return false;
   const std::string p = uri_path(std::string(path_or_url));
   if (ends_with(p, "/meta.json") || p == "meta.json") return false;
   try {
