@@ -49,6 +49,7 @@
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/pointcloud/scene.hpp"
 #include "stipple/scene/scene.hpp"
+#include "stipple/tiles3d/splat_stream.hpp"
 #include "stipple/tiles3d/streamer.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 #include "stipple/tools/tools.hpp"
@@ -746,11 +747,24 @@ std::string run_view(const Options& o) {
     orbit = first_orbit(main, main.resource<pc::SceneInfo>().world_bounds.center());
     take_options(main);
     take_camera(main, orbit);
-    engine.run(1);
+    if (!plan.splat_tileset.empty()) {
+      // A splat tileset streams in: one engine frame per animation frame until it is idle.
+      for (uint64_t f = 0;; ++f) {
+        engine.update();
+        const auto& s = main.resource<tiles3d::StreamedSplats>();
+        report("progress", fmt::format("{} tiles, {} splats{}", s.drawn_tiles, s.drawn_splats,
+                                       s.idle ? "" : ", loading"));
+        if (s.idle || f + 1 >= o.max_frames) break;
+        next_frame();
+      }
+    } else {
+      engine.run(1);
+    }
     const double ms = emscripten_get_now() - start;
     if (engine.render().resource<RenderStats>().frames == 0) fail("no frame was drawn");
     report_adapter();
     report("points", std::to_string(main.resource<pc::SceneInfo>().points));
+    report("splats", std::to_string(plan.splat_count() + scene::drawn_splats(main)));
     report("pointSize",
            fmt::format("{:.3f}", main.resource<pc::PointDrawSettings>().render.point_size));
     report("ms", fmt::format("{:.1f}", ms));

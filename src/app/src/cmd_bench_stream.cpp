@@ -33,6 +33,7 @@
 #include "stipple/engine/render_plugins.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/scene.hpp"
+#include "stipple/tiles3d/splat_stream.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 
 namespace stipple::app {
@@ -45,7 +46,7 @@ struct StreamBenchArgs {
   uint32_t frames = 600;
   CameraPath path;
   double max_sse = 0;  // 0: the source's default
-  uint64_t memory_mb = 4096, budget = 0;
+  uint64_t memory_mb = 4096, budget = 0, splat_budget = 0;
   std::string backend, json;
   std::string samples;
   double sample_seconds = 1.0;
@@ -88,6 +89,29 @@ class SampleWriter {
   std::FILE* file_ = nullptr;
 };
 
+// A splat tileset's stream in the figures of a point tileset's (loads, evictions, bytes; the
+// drawn "points" are splats).
+tiles3d::TilesetStats splat_stream_stats(Registry& main) {
+  const auto& s = main.resource<tiles3d::StreamedSplats>();
+  const tiles3d::StreamerStats st = s.streamer->stats();
+  tiles3d::TilesetStats out;
+  out.frames = s.frames;
+  out.resident_tiles = s.resident_tiles;
+  out.resident_bytes = st.resident_bytes;
+  out.peak_resident_bytes = st.peak_resident_bytes;
+  out.memory_budget = s.streamer->traversal_options().memory_budget;
+  out.loads_completed = st.loads_completed;
+  out.evictions = st.evictions;
+  out.discarded_over_budget = st.discarded_over_budget;
+  out.budget_limited = st.budget_limited;
+  out.sse_threshold = st.sse_threshold;
+  out.drawn_tiles = s.drawn_tiles;
+  out.drawn_points = s.drawn_splats;
+  out.idle = s.idle;
+  out.errors = s.errors;
+  return out;
+}
+
 void run_stream_bench(const StreamBenchArgs& a) {
   Engine engine;
   add_engine_core(engine, {a.backend, false, true, ""});
@@ -97,10 +121,19 @@ void run_stream_bench(const StreamBenchArgs& a) {
   scene.max_sse = a.max_sse;
   scene.memory_mb = a.memory_mb;
   scene.budget = a.budget;
+  scene.splat_budget = a.splat_budget;
   scene.render.point_size = a.renderer == "compute" ? 1.0f : 2.0f;
   const ScenePlan plan = plan_scene(scene, *engine.render().resource<GpuContext>());
-  if (!plan.source.streamed())
+  // A splat tileset streams through tiles3d::SplatTilesetPlugin (the splats drawn, sorted
+  // together, each frame), its figures in TilesetStats' form.
+  const bool splat = !plan.splat_tileset.empty();
+  if (!plan.source.streamed() && !splat)
     fail("bench stream: {} is not a tileset or a COPC file, nor a Potree or EPT cloud", a.input);
+  if (splat && !a.samples.empty())
+    fail("bench stream: --samples is for point tilesets (the tiles' GPU memory)");
+  auto tileset_stats = [splat](Registry& main) {
+    return splat ? splat_stream_stats(main) : main.resource<tiles3d::TilesetStats>();
+  };
   add_scene_plugin(engine, plan);
   engine.add_plugin(HeadlessTargetPlugin{a.width, a.height, "", 0});
 
@@ -140,7 +173,7 @@ void run_stream_bench(const StreamBenchArgs& a) {
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     const auto& rs = render.resource<RenderStats>();
     gpu_ms.push_back(rs.gpu_ms.empty() ? 0.0 : rs.gpu_ms.back());
-    drawn.push_back(main.resource<tiles3d::TilesetStats>().drawn_points);
+    drawn.push_back(tileset_stats(main).drawn_points);
     if (samples) {
       const double now =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -158,7 +191,7 @@ void run_stream_bench(const StreamBenchArgs& a) {
     samples.write(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
                   frames, main.resource<tiles3d::TilesetStats>(),
                   render.try_resource<tiles3d::TilesetGpuStats>());
-  const auto stats = main.resource<tiles3d::TilesetStats>();
+  const auto stats = tileset_stats(main);
   engine.shutdown();
 
   const double total = std::accumulate(wall_ms.begin(), wall_ms.end(), 0.0);
@@ -176,9 +209,10 @@ void run_stream_bench(const StreamBenchArgs& a) {
       avg, 1000.0 / slowest, 1000.0 / fastest, low_fps(wall_ms, 0.01), low_fps(wall_ms, 0.001),
       gpu_median);
   std::printf(
-      "  drawn %.2f M points a frame (mean); %llu loads, %llu evictions, %llu errors; peak "
+      "  drawn %.2f M %s a frame (mean); %llu loads, %llu evictions, %llu errors; peak "
       "resident %.1f MiB of %.1f; RSS %.1f MiB\n",
-      drawn_mean / 1e6, static_cast<unsigned long long>(stats.loads_completed),
+      drawn_mean / 1e6, splat ? "splats" : "points",
+      static_cast<unsigned long long>(stats.loads_completed),
       static_cast<unsigned long long>(stats.evictions),
       static_cast<unsigned long long>(stats.errors), stats.peak_resident_bytes / 1048576.0,
       stats.memory_budget / 1048576.0, rss / 1048576.0);
@@ -197,7 +231,7 @@ void run_stream_bench(const StreamBenchArgs& a) {
     j["gpu_ms_median"] = gpu_median;
     j["frame_wall_ms"] = wall_ms;
     j["frame_gpu_ms"] = gpu_ms;
-    j["points_drawn_mean"] = drawn_mean;
+    j[splat ? "splats_drawn_mean" : "points_drawn_mean"] = drawn_mean;
     j["loads"] = stats.loads_completed;
     j["evictions"] = stats.evictions;
     j["errors"] = stats.errors;
@@ -214,7 +248,10 @@ void add_bench_stream_command(CLI::App& bench) {
   auto a = std::make_shared<StreamBenchArgs>();
   auto* cmd = bench.add_subcommand(
       "stream", "A tileset or COPC file streamed along the seed's camera path: FPS statistics");
-  cmd->add_option("input", a->input, "tileset.json (path or URL) or COPC file")->required();
+  cmd->add_option("input", a->input,
+                  "tileset.json (path or URL; a local splat tileset streams its splats) or COPC "
+                  "file")
+      ->required();
   cmd->add_option("--renderer", a->renderer, "compute (LOD batches) or billboard")
       ->check(CLI::IsMember({"compute", "billboard"}))
       ->capture_default_str();
@@ -229,6 +266,9 @@ void add_bench_stream_command(CLI::App& bench) {
   cmd->add_option("--memory-mb", a->memory_mb, "Resident tile memory budget (MiB)")
       ->capture_default_str();
   cmd->add_option("--budget", a->budget, "Point budget (0: none)")->capture_default_str();
+  cmd->add_option("--splat-budget", a->splat_budget,
+                  "Splat tilesets: the most splats drawn a frame (0: none)")
+      ->capture_default_str();
   cmd->add_option("--backend", a->backend, "WebGPU implementation: dawn or wgpu")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
   cmd->add_option("--json", a->json, "Write the results (and every frame's times) as JSON");

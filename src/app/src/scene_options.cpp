@@ -61,6 +61,10 @@ void add_scene_options(CLI::App* cmd, SceneOptions& options) {
                   "Tilesets: resident tile memory budget in MiB (least recently used evicted)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 20))
       ->capture_default_str();
+  cmd->add_option("--splat-budget", options.splat_budget,
+                  "Splat tilesets: draw at most this many splats (0: no limit); coarser tiles "
+                  "where the view wants more")
+      ->capture_default_str();
   auto* sun_time = cmd->add_option_function<std::string>(
       "--sun-time",
       [&options](const std::string& v) {

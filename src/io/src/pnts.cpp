@@ -19,6 +19,10 @@ uint64_t PointContent::memory_bytes() const {
                    rgba.size() * sizeof(uint32_t) + normals.size() * sizeof(glm::vec3) +
                    batch_ids.size() * sizeof(uint32_t);
   for (const auto& [name, a] : attributes) bytes += name.size() + a.values.size() * sizeof(double);
+  if (splats)
+    bytes += sizeof(SplatSet) +
+             splats->size() * (2 * sizeof(glm::vec3) + sizeof(glm::vec4) + sizeof(float) +
+                               sizeof(glm::vec3) * (1 + splats->rest_count()));
   return bytes;
 }
 

@@ -110,6 +110,17 @@ std::vector<uint8_t> file_head(const std::string& path_or_url, size_t bytes) {
 
 }  // namespace
 
+bool is_splat_tileset_path(std::string_view path_or_url) {
+  if (lower_extension(path_or_url) != ".json") return false;
+  const std::string p = uri_path(std::string(path_or_url));
+  if (ends_with(p, "/meta.json") || p == "meta.json") return false;
+  try {
+    return is_splat_tileset_json(file_head(std::string(path_or_url), 64 * 1024));
+  } catch (const Error&) {
+    return false;
+  }
+}
+
 bool is_splat_path(std::string_view path_or_url) {
   const std::string ext = lower_extension(path_or_url);
   if (ext == ".splat" || ext == ".ksplat" || ext == ".spz" || ext == ".sog") return true;

@@ -24,6 +24,7 @@
 #include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/virtual_cloud.hpp"
+#include "stipple/tiles3d/splat_stream.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 #include "virtual_scene.hpp"
 
@@ -94,11 +95,12 @@ RenderResult render_image(const RenderOptions& args) {
   add_engine_core(engine, {args.backend, args.pipelined, true, args.dump_graph});
   ScenePlan plan = plan_scene(args.scene, *engine.render().resource<GpuContext>());
   const bool tileset = plan.source.streamed(), virtualized = plan.source.virtualized;
+  const bool splat_stream = !plan.splat_tileset.empty();
   add_scene_plugin(engine, plan);
   // Streamed sources load what the view needs while frames run, and so does the virtualized
   // path: the image is kept once nothing is loading any more (or at max_frames).
   HeadlessTargetPlugin target{args.width, args.height, "", 0};
-  if (!tileset && !virtualized) {
+  if (!tileset && !virtualized && !splat_stream) {
     target.frames = args.frames;
     target.capture = true;
   }
@@ -123,11 +125,37 @@ RenderResult render_image(const RenderOptions& args) {
             r.resource<tiles3d::TilesetStream>().streamer->wait_for_progress();
             return;
           }
+          // A splat tileset beside: it settles too (its own system waits for its loads).
+          if (const auto* s = r.try_resource<tiles3d::StreamedSplats>(); s && !s->idle) return;
           if (settle.settled < frames) return;
           r.resource<ScreenshotRequests>().capture = true;
           r.resource<AppExit>().requested = true;
         },
         "render_when_streamed");
+  }
+  if (splat_stream) {
+    // The splat tileset streams in while frames run (waiting for a load between frames); once
+    // idle, `frames` more frames run and the last is kept (unless a streamed point source
+    // decides that, above).
+    engine.add_system(
+        MainStage::Update,
+        [settled = uint64_t(0), frames = uint64_t(args.frames), max_frames = args.max_frames,
+         points_decide = tileset](Registry& r) mutable {
+          const auto& s = r.resource<tiles3d::StreamedSplats>();
+          const bool capped = s.frames >= max_frames;
+          if (!s.idle && !capped) {
+            s.streamer->wait_for_progress();
+            return;
+          }
+          if (points_decide) return;
+          if (settled == 0 && !s.idle)
+            STIPPLE_WARN("--max-frames {} reached before the splat tileset was streamed",
+                         max_frames);
+          if (++settled < frames) return;
+          r.resource<ScreenshotRequests>().capture = true;
+          r.resource<AppExit>().requested = true;
+        },
+        "render_when_splats_streamed");
   }
   if (virtualized) {
     engine.add_system(
@@ -170,7 +198,7 @@ RenderResult render_image(const RenderOptions& args) {
   result.image = std::move(engine.render().resource<CapturedFrame>().image);
   if (result.image.rgba.empty()) fail("no frame was drawn: nothing to return");
   result.compute = compute;
-  result.splats = plan.splat_count();
+  result.splats = plan.splat_count() + drawn_splats(engine.main());
   result.renderer_reason = std::move(plan.renderer_reason);
   result.point_size = point_size;
   result.stats = engine.render().resource<RenderStats>();

@@ -31,6 +31,8 @@
 #include "stipple/pointcloud/scene.hpp"
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/splats/splat_plugin.hpp"
+#include "stipple/tiles3d/render_load.hpp"
+#include "stipple/tiles3d/splat_stream.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
 #include "virtual_scene.hpp"
 
@@ -270,12 +272,17 @@ ScenePlan plan_scene(const SceneOptions& options, const gpu::Context& ctx) {
   if (!options.points) {
     std::vector<std::string> others;
     for (const auto& in : plan.options.inputs) {
-      if (io::is_splat_path(in))
+      if (io::is_splat_tileset_path(in)) {
+        if (!plan.splat_tileset.empty())
+          fail("{} and {}: one splat tileset at a time", plan.splat_tileset, in);
+        plan.splat_tileset = in;
+      } else if (io::is_splat_path(in)) {
         plan.splats.push_back(std::make_shared<const io::SplatSet>(io::read_splats(in)));
-      else
+      } else {
         others.push_back(in);
+      }
     }
-    if (!plan.splats.empty()) {
+    if (!plan.splats.empty() || !plan.splat_tileset.empty()) {
       plan.options.inputs = std::move(others);
       if (plan.options.inputs.empty()) {
         // An empty cloud with the splats' bounds, so that what reads the scene's bounds (near
@@ -284,6 +291,15 @@ ScenePlan plan_scene(const SceneOptions& options, const gpu::Context& ctx) {
         for (const auto& set : plan.splats) {
           if (set->size() == 0) continue;
           const Aabb b = splats::splat_bounds(*set);
+          empty->world_bounds.extend(b);
+          for (int c = 0; c < 8; ++c)
+            empty->source_bounds.extend(y_up_to_z_up(
+                {c & 1 ? b.max.x : b.min.x, c & 2 ? b.max.y : b.min.y, c & 4 ? b.max.z : b.min.z}));
+        }
+        if (!plan.splat_tileset.empty()) {
+          // The root volume (the tiles arrive as they stream), in the frame the splats draw in.
+          const io::Tileset ts = io::load_tileset(plan.splat_tileset);
+          const Aabb b = tiles3d::world_bounds(ts, tiles3d::StreamedSplats{}.world_from_tileset);
           empty->world_bounds.extend(b);
           for (int c = 0; c < 8; ++c)
             empty->source_bounds.extend(y_up_to_z_up(
@@ -381,18 +397,54 @@ uint64_t ScenePlan::splat_count() const {
   return n;
 }
 
+uint64_t drawn_splats(Registry& main) {
+  const auto* stream = main.try_resource<tiles3d::StreamedSplats>();
+  return stream ? stream->drawn_splats : 0;
+}
+
 namespace {
 
 // The plugin that reads or streams the points (add_scene_plugin's first half).
 void add_scene_points_plugin(Engine& engine, const ScenePlan& plan);
 
+// Marks the SplatData entity that shows a streamed splat tileset.
+struct StreamedSplatEntity {};
+
 // Added after the scene's plugin, so the splats' passes follow the points' (splat_plugin.hpp).
 void add_splat_plugin(Engine& engine, const ScenePlan& plan) {
-  if (plan.splats.empty()) return;
+  if (plan.splats.empty() && plan.splat_tileset.empty()) return;
   splats::SplatPlugin plugin;
   plugin.sets = plan.splats;
   plugin.settings.background = plan.options.render.background;
   engine.add_plugin(std::move(plugin));
+  if (plan.splat_tileset.empty()) return;
+  // The streamed tileset: tiles3d packs the drawn tiles into one set (StreamedSplats), which one
+  // SplatData entity hands to the SplatPlugin, so every drawn tile is sorted with the others.
+  // The wiring is here because neither module may see the other (DESIGN.md's table).
+  tiles3d::SplatTilesetPlugin stream;
+  stream.uri = plan.splat_tileset;
+  stream.streamer.traversal.max_sse = plan.options.max_sse > 0 ? plan.options.max_sse : 16.0;
+  stream.streamer.traversal.memory_budget = plan.options.memory_mb << 20;
+  stream.streamer.traversal.point_budget = plan.options.splat_budget;
+  engine.add_plugin(std::move(stream));
+  Registry& main = engine.main();
+  const Entity e = main.create();
+  main.emplace<splats::SplatData>(e);
+  main.emplace<StreamedSplatEntity>(e);
+  main.emplace<Transform>(e);
+  main.emplace<SyncTo<RenderWorldTag>>(e);
+  engine.add_system(
+      MainStage::PostUpdate,
+      [](Registry& r) {
+        const auto& stream = r.resource<tiles3d::StreamedSplats>();
+        r.view<splats::SplatData, StreamedSplatEntity>().each(
+            [&](splats::SplatData& data, const StreamedSplatEntity&) {
+              if (data.generation == stream.generation) return;
+              data.set = stream.set;
+              data.generation = stream.generation;
+            });
+      },
+      "show_streamed_splats");
 }
 
 }  // namespace
@@ -434,7 +486,7 @@ void add_scene_points_plugin(Engine& engine, const ScenePlan& plan) {
   points.inputs.scene.seed = options.seed;
   points.inputs.chunk_points = options.chunk_points;
   points.inputs.keep_extras = options.keep_extras || options.render.filter.needs_extras();
-  points.inputs.allow_empty = !plan.splats.empty();
+  points.inputs.allow_empty = !plan.splats.empty() || !plan.splat_tileset.empty();
   points.settings.render = options.render;
   points.settings.budget = options.budget;
   points.settings.compute = compute;

@@ -132,7 +132,7 @@ uint32_t clamp_to(double v, uint32_t max) {
 
 uint64_t append_content(pc::PointCloud& cloud, const io::PointContent& content,
                         const glm::dmat4& tile_transform, const glm::dmat4& world_from_tileset) {
-  if (content.point_count == 0) return 0;
+  if (content.point_count == 0 || content.splats) return 0;  // splats: not points
   // LAS attributes carried by the tile drive the intensity, classification and return colour
   // modes, as for LAS input.
   const auto* intensity =

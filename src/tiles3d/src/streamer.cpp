@@ -14,13 +14,38 @@
 #include "stipple/io/ept.hpp"
 #include "stipple/io/glb_points.hpp"
 #include "stipple/io/potree.hpp"
+#include "stipple/io/splat_readers.hpp"
 
 namespace stipple::tiles3d {
+
+namespace {
+
+// Whether a glb's JSON chunk names KHR_gaussian_splatting (its splat content, not points).
+bool is_splat_glb(const std::vector<uint8_t>& bytes) {
+  if (bytes.size() < 20 || std::memcmp(bytes.data(), "glTF", 4) != 0) return false;
+  uint32_t length = 0;
+  std::memcpy(&length, bytes.data() + 12, 4);
+  const size_t n = std::min<size_t>(length, bytes.size() - 20);
+  const std::string_view json(reinterpret_cast<const char*>(bytes.data() + 20), n);
+  return json.find("KHR_gaussian_splatting") != std::string_view::npos;
+}
+
+}  // namespace
 
 io::PointContent decode_content(const std::vector<uint8_t>& bytes, const std::string& uri,
                                 const io::DecodeLimits& limits, const io::FetchOptions& fetch) {
   if (bytes.size() >= 4 && std::memcmp(bytes.data(), "pnts", 4) == 0)
     return io::decode_pnts(bytes, uri, limits);
+  if (is_splat_glb(bytes)) {
+    io::SplatLimits splat_limits;
+    splat_limits.max_splats = size_t(limits.max_points);
+    io::PointContent c;
+    auto splats = std::make_shared<io::SplatSet>(io::decode_splats_glb(bytes, uri, splat_limits));
+    c.point_count = splats->size();
+    c.format = "glb splats";
+    c.splats = std::move(splats);
+    return c;
+  }
   if ((bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0) ||
       io::uri_path(uri).ends_with(".gltf"))
     return io::decode_glb_points(bytes, uri, limits, [&](const std::string& u) {

@@ -3,11 +3,14 @@
 // positions as floats relative to a double-precision centre, in the tile's frame (Z-up).
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
 
 #include <glm/vec3.hpp>
+
+#include "stipple/io/splats.hpp"
 
 namespace stipple::io {
 
@@ -39,6 +42,10 @@ struct PointContent {
   // Non-empty for content that holds nothing stipple draws (meshes: b3dm, i3dm, glb triangles):
   // what it is, for a warning. Such content decodes to no points instead of failing its tile.
   std::string not_drawn;
+  // Gaussian splats (a glb with KHR_gaussian_splatting, as `stipple tile` writes from splat
+  // files): the tile's content is these, not points (point_count counts them, positions stay
+  // empty), for a splat consumer (tiles3d's splat stream); point paths skip such content.
+  std::shared_ptr<const SplatSet> splats;
 
   // Resident size, for the cache's memory budget.
   uint64_t memory_bytes() const;

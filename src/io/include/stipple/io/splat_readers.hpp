@@ -25,7 +25,8 @@ namespace stipple::io {
 struct SplatLimits {
   size_t max_splats = size_t(1) << 28;
   // Decompressed bytes of one gzip/zstd/zip payload.
-  size_t max_inflated_bytes = size_t(8) << 30;
+  // 8 GiB; 3 GiB where size_t is 32 bits (WebAssembly), where 8 << 30 would wrap to 0.
+  size_t max_inflated_bytes = sizeof(size_t) > 4 ? size_t(uint64_t(8) << 30) : size_t(3) << 30;
   // A splat tileset (read_splats of its tileset.json): the most splats of the cut it reads.
   size_t tileset_splats = 6'000'000;
 };
@@ -39,6 +40,9 @@ struct SplatLimits {
 // local .json file that is a tileset of KHR_gaussian_splatting content (a splat tileset, as
 // `stipple tile` writes from splat files; URLs of tilesets are not looked into).
 bool is_splat_path(std::string_view path_or_url);
+// A splat tileset's tileset.json, local or a URL (its first 64 KiB fetched as a range): the
+// front ends stream it (tiles3d's SplatTilesetPlugin) rather than read it whole.
+bool is_splat_tileset_path(std::string_view path_or_url);
 
 // Reads a file or an http(s) URL (through io::fetch) and decodes it. A splat tileset's
 // tileset.json reads as one set: a cut through its tree of at most limits.tileset_splats splats,

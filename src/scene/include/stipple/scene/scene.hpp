@@ -49,7 +49,8 @@ struct SceneOptions {
   // Streamed sources: refine while a tile's screen-space error exceeds this; 0: the source's
   // default (max_sse_for).
   double max_sse = 0;
-  uint64_t memory_mb = 512;  // streamed sources: resident tile memory budget
+  uint64_t memory_mb = 512;   // streamed sources: resident tile memory budget
+  uint64_t splat_budget = 0;  // a streamed splat tileset: at most this many splats drawn (0: any)
   // Point clouds larger than the in-memory path's budget (or with --virtual) are drawn from a
   // pointlet cache (pc::VirtualPointCloudPlugin, seed 002).
   bool force_virtual = false;
@@ -111,8 +112,15 @@ struct ScenePlan {
   // tested against the points; splats alone draw over an empty cloud. Their coordinates are
   // the world's as the files store them (no CRS).
   std::vector<std::shared_ptr<const io::SplatSet>> splats;
+  // A splat tileset among the inputs (io::is_splat_tileset_path), taken out of options.inputs
+  // too: streamed with the view (tiles3d::SplatTilesetPlugin, --max-sse, --memory-mb and
+  // --splat-budget), its drawn tiles' splats one set for splats::SplatPlugin. At most one.
+  std::string splat_tileset;
   uint64_t splat_count() const;
 };
+
+// Splats the streamed splat tileset drew in the latest frame (0 without one).
+uint64_t drawn_splats(Registry& main);
 
 // The longitude, latitude and height (degrees, WGS 84) of the centre of the scene's data, from
 // its CRS through PROJ (io::LonLatTransform): the first point file's header, a COPC header, an
