@@ -621,6 +621,11 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
   };
   {
     Progress progress("sorting into pointlets", info.point_count);
+    if (options.report) {
+      options.report->total = info.point_count;
+      options.report->done = 0;
+      options.report->phase = 1;
+    }
     const uint64_t threads = pool.size();
     size_t f = 0;
     uint64_t local = 0;  // next point of source f
@@ -700,12 +705,20 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
       stats.read_seconds += since(t);
       seen += window;
       progress.advance(window);
+      if (options.report) {
+        options.report->done = seen;
+        if (options.report->cancel) fail("{}: the cache build was cancelled", cache_path.string());
+      }
       if (seen < info.point_count) spill();
     }
   }
   info.attributes.elevation_percentiles = percentile_range(std::move(elevation), {}, 0.02, 0.98);
   info.attributes.intensity_percentiles = percentile_range(std::move(intensity), {}, 0.02, 0.98);
 
+  if (options.report) {
+    options.report->done = 0;
+    options.report->phase = 2;
+  }
   // The cache, written under a temporary name: the points, the table, then the header.
   AtomicFile file(cache_path);
   const std::string name = cache_path.string();
@@ -736,6 +749,9 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
         // One prefix holds more than a run: merged by streaming its part of each run.
         merge_prefix(runs, b0, window, run_capacity, encoded, writer, stats);
         progress.advance(totals[b0]);
+        if (options.report) options.report->done += totals[b0];
+        if (options.report && options.report->cancel)
+          fail("{}: the cache build was cancelled", cache_path.string());
         ++b0;
         continue;
       }
@@ -775,6 +791,9 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
         RunRecord* other = sorted == window ? scratch_arena.runs() : window;
         writer.add(sorted, size, reinterpret_cast<PointletRecord*>(other));
         progress.advance(size);
+        if (options.report) options.report->done += size;
+        if (options.report && options.report->cancel)
+          fail("{}: the cache build was cancelled", cache_path.string());
       }
       b0 = b1;
     }
@@ -804,10 +823,32 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
   stats.pointlet_points = info.pointlet_points;
   stats.runs = std::max<uint64_t>(1, runs.files.size());
   stats.seconds = since(start);
+  if (options.report) {
+    options.report->done = info.point_count;
+    options.report->phase = 3;
+  }
   return stats;
 }
 
+double PointletBuildProgress::fraction() const {
+  const uint32_t p = phase;
+  if (p == 0) return 0;
+  if (p >= 3) return 1;
+  const double part = total > 0 ? std::min(1.0, double(done) / double(total)) : 0.0;
+  return 0.5 * double(p - 1) + 0.5 * part;
+}
+
 // ---- reading --------------------------------------------------------------------------------
+bool pointlet_cache_current(const std::vector<fs::path>& sources, const fs::path& cache_dir,
+                            const PointletBuildOptions& options) {
+  const fs::path path = pointlet_cache_path(sources, cache_dir, options);
+  if (!fs::exists(path)) return false;
+  try {
+    return PointletCache::open(path).matches(sources, options);
+  } catch (const Error&) {
+    return false;  // open_pointlet_cache rebuilds it (and says why)
+  }
+}
 
 struct PointletCache::Storage {
   int fd = -1;
