@@ -666,6 +666,9 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
           uint64_t next_sample =
               (global + sample_stride - 1) / sample_stride * sample_stride - global;
           while (done < sl.count) {
+            // A reader elsewhere sees the read advance (and may end it) batch by batch.
+            if (options.report && options.report->cancel)
+              fail("{}: the cache build was cancelled", cache_path.string());
             batch.clear();
             const size_t n =
                 reader.read(batch, size_t(std::min<uint64_t>(1 << 16, sl.count - done)));
@@ -695,6 +698,7 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
               }
             }
             done += n;
+            if (options.report) options.report->done += n;
           }
         }
       });
@@ -705,10 +709,7 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
       stats.read_seconds += since(t);
       seen += window;
       progress.advance(window);
-      if (options.report) {
-        options.report->done = seen;
-        if (options.report->cancel) fail("{}: the cache build was cancelled", cache_path.string());
-      }
+      if (options.report) options.report->done = seen;
       if (seen < info.point_count) spill();
     }
   }
@@ -726,6 +727,8 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
   if (out.fd < 0) fail("{}: cannot write: {}", name, std::strerror(errno));
   PointletWriter writer(out.fd, name, info, origin, pool, stats);
   if (runs.files.empty()) {
+    if (options.report && options.report->cancel)
+      fail("{}: the cache build was cancelled", cache_path.string());
     RunRecord* sorted = sort_run();
     RunRecord* other = sorted == run ? scratch_arena.runs() : run;
     writer.add(sorted, run_size, reinterpret_cast<PointletRecord*>(other));

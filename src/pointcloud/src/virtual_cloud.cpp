@@ -775,14 +775,15 @@ void open_virtual_cloud(Registry& main, Registry& render, const VirtualCloudOpti
   main.insert_resource(VirtualCloudStats{});
 }
 
-// The cache building on its own thread (build_in_background). The thread owns a reference, so
-// the state outlives an engine that goes first; the engine's end cancels the build and waits.
+// The cache building on its own thread (build_in_background), a main-world resource: when the
+// engine ends first (the window closed), the build is cancelled and waited for.
 struct BackgroundBuild {
   std::thread thread;
   std::shared_ptr<PointletBuildProgress> progress = std::make_shared<PointletBuildProgress>();
   std::atomic<bool> finished{false};
   std::exception_ptr error;  // written before `finished`
   PointletBuildStats stats;  // likewise
+  bool built = false;        // likewise (false: another process built it meanwhile)
   std::shared_ptr<const PointletCache> cache;
   Clock::time_point start = Clock::now();
   VirtualCloudOptions options;
@@ -821,7 +822,7 @@ void activate_virtual_cloud(Registry& main) {
   // it: the sample's was fitted to its sparser points.
   PointRenderSettings style = main.resource<PointDrawSettings>().render;
   style.point_size = b.style.point_size;
-  open_virtual_cloud(main, render, b.options, style, b.cache, true, b.stats);
+  open_virtual_cloud(main, render, b.options, style, b.cache, b.built, b.stats);
   progress.building = false;
   progress.switched = true;
   progress.frames_before = b.frames;
@@ -856,10 +857,9 @@ void VirtualPointCloudPlugin::build(Engine& engine) {
     // The thread holds the state by a plain pointer: the state's destructor joins it.
     b->thread = std::thread([state = b.get()] {
       try {
-        bool built = false;
         state->cache = std::make_shared<const PointletCache>(
             open_pointlet_cache(state->options.files, state->options.cache_dir,
-                                state->options.build, &built, &state->stats));
+                                state->options.build, &state->built, &state->stats));
       } catch (...) {
         state->error = std::current_exception();
       }
