@@ -727,11 +727,20 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
   if (out.fd < 0) fail("{}: cannot write: {}", name, std::strerror(errno));
   PointletWriter writer(out.fd, name, info, origin, pool, stats);
   if (runs.files.empty()) {
-    if (options.report && options.report->cancel)
-      fail("{}: the cache build was cancelled", cache_path.string());
     RunRecord* sorted = sort_run();
     RunRecord* other = sorted == run ? scratch_arena.runs() : run;
-    writer.add(sorted, run_size, reinterpret_cast<PointletRecord*>(other));
+    // In whole pointlets, a sixteenth at a time when a reader follows the build: its progress
+    // advances and a cancel is seen during the write (the cache is the same either way).
+    const uint64_t k = info.pointlet_points;
+    const uint64_t piece = options.report ? std::max<uint64_t>(k, run_size / 16 / k * k)
+                                          : std::max<uint64_t>(run_size, 1);
+    for (uint64_t at = 0; at < run_size; at += piece) {
+      if (options.report && options.report->cancel)
+        fail("{}: the cache build was cancelled", cache_path.string());
+      const uint64_t n = std::min<uint64_t>(piece, run_size - at);
+      writer.add(sorted + at, n, reinterpret_cast<PointletRecord*>(other));
+      if (options.report) options.report->done += n;
+    }
   } else {
     if (run_size > 0) spill();
     // The merge, in windows of key prefixes that hold at most a run's worth of points: each
