@@ -121,3 +121,68 @@ TEST_P(View, VirtualizedAutzenWithThePanel) {
 
 INSTANTIATE_TEST_SUITE_P(Backends, View, ::testing::Values("dawn", "wgpu"),
                          [](const auto& info) { return info.param; });
+
+// view --virtual over a LAS whose pointlet cache does not exist yet: the first frame is drawn at
+// once from a sample read across the file while the cache builds in the background, and the run
+// ends with the virtualized cloud (--frames counts from when it took over), framed as the
+// sample was. A second run finds the cache current and opens it before the first frame, as
+// without the sample.
+TEST(ViewProgressive, SampleFirstThenTheCache) {
+  if (test::run_command("command -v xvfb-run").exit_code != 0)
+    GTEST_SKIP() << "xvfb-run is not installed";
+  const fs::path dir =
+      fs::temp_directory_path() / fmt::format("stipple_view_progressive_{}", ::getpid());
+  fs::create_directories(dir);
+  const std::string las = (dir / "g.las").string();
+  ASSERT_EQ(test::run_stipple("generate -n 1000000 -o " + las).exit_code, 0);
+  {
+    // P at the first frame: a screenshot of what the window shows first.
+    std::FILE* f = std::fopen((dir / "first.json").c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs(R"({"events": [{"frame": 0, "tap": "p"}]})", f);
+    std::fclose(f);
+  }
+  auto view = [&](const std::string& shot, const std::string& extra) {
+    return test::run_command(fmt::format(
+        "cd {} && xvfb-run -a -s '-screen 0 1600x900x24' {} view {} --virtual --pointlets 1000 "
+        "--no-ui --width 640 --height 360 --frames 20 --screenshot {} {}",
+        dir.string(), STIPPLE_BINARY, las, (dir / shot).string(), extra));
+  };
+  test::CommandResult built = view("final.png", "--progressive-points 20000 --script first.json");
+  if (built.exit_code != 0 && built.output.find("cannot open a window") != std::string::npos)
+    GTEST_SKIP() << "no X display could be made: " << built.output;
+  ASSERT_EQ(built.exit_code, 0) << built.output;
+  EXPECT_NE(built.output.find("first image: 20000 points read across the input"), std::string::npos)
+      << built.output;
+  EXPECT_NE(built.output.find("building the pointlet cache in the background"), std::string::npos)
+      << built.output;
+  // The sample was drawn for at least one frame before the cache took over.
+  const size_t at = built.output.find(" frames of the sample");
+  ASSERT_NE(at, std::string::npos) << built.output;
+  const size_t number = built.output.rfind("after ", at);
+  ASSERT_NE(number, std::string::npos);
+  EXPECT_GE(std::stoull(built.output.substr(number + 6, at - number - 6)), 1u) << built.output;
+
+  const uint8_t bg[3] = {18, 20, 26};
+  const gpu::Image first = gpu::read_png(dir / "stipple-screenshot-1.png");
+  const gpu::Image last = gpu::read_png(dir / "final.png");
+  ASSERT_EQ(first.width, 640u);
+  ASSERT_EQ(last.width, 640u);
+  const double first_coverage = test::coverage_stats(first, bg, 1).coverage;
+  const double last_coverage = test::coverage_stats(last, bg, 1).coverage;
+  EXPECT_GT(first_coverage, 0.05);
+  EXPECT_GT(last_coverage, 0.05);
+  // The last frame is the cache's million points, not the sample's 20,000.
+  EXPECT_GT(test::differing_fraction(first, last, 2), 0.01);
+
+  test::CommandResult reused = view("reused.png", "");
+  ASSERT_EQ(reused.exit_code, 0) << reused.output;
+  EXPECT_NE(reused.output.find("reused "), std::string::npos) << reused.output;
+  EXPECT_EQ(reused.output.find("in the background"), std::string::npos) << reused.output;
+  EXPECT_EQ(reused.output.find("first image:"), std::string::npos) << reused.output;
+  // Framed from the sample, the switch keeps about the framing the cache's own fit gives.
+  const double reused_coverage =
+      test::coverage_stats(gpu::read_png(dir / "reused.png"), bg, 1).coverage;
+  EXPECT_NEAR(last_coverage, reused_coverage, 0.25 * reused_coverage);
+  fs::remove_all(dir);
+}

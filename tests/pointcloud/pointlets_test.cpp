@@ -4,10 +4,13 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <random>
 #include <stdexcept>
+#include <string>
 #include <tuple>
 #include <vector>
 
@@ -509,4 +512,54 @@ TEST(Pointlets, SinglePointPointletsAreDrawn) {
   const std::vector<uint32_t> ones(3, 1);
   EXPECT_EQ(pc::pointlet_lod_cpu(same_boxes, ones, ones, origin, camera, 640, 360, 1'000'000),
             ones);
+}
+
+// A build followed by another thread (the viewer's background build): the report ends at phase
+// 3 with every point counted, the cache is byte for byte the unreported one (its single run is
+// written in pieces then) and also with runs on disk, pointlet_cache_current tells a current
+// cache from a missing or outdated one, and a cancelled build throws and leaves no cache.
+TEST(Pointlets, ReportedBuildCountsItsPointsAndCanBeCancelled) {
+  fs::path dir = fresh_dir("report");
+  fs::path las = test::write_scene_las(dir / "scene.las", 150000);
+  pc::PointletBuildOptions o;
+  o.pointlets = 1000;
+  o.progress = false;
+  EXPECT_FALSE(pc::pointlet_cache_current({las}, dir / "plain", o));
+  fs::create_directories(dir / "plain");
+  pc::open_pointlet_cache({las}, dir / "plain", o);
+  EXPECT_TRUE(pc::pointlet_cache_current({las}, dir / "plain", o));
+  const fs::path plain = pc::pointlet_cache_path({las}, dir / "plain", o);
+
+  for (const uint64_t budget : {uint64_t(1) << 30, uint64_t(65536) * 24}) {  // one run, three
+    pc::PointletBuildOptions r = o;
+    r.memory_budget = budget;
+    r.report = std::make_shared<pc::PointletBuildProgress>();
+    EXPECT_EQ(r.report->fraction(), 0.0);
+    const fs::path reported = dir / "reported.pointlets";
+    pc::build_pointlet_cache({las}, reported, r);
+    EXPECT_EQ(r.report->phase.load(), 3u);
+    EXPECT_EQ(r.report->done.load(), 150000u);
+    EXPECT_EQ(r.report->total.load(), 150000u);
+    EXPECT_EQ(r.report->fraction(), 1.0);
+    const auto a = bytes_of(plain), b = bytes_of(reported);
+    ASSERT_EQ(a.size(), b.size()) << budget;
+    EXPECT_TRUE(std::equal(a.begin() + pc::kPointletHeaderBytes, a.end(),
+                           b.begin() + pc::kPointletHeaderBytes))
+        << budget;
+    fs::remove(reported);
+
+    r.report = std::make_shared<pc::PointletBuildProgress>();
+    r.report->cancel = true;
+    EXPECT_THROW(pc::build_pointlet_cache({las}, reported, r), Error) << budget;
+    EXPECT_FALSE(fs::exists(reported));
+  }
+  // Newer sources: the cache is no longer current.
+  fs::last_write_time(las, fs::last_write_time(las) + std::chrono::seconds(5));
+  EXPECT_FALSE(pc::pointlet_cache_current({las}, dir / "plain", o));
+  std::vector<std::string> left;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().filename() != "scene.las" && e.path().filename() != "plain")
+      left.push_back(e.path().string());
+  EXPECT_TRUE(left.empty()) << left.front();
+  fs::remove_all(dir);
 }

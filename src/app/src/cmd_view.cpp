@@ -40,6 +40,7 @@ struct ViewArgs {
   double fov = 50.0;
   std::string script;
   std::string measurements, measurements_out;
+  uint64_t progressive_points = 1 << 18;
 };
 
 void run_view(const ViewArgs& args) {
@@ -56,6 +57,7 @@ void run_view(const ViewArgs& args) {
   Engine engine;
   add_engine_core(engine, {args.backend, !args.single_thread, false, ""});
   SceneOptions options = args.scene;
+  options.progressive_points = args.progressive_points;
   options.keep_extras = true;      // the panel can turn GPS-time and point-source filters on
   options.chunk_points = 1 << 16;  // a finer point budget
   ScenePlan plan = plan_scene(options, *engine.render().resource<GpuContext>());
@@ -146,6 +148,11 @@ void add_view_command(CLI::App& cli) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--measurements-out", args->measurements_out,
                   "Write the measurements (and the last inspected point) as GeoJSON on exit");
+  cmd->add_option("--progressive-points", args->progressive_points,
+                  "Virtualized LAS/LAZ whose pointlet cache has to be built: draw about this "
+                  "many points read across the input at once while the cache builds in the "
+                  "background, then the cache (keeping the camera); 0: wait for the cache")
+      ->capture_default_str();
   cmd->add_flag("--single-thread", args->single_thread,
                 "Run the render world on the main thread (no PipelinedRenderingPlugin)");
   cmd->callback([args] { run_view(*args); });

@@ -5,6 +5,7 @@
 #include <limits>
 #include <numeric>
 #include <optional>
+#include <vector>
 
 #include <glm/geometric.hpp>
 
@@ -286,6 +287,16 @@ std::optional<PickHit> pick_point_clouds(Registry& main, const PickRay& ray) {
 }
 
 }  // namespace
+
+void remove_point_clouds(Registry& main, Registry& render) {
+  std::vector<Entity> clouds;
+  main.view<PointCloudData>().each([&](Entity e, const PointCloudData&) { clouds.push_back(e); });
+  for (Entity e : clouds) {
+    if (const auto* twin = main.try_get<RenderEntity>(e))
+      render.remove<RenderPointCloud>(twin->entity);  // the twin itself goes at the next sync
+    main.destroy(e);
+  }
+}
 
 void PointCloudPlugin::build(Engine& engine) {
   Registry& main = engine.main();

@@ -621,6 +621,11 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
   };
   {
     Progress progress("sorting into pointlets", info.point_count);
+    if (options.report) {
+      options.report->total = info.point_count;
+      options.report->done = 0;
+      options.report->phase = 1;
+    }
     const uint64_t threads = pool.size();
     size_t f = 0;
     uint64_t local = 0;  // next point of source f
@@ -661,6 +666,9 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
           uint64_t next_sample =
               (global + sample_stride - 1) / sample_stride * sample_stride - global;
           while (done < sl.count) {
+            // A reader elsewhere sees the read advance (and may end it) batch by batch.
+            if (options.report && options.report->cancel)
+              fail("{}: the cache build was cancelled", cache_path.string());
             batch.clear();
             const size_t n =
                 reader.read(batch, size_t(std::min<uint64_t>(1 << 16, sl.count - done)));
@@ -690,6 +698,7 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
               }
             }
             done += n;
+            if (options.report) options.report->done += n;
           }
         }
       });
@@ -700,12 +709,17 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
       stats.read_seconds += since(t);
       seen += window;
       progress.advance(window);
+      if (options.report) options.report->done = seen;
       if (seen < info.point_count) spill();
     }
   }
   info.attributes.elevation_percentiles = percentile_range(std::move(elevation), {}, 0.02, 0.98);
   info.attributes.intensity_percentiles = percentile_range(std::move(intensity), {}, 0.02, 0.98);
 
+  if (options.report) {
+    options.report->done = 0;
+    options.report->phase = 2;
+  }
   // The cache, written under a temporary name: the points, the table, then the header.
   AtomicFile file(cache_path);
   const std::string name = cache_path.string();
@@ -715,7 +729,18 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
   if (runs.files.empty()) {
     RunRecord* sorted = sort_run();
     RunRecord* other = sorted == run ? scratch_arena.runs() : run;
-    writer.add(sorted, run_size, reinterpret_cast<PointletRecord*>(other));
+    // In whole pointlets, a sixteenth at a time when a reader follows the build: its progress
+    // advances and a cancel is seen during the write (the cache is the same either way).
+    const uint64_t k = info.pointlet_points;
+    const uint64_t piece = options.report ? std::max<uint64_t>(k, run_size / 16 / k * k)
+                                          : std::max<uint64_t>(run_size, 1);
+    for (uint64_t at = 0; at < run_size; at += piece) {
+      if (options.report && options.report->cancel)
+        fail("{}: the cache build was cancelled", cache_path.string());
+      const uint64_t n = std::min<uint64_t>(piece, run_size - at);
+      writer.add(sorted + at, n, reinterpret_cast<PointletRecord*>(other));
+      if (options.report) options.report->done += n;
+    }
   } else {
     if (run_size > 0) spill();
     // The merge, in windows of key prefixes that hold at most a run's worth of points: each
@@ -736,6 +761,9 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
         // One prefix holds more than a run: merged by streaming its part of each run.
         merge_prefix(runs, b0, window, run_capacity, encoded, writer, stats);
         progress.advance(totals[b0]);
+        if (options.report) options.report->done += totals[b0];
+        if (options.report && options.report->cancel)
+          fail("{}: the cache build was cancelled", cache_path.string());
         ++b0;
         continue;
       }
@@ -775,6 +803,9 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
         RunRecord* other = sorted == window ? scratch_arena.runs() : window;
         writer.add(sorted, size, reinterpret_cast<PointletRecord*>(other));
         progress.advance(size);
+        if (options.report) options.report->done += size;
+        if (options.report && options.report->cancel)
+          fail("{}: the cache build was cancelled", cache_path.string());
       }
       b0 = b1;
     }
@@ -804,10 +835,32 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
   stats.pointlet_points = info.pointlet_points;
   stats.runs = std::max<uint64_t>(1, runs.files.size());
   stats.seconds = since(start);
+  if (options.report) {
+    options.report->done = info.point_count;
+    options.report->phase = 3;
+  }
   return stats;
 }
 
+double PointletBuildProgress::fraction() const {
+  const uint32_t p = phase;
+  if (p == 0) return 0;
+  if (p >= 3) return 1;
+  const double part = total > 0 ? std::min(1.0, double(done) / double(total)) : 0.0;
+  return 0.5 * double(p - 1) + 0.5 * part;
+}
+
 // ---- reading --------------------------------------------------------------------------------
+bool pointlet_cache_current(const std::vector<fs::path>& sources, const fs::path& cache_dir,
+                            const PointletBuildOptions& options) {
+  const fs::path path = pointlet_cache_path(sources, cache_dir, options);
+  if (!fs::exists(path)) return false;
+  try {
+    return PointletCache::open(path).matches(sources, options);
+  } catch (const Error&) {
+    return false;  // open_pointlet_cache rebuilds it (and says why)
+  }
+}
 
 struct PointletCache::Storage {
   int fd = -1;

@@ -13,6 +13,10 @@
 #include <mutex>
 #include <numeric>
 #include <string_view>
+#include <thread>
+#include <vector>
+
+#include <fmt/format.h>
 
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
@@ -23,6 +27,7 @@
 #include "stipple/engine/render_plugins.hpp"
 #include "stipple/pointcloud/batches.hpp"
 #include "stipple/pointcloud/compute_raster.hpp"
+#include "stipple/pointcloud/point_cloud_plugin.hpp"
 #include "stipple/pointcloud/point_store.hpp"
 #include "stipple/pointcloud/scene.hpp"
 #include "stipple/renderer/gpu.hpp"
@@ -607,7 +612,7 @@ void select_points(Registry& render) {
 
 void queue_virtual_cloud(Registry& render) {
   auto& fg = render.resource<FrameGraph>();
-  if (!fg.active) return;
+  if (!fg.active || !render.try_resource<VirtualCloudRender>()) return;  // still building
   auto& v = render.resource<VirtualCloudRender>();
   v.lod_gpu_ms = 0;
   const auto select_start = Clock::now();
@@ -669,6 +674,7 @@ void queue_virtual_cloud(Registry& render) {
 
 void extract_virtual_cloud(Registry& main) {
   Registry& render = *main.resource<RenderWorldRef>();
+  if (!render.try_resource<VirtualCloudStats>()) return;  // still building (the sample shows)
   main.insert_resource(render.resource<VirtualCloudStats>());
   render.insert_resource(main.resource<PointDrawSettings>());
 }
@@ -718,6 +724,121 @@ void fit_virtual_cloud(ViewFit& fit, const VirtualCloudHandle& handle) {
   }
 }
 
+namespace {
+
+// Opens `cache` as the scene's cloud: the main world's scene, settings and handle, the render
+// world's residency and pools. `style` is the point style it starts with.
+void open_virtual_cloud(Registry& main, Registry& render, const VirtualCloudOptions& options,
+                        const PointRenderSettings& style,
+                        std::shared_ptr<const PointletCache> cache, bool built,
+                        const PointletBuildStats& build_stats) {
+  const PointletCacheInfo& info = cache->info();
+  if (built)
+    STIPPLE_INFO("{}: {} points in {} pointlets of {} ({:.1f} s)", cache->name(), info.point_count,
+                 info.pointlet_count, info.pointlet_points, build_stats.seconds);
+  else
+    STIPPLE_INFO("{}: reused ({} points in {} pointlets)", cache->name(), info.point_count,
+                 info.pointlet_count);
+  main.insert_resource(VirtualCloudCache{cache->name(), built, build_stats, info.point_count,
+                                         info.pointlet_count, info.pointlet_points});
+  SceneInfo scene;
+  scene.world_bounds.extend(z_up_to_y_up(info.source_bounds.min));
+  scene.world_bounds.extend(z_up_to_y_up(info.source_bounds.max));
+  scene.points = info.point_count;
+  scene.attributes = info.attributes;
+  scene.name = options.files.front().filename().string();
+  main.insert_resource(scene);
+  PointDrawSettings settings;
+  settings.render = style;
+  settings.compute = true;
+  settings.hqs = options.hqs;
+  settings.fill_radius = options.fill_radius;
+  settings.occlusion_beta = options.occlusion_beta;
+  main.insert_resource(settings);
+  render.insert_resource(settings);
+
+  auto residency = std::make_shared<VirtualResidency>();
+  residency->cache = cache;
+  residency->count = cache->pointlets().size();
+  residency->boxes = pointlet_world_boxes(*cache);
+  residency->slots = std::make_unique<VirtualResidency::Slot[]>(residency->count);
+  residency->budget = options.host_budget;
+  main.insert_resource(VirtualCloudHandle{residency});
+  VirtualCloudRender v;
+  v.residency = residency;
+  v.options = options;
+  v.attributes = info.attributes;
+  v.pool = std::make_unique<ThreadPool>(std::max(2u, std::thread::hardware_concurrency()));
+  v.workers = std::make_unique<ThreadPool>(std::max(2u, std::thread::hardware_concurrency()));
+  render.insert_resource(std::move(v));
+  render.insert_resource(VirtualCloudStats{});
+  main.insert_resource(VirtualCloudStats{});
+}
+
+// The cache building on its own thread (build_in_background), a main-world resource: when the
+// engine ends first (the window closed), the build is cancelled and waited for.
+struct BackgroundBuild {
+  std::thread thread;
+  std::shared_ptr<PointletBuildProgress> progress = std::make_shared<PointletBuildProgress>();
+  std::atomic<bool> finished{false};
+  std::exception_ptr error;  // written before `finished`
+  PointletBuildStats stats;  // likewise
+  bool built = false;        // likewise (false: another process built it meanwhile)
+  std::shared_ptr<const PointletCache> cache;
+  Clock::time_point start = Clock::now();
+  VirtualCloudOptions options;
+  PointRenderSettings style;  // the plugin's: the sample's automatic point size is not kept
+  uint64_t frames = 0;        // frames extracted while building (the sample drawn)
+  ~BackgroundBuild() {
+    progress->cancel = true;
+    if (thread.joinable()) thread.join();
+  }
+};
+struct VirtualBackgroundBuild {
+  std::shared_ptr<BackgroundBuild> build;
+};
+
+// MainStage::Extract, before extract_virtual_cloud: the build's progress for the front end;
+// once it is done (and the sample was drawn), the cloud opens and the sample goes.
+void activate_virtual_cloud(Registry& main) {
+  auto* holder = main.try_resource<VirtualBackgroundBuild>();
+  if (!holder || !holder->build) return;
+  BackgroundBuild& b = *holder->build;
+  auto& progress = main.resource<VirtualCacheProgress>();
+  progress.phase = b.progress->phase;
+  progress.fraction = b.progress->fraction();
+  progress.seconds = ms_since(b.start) / 1e3;
+  if (!b.finished || b.frames == 0) {
+    ++b.frames;
+    return;
+  }
+  b.thread.join();
+  if (b.error) std::rethrow_exception(b.error);
+  Registry& render = *main.resource<RenderWorldRef>();
+  // The sample leaves this frame: its render twin's points go now (the render world is idle at
+  // the sync point), the twin itself at the next sync.
+  remove_point_clouds(main, render);
+  // The style as the user left it (colour, EDL, filters), the point size as the options give
+  // it: the sample's was fitted to its sparser points.
+  PointRenderSettings style = main.resource<PointDrawSettings>().render;
+  style.point_size = b.style.point_size;
+  open_virtual_cloud(main, render, b.options, style, b.cache, b.built, b.stats);
+  progress.building = false;
+  progress.switched = true;
+  progress.frames_before = b.frames;
+  progress.phase = 3;
+  progress.fraction = 1;
+  holder->build.reset();
+}
+
+}  // namespace
+
+std::string describe_cache_progress(const VirtualCacheProgress& progress) {
+  const char* phase = progress.phase <= 1 ? "reading and sorting" : "writing pointlets";
+  if (progress.phase >= 3) phase = "opening";
+  return fmt::format("{} {:.0f}% ({:.1f} s)", phase, progress.fraction * 100, progress.seconds);
+}
+
 void VirtualPointCloudPlugin::build(Engine& engine) {
   if (options.files.empty()) fail("VirtualPointCloudPlugin: no input");
   options.device_in_host = gpu::is_cpu_adapter(engine.render().resource<GpuContext>()->description);
@@ -726,52 +847,40 @@ void VirtualPointCloudPlugin::build(Engine& engine) {
   if (options.process_budget > 0)
     if (const uint64_t baseline = trimmed_resident_bytes(); baseline > 0)
       check_process_budget(options, baseline, kMinimumBudgetPoints, 0, "and the libraries");
-  bool built = false;
-  PointletBuildStats build_stats;
-  auto cache = std::make_shared<const PointletCache>(
-      open_pointlet_cache(options.files, options.cache_dir, options.build, &built, &build_stats));
-  const PointletCacheInfo& info = cache->info();
-  if (built)
-    STIPPLE_INFO("{}: {} points in {} pointlets of {} ({:.1f} s)", cache->name(), info.point_count,
-                 info.pointlet_count, info.pointlet_points, build_stats.seconds);
-  else
-    STIPPLE_INFO("{}: reused ({} points in {} pointlets)", cache->name(), info.point_count,
-                 info.pointlet_count);
-  engine.main().insert_resource(VirtualCloudCache{cache->name(), built, build_stats,
-                                                  info.point_count, info.pointlet_count,
-                                                  info.pointlet_points});
-  SceneInfo scene;
-  scene.world_bounds.extend(z_up_to_y_up(info.source_bounds.min));
-  scene.world_bounds.extend(z_up_to_y_up(info.source_bounds.max));
-  scene.points = info.point_count;
-  scene.attributes = info.attributes;
-  scene.name = options.files.front().filename().string();
-  engine.main().insert_resource(scene);
-  PointDrawSettings settings;
-  settings.render = render;
-  settings.compute = true;
-  settings.hqs = options.hqs;
-  settings.fill_radius = options.fill_radius;
-  settings.occlusion_beta = options.occlusion_beta;
-  engine.main().insert_resource(settings);
-  engine.render().insert_resource(settings);
-
-  auto residency = std::make_shared<VirtualResidency>();
-  residency->cache = cache;
-  residency->count = cache->pointlets().size();
-  residency->boxes = pointlet_world_boxes(*cache);
-  residency->slots = std::make_unique<VirtualResidency::Slot[]>(residency->count);
-  residency->budget = options.host_budget;
-  engine.main().insert_resource(VirtualCloudHandle{residency});
-  VirtualCloudRender v;
-  v.residency = residency;
-  v.options = options;
-  v.attributes = info.attributes;
-  v.pool = std::make_unique<ThreadPool>(std::max(2u, std::thread::hardware_concurrency()));
-  v.workers = std::make_unique<ThreadPool>(std::max(2u, std::thread::hardware_concurrency()));
-  engine.render().insert_resource(std::move(v));
-  engine.render().insert_resource(VirtualCloudStats{});
-  engine.main().insert_resource(VirtualCloudStats{});
+  if (options.build_in_background &&
+      !pointlet_cache_current(options.files, options.cache_dir, options.build)) {
+    auto b = std::make_shared<BackgroundBuild>();
+    b->options = options;
+    b->style = render;
+    b->options.build.progress = false;
+    b->options.build.report = b->progress;
+    // The thread holds the state by a plain pointer: the state's destructor joins it.
+    b->thread = std::thread([state = b.get()] {
+      try {
+        state->cache = std::make_shared<const PointletCache>(
+            open_pointlet_cache(state->options.files, state->options.cache_dir,
+                                state->options.build, &state->built, &state->stats));
+      } catch (...) {
+        state->error = std::current_exception();
+      }
+      state->finished = true;
+    });
+    engine.main().insert_resource(VirtualBackgroundBuild{std::move(b)});
+    VirtualCacheProgress progress;
+    progress.building = true;
+    engine.main().insert_resource(progress);
+    // The sample's scene, under the input's name.
+    if (auto* scene = engine.main().try_resource<SceneInfo>())
+      scene->name = options.files.front().filename().string();
+    engine.add_system(MainStage::Extract, activate_virtual_cloud, "activate_virtual_cloud");
+  } else {
+    bool built = false;
+    PointletBuildStats build_stats;
+    auto cache = std::make_shared<const PointletCache>(
+        open_pointlet_cache(options.files, options.cache_dir, options.build, &built, &build_stats));
+    open_virtual_cloud(engine.main(), engine.render(), options, render, std::move(cache), built,
+                       build_stats);
+  }
   engine.add_system(MainStage::Extract, extract_virtual_cloud, "extract_virtual_cloud");
   engine.add_system(RenderStage::Queue, queue_virtual_cloud, "queue_virtual_cloud");
 }

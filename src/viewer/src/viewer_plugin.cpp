@@ -37,8 +37,12 @@ void viewer_keys(Registry& main) {
   auto& state = main.resource<ViewerState>();
   const auto& input = main.resource<platform::InputState>();
   const auto* capture = main.try_resource<UiCapture>();
-  const uint64_t frame = state.frame++;
-  if (state.exit_after_frames > 0 && frame + 1 >= state.exit_after_frames) {
+  // --frames counts from when a cache building in the background is in: the last frame (and
+  // its screenshot) shows the virtualized cloud, not the sample drawn meanwhile.
+  const auto* cache = main.try_resource<pc::VirtualCacheProgress>();
+  const bool building = cache && cache->building;
+  const uint64_t frame = building ? 0 : state.frame++;
+  if (!building && state.exit_after_frames > 0 && frame + 1 >= state.exit_after_frames) {
     if (!state.screenshot.empty())
       main.resource<ScreenshotRequests>().paths.push_back(state.screenshot);
     main.resource<AppExit>().requested = true;
@@ -125,7 +129,13 @@ void viewer_panel(Registry& main) {
     ImGui::Text("%ux%u, present %s", info->size.x, info->size.y, info->present_mode.c_str());
   ImGui::Separator();
 
-  if (auto* stream = main.try_resource<tiles3d::TilesetStream>()) {
+  const auto* cache = main.try_resource<pc::VirtualCacheProgress>();
+  if (cache && cache->building) {
+    // A sample of the input is drawn while the pointlet cache builds (view --virtual).
+    ImGui::Text("pointlet cache: %s", pc::describe_cache_progress(*cache).c_str());
+    ImGui::ProgressBar(float(cache->fraction), ImVec2(-1, 0));
+    ImGui::TextDisabled("a sample read across the input is drawn until then");
+  } else if (auto* stream = main.try_resource<tiles3d::TilesetStream>()) {
     tileset_controls(*stream, main.resource<tiles3d::TilesetStats>());
   } else if (const auto* v = main.try_resource<pc::VirtualCloudStats>()) {
     // The virtualized path (seed 002): what the last camera change selected and cost.

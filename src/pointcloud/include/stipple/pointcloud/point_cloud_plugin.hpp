@@ -23,7 +23,8 @@
 
 namespace stipple {
 class Engine;
-}
+class Registry;
+}  // namespace stipple
 
 namespace stipple::pc {
 
@@ -66,6 +67,11 @@ std::vector<uint32_t> select_chunks(const std::vector<Aabb>& bounds,
 // The point nearest to the ray's origin among those within `tan_radius` (the tangent of the
 // half-angle of a cone around the ray, e.g. a few pixels' worth). Chunks whose bounds miss the
 // cone are skipped.
+// Removes every cloud PointCloudPlugin holds, from both worlds at once: called at the sync point
+// (MainStage::Extract), where the render world is idle, so that no frame draws it after this
+// one (VirtualPointCloudPlugin's background build replaces the sample it drew meanwhile).
+void remove_point_clouds(Registry& main, Registry& render);
+
 std::optional<glm::dvec3> pick_point(const PointCloudData& data, const glm::dvec3& origin,
                                      const glm::dvec3& direction, double tan_radius);
 

@@ -14,6 +14,7 @@
 //   points: per pointlet, `count` PointletRecords (20 bytes), contiguous, in table order
 //   table: per pointlet, PointletEntry (box, first point, count, CRC-32 of its records)
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -78,6 +79,19 @@ struct PointletCacheInfo {
   uint64_t points_offset = kPointletHeaderBytes, table_offset = 0, file_size = 0;
 };
 
+// A build's progress, counted by the build and read by other threads (the viewer's panel while
+// the cache builds in the background): phase 1 reads and sorts the input, phase 2 merges and
+// writes the pointlets; each counts `done` of `total` points.
+struct PointletBuildProgress {
+  std::atomic<uint32_t> phase{0};  // 0: not started, 1: read and sort, 2: write, 3: done
+  std::atomic<uint64_t> done{0}, total{0};
+  // Set by the reader to end the build early (the viewer closed): it throws stipple::Error and
+  // leaves no cache behind.
+  std::atomic<bool> cancel{false};
+  // The whole build's fraction, 0..1 (the two phases weigh alike).
+  double fraction() const;
+};
+
 struct PointletBuildOptions {
   uint64_t pointlets = kDefaultPointlets;  // m
   SpatialOrder order = SpatialOrder::Hilbert;
@@ -86,7 +100,8 @@ struct PointletBuildOptions {
   uint64_t memory_budget = uint64_t(1) << 30;
   unsigned threads = 0;  // 0: every core
   bool progress = true;
-  std::filesystem::path temp_dir;  // runs; empty: beside the cache
+  std::filesystem::path temp_dir;                 // runs; empty: beside the cache
+  std::shared_ptr<PointletBuildProgress> report;  // where set, the build counts its progress
 };
 
 // The build's phases, wall seconds each (every phase runs on every core): read (the inputs
@@ -159,6 +174,12 @@ PointletCache open_pointlet_cache(const std::vector<std::filesystem::path>& sour
                                   const std::filesystem::path& cache_dir,
                                   const PointletBuildOptions& options, bool* built = nullptr,
                                   PointletBuildStats* stats = nullptr);
+
+// Whether open_pointlet_cache would reuse the cache as it is (it exists, opens, and was made
+// from these sources as they are now), without building anything.
+bool pointlet_cache_current(const std::vector<std::filesystem::path>& sources,
+                            const std::filesystem::path& cache_dir,
+                            const PointletBuildOptions& options);
 
 // A pointlet's box in the engine's world frame (Y up; the table holds the source frame, Z up).
 Aabb pointlet_world_box(const PointletEntry& pointlet);

@@ -51,7 +51,27 @@ struct VirtualCloudOptions {
   // does not fit is lowered to what does (with a warning).
   uint64_t gpu_budget = 0;
   uint64_t staging_bytes = uint64_t(64) << 20;  // per staging slot (two): new points per frame
+  // The viewer's first image at once: where the cache has to be built, build() starts the build
+  // on another thread and returns, and what the scene drew first (an in-memory sample of the
+  // input: PointCloudPlugin's PointCloudData) stays on screen meanwhile; once the build is done
+  // (and the sample has been drawn at least once) the cloud opens at a frame's sync point and
+  // takes the sample's place, with the camera and the style as they are then
+  // (VirtualCacheProgress tells the front end). A current cache opens in build() as without it.
+  bool build_in_background = false;
 };
+
+// Main-world resource (build_in_background): the background build of the cache, for the
+// front end's status line and for knowing when the virtualized cloud is in.
+struct VirtualCacheProgress {
+  bool building = false;       // the sample is drawn while the cache builds
+  uint32_t phase = 0;          // PointletBuildProgress::phase
+  double fraction = 0;         // of the whole build, 0..1
+  double seconds = 0;          // since the build started
+  uint64_t frames_before = 0;  // frames drawn before the virtualized cloud took over
+  bool switched = false;       // the virtualized cloud replaced the sample
+};
+// "reading and sorting 42%" for a phase and fraction (the viewer's panel).
+std::string describe_cache_progress(const VirtualCacheProgress& progress);
 
 // Main-world resource: the cache the plugin opened, and whether it had to build it.
 struct VirtualCloudCache {

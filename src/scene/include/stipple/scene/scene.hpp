@@ -70,6 +70,11 @@ struct SceneOptions {
   // Point clouds: keep the per-point extras (GPS time, point source) so that filters on them
   // can be turned on later (the viewer); render keeps them only when its filters need them.
   bool keep_extras = false;
+  // The viewer's first image at once: virtualized LAS/LAZ whose pointlet cache has to be built
+  // are drawn from about this many points read across the inputs (pc::read_las_sample) while
+  // the cache builds in the background, then from the cache (VirtualCloudOptions::
+  // build_in_background). 0: the cache is built first. A current cache is opened as without it.
+  uint64_t progressive_points = 0;
 };
 
 // What the scene's inputs are, found once.
