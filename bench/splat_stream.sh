@@ -29,14 +29,16 @@ while [[ $# -gt 0 ]]; do
   esac
 done
 mkdir -p "$work"
+# /usr/bin/time where the machine has it (a bare Ubuntu image does not).
+timer() { if [[ -x /usr/bin/time ]]; then /usr/bin/time -f "$1: %e s, RSS %M KB" "${@:2}"; else
+  local t0=$SECONDS; "${@:2}"; echo "$1: $((SECONDS - t0)) s"; fi; }
 ply="$work/gen_${splats}_sh${sh}.ply"
 tiles="$work/tiles_${splats}_sh${sh}"
 if [[ "$step" == tile || "$step" == all ]]; then
   if [[ ! -f "$tiles/tileset.json" ]]; then
-    [[ -f "$ply" ]] || /usr/bin/time -f "generate: %e s, RSS %M KB" \
-      "$stipple" generate -n "$splats" --sh-degree "$sh" -o "$ply"
+    [[ -f "$ply" ]] || timer generate "$stipple" generate -n "$splats" --sh-degree "$sh" -o "$ply"
     rm -rf "$tiles"
-    /usr/bin/time -f "tile: %e s, RSS %M KB" "$stipple" tile "$ply" -o "$tiles" --max-memory 16G
+    timer tile "$stipple" tile "$ply" -o "$tiles" --max-memory 16G
     rm -f "$ply"  # the tileset is what the flight reads; the disk is better spent on it
   fi
   du -sh "$tiles"
