@@ -228,13 +228,7 @@ io::SplatSet read_tile(const fs::path& file) {
 
 void append(io::SplatSet& all, const io::SplatSet& s) {
   all.sh_degree = s.sh_degree;
-  auto cat = [](auto& a, const auto& b) { a.insert(a.end(), b.begin(), b.end()); };
-  cat(all.positions, s.positions);
-  cat(all.scales, s.scales);
-  cat(all.rotations, s.rotations);
-  cat(all.opacities, s.opacities);
-  cat(all.sh_dc, s.sh_dc);
-  cat(all.sh_rest, s.sh_rest);
+  io::append_splats(all, s);
 }
 
 }  // namespace

@@ -186,13 +186,7 @@ void run_generate_splats(const GenerateArgs& args, bool ply) {
         fail("{}: write failed", args.output);
       }
     } else {
-      auto cat = [](auto& a, const auto& b) { a.insert(a.end(), b.begin(), b.end()); };
-      cat(all.positions, s.positions);
-      cat(all.scales, s.scales);
-      cat(all.rotations, s.rotations);
-      cat(all.opacities, s.opacities);
-      cat(all.sh_dc, s.sh_dc);
-      cat(all.sh_rest, s.sh_rest);
+      io::append_splats(all, s);
     }
     progress.advance(count);
   }

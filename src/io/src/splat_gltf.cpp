@@ -146,13 +146,7 @@ void append(SplatSet& all, SplatSet&& part) {
   };
   widen(all);
   widen(part);
-  auto cat = [](auto& a, const auto& b) { a.insert(a.end(), b.begin(), b.end()); };
-  cat(all.positions, part.positions);
-  cat(all.scales, part.scales);
-  cat(all.rotations, part.rotations);
-  cat(all.opacities, part.opacities);
-  cat(all.sh_dc, part.sh_dc);
-  cat(all.sh_rest, part.sh_rest);
+  append_splats(all, part);
 }
 
 SplatSet decode_primitive(const Glb& g, const json& prim, const SplatLimits& limits,

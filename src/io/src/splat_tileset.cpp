@@ -140,13 +140,7 @@ SplatSet read_unchecked(const std::string& path, std::span<const uint8_t> bytes,
     } else if (s.sh_degree != all.sh_degree) {
       fail("{}: tiles of different SH degrees are not supported", path);
     }
-    auto cat = [](auto& a, const auto& b) { a.insert(a.end(), b.begin(), b.end()); };
-    cat(all.positions, s.positions);
-    cat(all.scales, s.scales);
-    cat(all.rotations, s.rotations);
-    cat(all.opacities, s.opacities);
-    cat(all.sh_dc, s.sh_dc);
-    cat(all.sh_rest, s.sh_rest);
+    append_splats(all, s);
   }
   // The root's transform, seen from glTF's Y-up frame, is the set's.
   all.transform = glm::inverse(kYupToZup) * root_world * kYupToZup;

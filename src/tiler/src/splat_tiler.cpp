@@ -93,16 +93,6 @@ io::SplatSet from_records(const float* in, size_t n, const Layout& l) {
   return s;
 }
 
-void append_set(io::SplatSet& all, const io::SplatSet& part) {
-  auto cat = [](auto& a, const auto& b) { a.insert(a.end(), b.begin(), b.end()); };
-  cat(all.positions, part.positions);
-  cat(all.scales, part.scales);
-  cat(all.rotations, part.rotations);
-  cat(all.opacities, part.opacities);
-  cat(all.sh_dc, part.sh_dc);
-  cat(all.sh_rest, part.sh_rest);
-}
-
 // The records of a file (`stride` floats each).
 std::vector<float> read_records(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -254,7 +244,7 @@ io::SplatSet build_node(SplatBuild& b, const Key& k, float* recs, size_t n,
   for (int c = 0; c < 8; ++c) {
     if (!count[c]) continue;
     const Key ck = k.child(c);
-    append_set(children, build_node(b, ck, recs + offset[c] * l.stride, count[c], scratch));
+    io::append_splats(children, build_node(b, ck, recs + offset[c] * l.stride, count[c], scratch));
     child_error = std::max(child_error, error_of(b, ck));
   }
   return merge_node(b, k, children, child_error);
@@ -545,7 +535,7 @@ void build_upper_levels(SplatBuild& b) {
           }
           const std::vector<float> recs = read_records(file);
           fs::remove(file);
-          append_set(children, from_records(recs.data(), recs.size() / b.lay.stride, b.lay));
+          io::append_splats(children, from_records(recs.data(), recs.size() / b.lay.stride, b.lay));
           child_error = std::max(child_error, error_of(b, k));
         }
         io::SplatSet merged = merge_node(b, p, children, child_error);

@@ -40,4 +40,15 @@ struct SplatSet {
   size_t rest_count() const { return size_t((sh_degree + 1) * (sh_degree + 1) - 1); }
 };
 
+// Appends `part`'s splats to `all`, whose SH degree they must share (callers check or widen).
+inline void append_splats(SplatSet& all, const SplatSet& part) {
+  auto cat = [](auto& a, const auto& b) { a.insert(a.end(), b.begin(), b.end()); };
+  cat(all.positions, part.positions);
+  cat(all.scales, part.scales);
+  cat(all.rotations, part.rotations);
+  cat(all.opacities, part.opacities);
+  cat(all.sh_dc, part.sh_dc);
+  cat(all.sh_rest, part.sh_rest);
+}
+
 }  // namespace stipple::io
