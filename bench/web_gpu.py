@@ -9,10 +9,12 @@ as JSON (and written to --out).
 
   bench/web_gpu.py --chromium CMD [--web build-web] [--data DIR] [--query 'url=/data/t/tileset.json&frames=20']
                    [--window 1280x720] [--timeout-s 600] [--out report.json] [--swiftshader] [--moves N]
-                   [--flight N] [--page stipple|potree] [--modules DIR] [--bench K]
+                   [--flight N] [--page stipple|potree] [--modules DIR] [--bench K] [--screenshot F]
 
 --moves N: N camera turns once drawn, the page's CPU and GPU ms per frame (timestamp queries in the
 page); --flight N: N steps of a flight down over a streamed set (tiles stream in meanwhile).
+--screenshot F: the view once done (viewer.screenshot(), a PNG) written to F, before any moves, to
+compare with `stipple render` of the same scene and size.
 --bench K (bench/web_vs_potree.mjs's measurement, for bench/web_vs_potree_device.sh): once the
 page is ready bench/web_vs_potree.js (served with the rest of bench/ under /bench/) turns the
 camera K frames and the report holds what it measured (`bench`): the page is stipple.html, or with
@@ -41,6 +43,7 @@ p.add_argument('--page', choices=['stipple', 'potree'], default='stipple')
 p.add_argument('--modules', default=None, help='a folder with three/ and potree-core/ (--page potree)')
 p.add_argument('--bench', type=int, default=0, help="bench/web_vs_potree.js's frames to time once ready")
 p.add_argument('--bench-warmup', type=int, default=5)
+p.add_argument('--screenshot', default=None, help='write the finished view as a PNG here')
 p.add_argument('--bench-dx', type=float, default=2)
 a = p.parse_args()
 bench_dir = os.path.dirname(os.path.abspath(__file__))
@@ -130,6 +133,11 @@ async function stippleFly() {
       adapter = i ? { vendor: i.vendor, architecture: i.architecture, device: i.device,
                       description: i.description } : null;
     } catch (e) { adapter = String(e); }
+    if (SHOT && !s.error && window.stippleViewer) {
+      try {
+        await fetch('/__screenshot', { method: 'POST', body: await window.stippleViewer.screenshot() });
+      } catch (e) { console.log(`screenshot: ${e}`); }
+    }
     let moves = null, flight = null;
     try { if (stippleMoves > 0 && !s.error) moves = await stippleMeasureMoves(); } catch (e) { moves = String(e); }
     try { if (stippleFlight > 0 && !s.error) flight = await stippleFly(); } catch (e) { flight = String(e); }
@@ -225,7 +233,8 @@ class Handler(http.server.SimpleHTTPRequestHandler):
                 script = (BENCH.replace(b'FRAMES', str(a.bench).encode()).replace(b'WARMUP', str(a.bench_warmup).encode())
                           .replace(b'DX', str(a.bench_dx).encode()))
             else:
-                script = REPORTER.replace(b'MOVES', str(a.moves).encode()).replace(b'FLIGHT', str(a.flight).encode())
+                script = (REPORTER.replace(b'MOVES', str(a.moves).encode()).replace(b'FLIGHT', str(a.flight).encode())
+                          .replace(b'SHOT', b'true' if a.screenshot else b'false'))
             body = body.replace(b'</body>', script + b'</body>')
             if a.retry_adapter:
                 body = body.replace(b'<head>', b'<head>' + RETRY, 1)
@@ -277,6 +286,10 @@ class Handler(http.server.SimpleHTTPRequestHandler):
         body = self.rfile.read(int(self.headers.get('Content-Length', '0')))
         self.send_response(204)
         self.end_headers()
+        if self.path == '/__screenshot':
+            with open(a.screenshot, 'wb') as f:
+                f.write(body)
+            return
         report.update(json.loads(body))
         done.set()
 

@@ -9,7 +9,8 @@
 # Writes to $OUT (or /tmp/web-gpu-out): one JSON report a page and query, the Chromium logs, and
 # native.txt (stipple render of the same scene and size, Dawn and wgpu-native, 20 frames, the
 # renderer chosen as the page chooses it). WEB_DIRS picks page builds; RETRY_ADAPTER=1 has the
-# harness ask for an adapter again where the page's first request gets null.
+# harness ask for an adapter again where the page's first request gets null; SHOTS=1 keeps the
+# page's view (NAME-I.png) and the native images (native-BACKEND-I.png) to compare.
 set -uo pipefail
 out=${OUT:-/tmp/web-gpu-out}
 mkdir -p "$out"
@@ -35,16 +36,32 @@ for web in ${WEB_DIRS:-.devpkg/web-*}; do
     i=$((i + 1))
     echo "== $name: $q"
     python3 bench/web_gpu.py --chromium /tmp/chromium-pkg/run --web "$web" --flags "$flags" \
-      ${RETRY_ADAPTER:+--retry-adapter} --moves 30 --query "$q" --out "$out/$name-$i.json" --timeout-s 240 |
-      grep -E '"(renderer|adapter|points|ms|loadMs|error|vendor|wallS|timeout|fps|framesDrawn|pageFrameMsMedian|cpuMsMedian|cpuMsP90|gpuMsMedian|gpuMsP90|gpuSamples)"'
+      ${RETRY_ADAPTER:+--retry-adapter} ${SHOTS:+--screenshot "$out/$name-$i.png"} --moves 30 --query "$q" --out "$out/$name-$i.json" --timeout-s 240 |
+      grep -E '"(renderer|visibility|adapter|points|ms|loadMs|error|vendor|wallS|timeout|fps|framesDrawn|pageFrameMsMedian|cpuMsMedian|cpuMsP90|gpuMsMedian|gpuMsP90|gpuSamples)"'
   done
 done
+i=0
 for q in "${queries[@]}"; do
+  i=$((i + 1))
   pts=$(sed -n 's/.*scene-points=\([0-9]*\).*/\1/p' <<<"$q")
   for backend in dawn wgpu; do
     echo "== native $backend: $pts points"
+    png=/tmp/native.png
+    [ -n "${SHOTS:-}" ] && png="$out/native-$backend-$i.png"
     /tmp/stipple-pkg/run render --scene-points "${pts:-1000000}" --width 1280 --height 720 \
-      --backend $backend --frames 20 --stats /tmp/native.json -o /tmp/native.png 2>&1 | tail -3
+      --backend $backend --frames 20 --stats /tmp/native.json -o "$png" 2>&1 | tail -3
     python3 -c "import json,sys;d=json.load(open(sys.argv[1]));print({k:d[k] for k in ('renderer','points','frame_gpu_ms_median','frame_wall_ms_median')})" /tmp/native.json
   done
 done | tee "$out/native.txt"
+# SHOTS=1: each page's view against the native images of the same query (bench/png_diff.py).
+if [ -n "${SHOTS:-}" ]; then
+  for web in ${WEB_DIRS:-.devpkg/web-*}; do
+    name=$(basename "$web")
+    for i in $(seq 1 ${#queries[@]}); do
+      for backend in dawn wgpu; do
+        [ -f "$out/$name-$i.png" ] && [ -f "$out/native-$backend-$i.png" ] &&
+          python3 bench/png_diff.py "$out/$name-$i.png" "$out/native-$backend-$i.png"
+      done
+    done
+  done | tee "$out/diff.txt"
+fi

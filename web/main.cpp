@@ -45,6 +45,7 @@
 #include "stipple/engine/viewport.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/math/camera.hpp"
+#include "stipple/pointcloud/compute_raster.hpp"
 #include "stipple/pointcloud/point_cloud.hpp"
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/pointcloud/scene.hpp"
@@ -193,6 +194,10 @@ Options parse(int argc, char** argv) {
         o.scene.renderer = scene::Renderer::Compute;
       else
         fail("--renderer: auto, billboard or compute: '{}'", r);
+    } else if (a == "--raster-fallback") {
+      // Benches: the compute rasterizer's 32-bit fallback even where the browser offers 64-bit
+      // atomics (the variants compared in one page build).
+      if (number(a, v) != 0) setenv("STIPPLE_RASTER_FALLBACK", "1", 1);
     } else if (a == "--hqs")
       o.scene.hqs = number(a, v) != 0;
     else if (a == "--fill-radius")
@@ -736,8 +741,14 @@ std::string run_view(const Options& o) {
   report("renderer", renderer);
   StatsPanel panel(renderer);
   auto report_adapter = [&] {
-    const auto& d = main.resource<GpuContext>()->description;
+    const gpu::Context& ctx = *main.resource<GpuContext>();
+    const auto& d = ctx.description;
     report("adapter", fmt::format("{} {} ({})", d.vendor, d.architecture, d.backend));
+    // The compute rasterizer's depth pass: 64-bit where the browser offers atomic-vec2u-min-max.
+    report("visibility", !pc::has_visibility64(ctx) ? "32-bit fallback"
+                         : ctx.has_feature(gpu::kFeatureAtomicVec2uMinMax)
+                             ? "64-bit (atomic<vec2u>)"
+                             : "64-bit");
   };
   const double start = emscripten_get_now();
   Orbit orbit;

@@ -160,6 +160,7 @@ std::vector<gpu::PipelineConstant> accumulate_constants(const RasterKernel& kern
 // The depth pass's shader for the pipeline's variant (64-bit, or the fallback's with or without
 // events, its early test plain or atomic).
 const char* depth_shader(const ComputeRasterPipeline& p, bool events) {
+  if (p.visibility_vec2u) return "compute_raster_vec2u.wgsl";
   if (p.visibility64) return "compute_raster64.wgsl";
   if (events)
     return p.depth32_plain_early ? "compute_raster_depth32_events_plain.wgsl"
@@ -282,7 +283,8 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
 
 std::vector<WGPUFeatureName> compute_raster_features() {
   return {WGPUFeatureName(WGPUNativeFeature_ShaderInt64),
-          WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax)};
+          WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax),
+          gpu::kFeatureAtomicVec2uMinMax};
 }
 
 GpuBatchedCloud create_batched_storage(gpu::Context& ctx, uint64_t points, uint64_t batches,
@@ -314,11 +316,17 @@ GpuBatchedCloud create_batched_storage(gpu::Context& ctx, uint64_t points, uint6
   return out;
 }
 
+namespace {
+bool has_u64_atomics(const gpu::Context& ctx) {
+  return ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_ShaderInt64)) &&
+         ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax));
+}
+}  // namespace
+
 bool has_visibility64(const gpu::Context& ctx) {
   if (const char* env = std::getenv("STIPPLE_RASTER_FALLBACK"); env && *env && *env != '0')
     return false;
-  return ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_ShaderInt64)) &&
-         ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax));
+  return has_u64_atomics(ctx) || ctx.has_feature(gpu::kFeatureAtomicVec2uMinMax);
 }
 
 ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
@@ -327,6 +335,7 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
                                                      const RasterKernel& kernel) {
   ComputeRasterPipeline p;
   p.visibility64 = !force_fallback && has_visibility64(ctx);
+  p.visibility_vec2u = p.visibility64 && !has_u64_atomics(ctx);
   p.color_format = color_format;
   p.kernel = kernel;
   p.max_storage_binding = ctx.limits.maxStorageBufferBindingSize;
@@ -438,8 +447,10 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
       WGPUBufferUsage_Storage | WGPUBufferUsage_CopySrc | WGPUBufferUsage_CopyDst,
       "raster-counters");
   ctx.check("creating the compute rasterizer");
-  STIPPLE_DEBUG("compute rasterizer: {}",
-                p.visibility64 ? "64-bit visibility buffer" : "32-bit two-pass fallback");
+  STIPPLE_DEBUG("compute rasterizer: {}", p.visibility_vec2u
+                                              ? "64-bit visibility buffer (atomic<vec2u>)"
+                                          : p.visibility64 ? "64-bit visibility buffer"
+                                                           : "32-bit two-pass fallback");
   return p;
 }
 
@@ -580,7 +591,8 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
                                                 gpu::bind_buffer(9, seg.attributes.get()),
                                                 gpu::bind_buffer(11, p.filter_uniforms.get()),
                                                 gpu::bind_buffer(12, p.polygon_vertices.get())};
-          if (use64 || p.depth32_plain_early) bindings.push_back(gpu::bind_buffer(8, depth));
+          if ((use64 && !p.visibility_vec2u) || p.depth32_plain_early)
+            bindings.push_back(gpu::bind_buffer(8, depth));
           if (events) bindings.push_back(gpu::bind_buffer(6, pc.buffer(events_name)));
           groups.push_back(gpu::create_bind_group(ctx, layout.get(), bindings));
         }

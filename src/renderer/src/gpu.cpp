@@ -213,6 +213,8 @@ std::string feature_name(WGPUFeatureName feature) {
       return "wgpu:shader-int64-atomic-min-max";
     case WGPUNativeFeature_ShaderInt64AtomicAllOps:
       return "wgpu:shader-int64-atomic-all-ops";
+    case uint32_t(kFeatureAtomicVec2uMinMax):
+      return "atomic-vec2u-min-max";
     default:
       break;
   }

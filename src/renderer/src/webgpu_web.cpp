@@ -8,6 +8,8 @@
 // loop, so wgpuInstanceProcessEvents yields to it (emscripten_sleep under JSPI).
 #include "webgpu_web.hpp"
 
+#include "stipple/renderer/gpu.hpp"
+
 #include <emscripten.h>
 #include <cmath>
 
@@ -274,16 +276,37 @@ WGPUStatus DeviceGetLimits(WGPUDevice device, WGPULimits* limits) {
   return WGPUStatus_Success;
 }
 
+// Features newer than emscripten's webgpu.h, by their names (it enumerates and requests only
+// those its table names): gpu::kFeatureAtomicVec2uMinMax.
+EM_JS(int, stipple_adapter_has_feature, (em::WGPUAdapter adapter, const char* name),
+      { return WebGPU.mgrAdapter.get(adapter).features.has(UTF8ToString(name)) ? 1 : 0; });
+// Adds the named feature to the adapter's next requestDevice (library_webgpu.js builds the
+// descriptor from its own table, which drops it).
+// clang-format off (it would space "=>" apart, which JS does not parse)
+EM_JS(void, stipple_adapter_require_feature, (em::WGPUAdapter adapter, const char* name), {
+  const a = WebGPU.mgrAdapter.get(adapter);
+  const feature = UTF8ToString(name);
+  const request = a.requestDevice.bind(a);
+  a.requestDevice = function(desc) {
+    const d = Object.assign({}, desc || {});
+    d.requiredFeatures = (d.requiredFeatures || []).concat([feature]);
+    return request(d);
+  };
+});
+// clang-format on
+
 void AdapterGetFeatures(WGPUAdapter adapter, WGPUSupportedFeatures* features) {
   size_t n = stipple_em_wgpuAdapterEnumerateFeatures(EMH(Adapter, adapter), nullptr);
   std::vector<em::WGPUFeatureName> found(n);
   stipple_em_wgpuAdapterEnumerateFeatures(EMH(Adapter, adapter), found.data());
-  auto* out = static_cast<WGPUFeatureName*>(std::malloc(sizeof(WGPUFeatureName) * (n + 1)));
+  auto* out = static_cast<WGPUFeatureName*>(std::malloc(sizeof(WGPUFeatureName) * (n + 2)));
   size_t count = 0;
   for (em::WGPUFeatureName f : found) {
     WGPUFeatureName s = em::from_em(f);
     if (s != WGPUFeatureName_Force32) out[count++] = s;
   }
+  if (stipple_adapter_has_feature(EMH(Adapter, adapter), "atomic-vec2u-min-max"))
+    out[count++] = gpu::kFeatureAtomicVec2uMinMax;
   features->featureCount = count;
   features->features = out;
 }
@@ -309,6 +332,10 @@ WGPUFuture AdapterRequestDevice(WGPUAdapter adapter, const WGPUDeviceDescriptor*
   if (desc) {
     d.label = str(desc->label);
     for (size_t i = 0; i < desc->requiredFeatureCount; ++i) {
+      if (desc->requiredFeatures[i] == gpu::kFeatureAtomicVec2uMinMax) {
+        stipple_adapter_require_feature(EMH(Adapter, adapter), "atomic-vec2u-min-max");
+        continue;
+      }
       em::WGPUFeatureName f = em::to_em(desc->requiredFeatures[i]);
       if (f != em::WGPUFeatureName_Force32) features.push_back(f);
     }

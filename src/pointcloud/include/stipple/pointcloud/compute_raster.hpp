@@ -129,13 +129,17 @@ struct RasterKernel {
   uint32_t ablate = 0;
 };
 
-// Whether this context can run the 64-bit visibility buffer (STIPPLE_RASTER_FALLBACK=1 says no).
+// Whether this context can run the 64-bit visibility buffer (STIPPLE_RASTER_FALLBACK=1 says no):
+// as u64 (wgpu-native's ShaderInt64AtomicMinMax) or as atomic<vec2u> (atomic-vec2u-min-max:
+// browsers on GPUs with 64-bit atomics).
 bool has_visibility64(const gpu::Context& ctx);
 // Features to request for it (pass to gpu::ContextOptions::optional_features).
 std::vector<WGPUFeatureName> compute_raster_features();
 
 struct ComputeRasterPipeline {
   bool visibility64 = false;
+  // The 64-bit pass through atomic<vec2u> (compute_raster_vec2u.wgsl: no early depth test).
+  bool visibility_vec2u = false;
   RasterKernel kernel;
   WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
   // The depth pass (64-bit, or the fallback's) and HQS's sums.

@@ -124,6 +124,10 @@ struct Context {
 
 std::unique_ptr<Context> create_context(const ContextOptions& options = {});
 std::string feature_name(WGPUFeatureName feature);
+// WebGPU's "atomic-vec2u-min-max" (64-bit atomicStoreMin/Max on atomic<vec2u> in WGSL), under
+// Dawn's number for it: the standard webgpu.h has none yet. Browsers offer it where the GPU has
+// 64-bit atomics; the page's bridge (webgpu_web.cpp) reports and requests it by its name.
+inline constexpr WGPUFeatureName kFeatureAtomicVec2uMinMax = WGPUFeatureName(0x0005003B);
 // Human-readable "name value" lines for every limit, in the header's order.
 std::vector<std::pair<std::string, uint64_t>> limit_list(const WGPULimits& limits);
 
