@@ -665,8 +665,12 @@ std::string orbit_view(Engine& engine, Orbit orbit, bool streams, StatsPanel& pa
       report("cameraMoves", std::to_string(++moves));
       report_camera(main, orbit);
     }
-    // Loads under way draw nothing until one finishes (the frame that takes it in).
-    const bool arrived = streams && main.resource<tiles3d::TilesetStream>().streamer->has_results();
+    // Loads under way draw nothing until one finishes (the frame that takes it in): a streamed
+    // point source's tiles, and a splat tileset's (which streams beside a point cloud drawn once).
+    const auto* splat_stream = main.try_resource<tiles3d::StreamedSplats>();
+    const bool arrived =
+        (streams && main.resource<tiles3d::TilesetStream>().streamer->has_results()) ||
+        (splat_stream && splat_stream->streamer && splat_stream->streamer->has_results());
     if (!moved && !restyled && !resized && !arrived && !tooled) {
       web::report_tools(engine);  // a tool chosen, a message: nothing to draw
       // A capture draws the unchanged view again: not a view frame (viewFrames, frame time).
@@ -685,6 +689,11 @@ std::string orbit_view(Engine& engine, Orbit orbit, bool streams, StatsPanel& pa
     web::report_overlay(engine);
     // Frames drawn since the first view (tests wait for the one after a control's change).
     report("viewFrames", std::to_string(++frames));
+    // A splat tileset's splats drawn now, and whether its loads for this view are done.
+    if (splat_stream) {
+      report("streamedSplats", std::to_string(splat_stream->drawn_splats));
+      report("splatsIdle", splat_stream->idle ? "1" : "0");
+    }
     panel.publish(engine, true);
   }
 }

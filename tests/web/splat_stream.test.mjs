@@ -42,3 +42,37 @@ test('a splat tileset by URL streams and matches the native render', { skip: ski
   });
   await page.close();
 });
+
+// Tiles that arrive after a camera move are drawn without more input: the page draws a frame when
+// a load finishes (as for point tilesets), not only when the camera or an option changes. The page
+// opens coarse (max-sse 8), the camera moves to a quarter of its distance, and with no more
+// events the drawn splats grow to what `stipple render` draws from that camera at the same
+// max-sse. Before, the page drew the move's frame (the parent tiles, the children requested) and
+// then nothing: the count stayed, the loads never reported done.
+test('a splat tileset refines as its tiles arrive after a camera move, with no more input', { skip: skip || false }, async () => {
+  const { page, state, log } = await c.openPage(
+    suite.browser,
+    suite.server.url('viewer/stipple.html?url=/tiles/tileset.json&width=320&height=240&max-sse=8'),
+    { timeout: 180000 });
+  c.assertDone(state, log);
+  const before = Number(state.splats);
+  const camera = await page.evaluate(() => {
+    const v = window.stippleViewer;
+    const { position, target } = v.camera;
+    const closer = position.map((x, i) => target[i] + (x - target[i]) * 0.25);
+    v.camera = { position: closer, target };
+    return { position: closer, target };
+  });
+  await page.waitForFunction(() => window.stipple.splatsIdle === '1', { timeout: 60000 })
+    .catch((e) => assert.fail(`the loads for the new view never showed as done: ${e}; ` +
+                              `${JSON.stringify(window.stipple ?? {})}\n${log.join('\n')}`));
+  const after = await page.evaluate(() => Number(window.stipple.streamedSplats));
+  const out = h.stipple(['render', path.join(work, 'www/tiles/tileset.json'), '-o',
+                         path.join(work, 'native-closer.png'), '--width', '320', '--height', '240',
+                         '--max-sse', '8', '--camera', [...camera.position, ...camera.target].join(',')]);
+  const native = Number(out.match(/and (\d+) splats/)[1]);
+  console.log(`splats: ${before} at the first view, ${after} after the move, native ${native}`);
+  assert.ok(after > before, `the move drew no finer tiles: ${before} -> ${after}`);
+  assert.equal(after, native, `page ${after} splats after the move, native ${native}`);
+  await page.close();
+});
