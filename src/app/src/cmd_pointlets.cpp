@@ -104,6 +104,7 @@ void add_pointlets_command(CLI::App& cli) {
         j["merge_seconds"] = stats.merge_seconds;
         j["encode_seconds"] = stats.encode_seconds;
         j["write_seconds"] = stats.write_seconds;
+        j["write_wait_seconds"] = stats.write_wait_seconds;
         j["runs"] = stats.runs;
         j["peak_run_bytes"] = stats.peak_run_bytes;
       }

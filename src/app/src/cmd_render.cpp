@@ -81,7 +81,8 @@ void run_render(const RenderArgs& args) {
                           {"sort_seconds", b.sort_seconds},
                           {"merge_seconds", b.merge_seconds},
                           {"encode_seconds", b.encode_seconds},
-                          {"write_seconds", b.write_seconds}};
+                          {"write_seconds", b.write_seconds},
+                          {"write_wait_seconds", b.write_wait_seconds}};
     }
     j["passes"] = nlohmann::json::object();
     for (const auto& [name, ms] : stats.history) {

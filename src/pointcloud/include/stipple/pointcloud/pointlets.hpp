@@ -110,13 +110,16 @@ struct PointletBuildOptions {
 // the cache).
 struct PointletBuildStats {
   uint64_t points = 0, pointlets = 0, pointlet_points = 0, runs = 0;
+  // write_seconds: the writes' own time, which overlaps the reads (they run in the background);
+  // write_wait_seconds: how long the build waited for them.
   double read_seconds = 0, sort_seconds = 0, merge_seconds = 0, encode_seconds = 0,
-         write_seconds = 0, seconds = 0;
+         write_seconds = 0, write_wait_seconds = 0, seconds = 0;
   uint64_t peak_run_bytes = 0;  // the largest run held in memory
 };
 
-// One line: "cache build: N M points/s; read a s, sort b s, merge c s, encode d s, write e s,
-// R runs" (the --stats of `stipple pointlets` and of the virtualized render).
+// One line: "cache build: N M points/s; read a s, sort b s, merge c s, encode d s, write e s
+// (beside the reads; f s waited for); R runs" (the --stats of `stipple pointlets` and of the
+// virtualized render).
 std::string describe_build_phases(const PointletBuildStats& stats);
 
 // Builds the cache of `sources` (LAS/LAZ/COPC, read whole) at `cache_path`, atomically: the
