@@ -224,11 +224,27 @@ TEST(VirtualRender, AFolderOfTilesDrawsAsTheMergedFile) {
       test::run_stipple("render " + (dir / "empty").string() + " -o " + (dir / "e.png").string());
   EXPECT_NE(empty.exit_code, 0);
   EXPECT_NE(empty.output.find("holds no .las or .laz file"), std::string::npos) << empty.output;
+  // A survey's sidecars (notes, a LAStools index, a metadata folder) are passed over, and said:
+  // the same tiles, the same cache and image.
   std::ofstream(folder / "readme.txt") << "survey notes";
+  std::ofstream(folder / "tile-00.lax") << "LASX";
+  fs::create_directories(folder / "metadata");
   auto other =
       test::run_stipple("render " + folder.string() + common + " -o " + (dir / "o.png").string());
-  EXPECT_NE(other.exit_code, 0);
-  EXPECT_NE(other.output.find("readme.txt"), std::string::npos) << other.output;
+  ASSERT_EQ(other.exit_code, 0) << other.output;
+  EXPECT_NE(other.output.find("passed over what is not .las or .laz: metadata (and 2 more)"),
+            std::string::npos)
+      << other.output;
+  EXPECT_NE(other.output.find("reused"), std::string::npos) << other.output;
+  EXPECT_EQ(drawn_points(other.output), 120000u) << other.output;
+  EXPECT_EQ(test::differing_fraction(a, gpu::read_png(dir / "o.png"), 0), 0.0);
+  // Sidecars alone are no survey.
+  std::ofstream(dir / "empty" / "notes.txt") << "no tiles";
+  auto sidecars =
+      test::run_stipple("render " + (dir / "empty").string() + " -o " + (dir / "s.png").string());
+  EXPECT_NE(sidecars.exit_code, 0);
+  EXPECT_NE(sidecars.output.find("holds no .las or .laz file (1 other entries)"), std::string::npos)
+      << sidecars.output;
   fs::remove_all(dir);
 }
 

@@ -250,12 +250,17 @@ std::vector<std::string> expand_input_folders(const std::vector<std::string>& in
       else
         tiles.push_back(e.path().string());
     }
+    // Surveys come with sidecars (.prj, .lax indexes, reports, metadata folders): passed over,
+    // and said once, so that a file misnamed as something else is not silently left out.
+    if (tiles.empty())
+      fail("{}: the folder holds no .las or .laz file{}", in,
+           others.empty() ? "" : fmt::format(" ({} other entries)", others.size()));
     if (!others.empty()) {
       std::sort(others.begin(), others.end());
-      fail("{}: a folder input holds LAS/LAZ tiles only, but it holds {}{}", in, others.front(),
-           others.size() > 1 ? fmt::format(" (and {} more)", others.size() - 1) : "");
+      STIPPLE_WARN("{}: {} tiles; passed over what is not .las or .laz: {}{}", in, tiles.size(),
+                   others.front(),
+                   others.size() > 1 ? fmt::format(" (and {} more)", others.size() - 1) : "");
     }
-    if (tiles.empty()) fail("{}: the folder holds no .las or .laz file", in);
     std::sort(tiles.begin(), tiles.end());
     out.insert(out.end(), tiles.begin(), tiles.end());
   }
