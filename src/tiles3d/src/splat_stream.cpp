@@ -12,6 +12,7 @@
 #include "stipple/engine/viewport.hpp"
 #include "stipple/io/fetch.hpp"
 #include "stipple/tiles3d/render_load.hpp"
+#include "stream_view.hpp"
 
 namespace stipple::tiles3d {
 
@@ -29,21 +30,9 @@ void append(std::vector<T>& to, const std::vector<T>& from) {
 // tiles changed.
 void update_splat_stream(Registry& main) {
   auto& s = main.resource<StreamedSplats>();
-  const Camera* camera = nullptr;
-  main.view<Camera>().each([&](const Camera& c) {
-    if (!camera) camera = &c;
-  });
-  if (!camera) return;
-  View view;
-  view.camera = *camera;
-  view.width = s.width;
-  view.height = s.height;
-  if (const auto* viewport = main.try_resource<Viewport>(); viewport && viewport->valid()) {
-    view.width = viewport->width;
-    view.height = viewport->height;
-  }
-  view.world_from_tileset = s.world_from_tileset;
-  const Selection& selection = s.streamer->update(view);
+  const std::optional<View> view = stream_view(main, s.width, s.height, s.world_from_tileset);
+  if (!view) return;
+  const Selection& selection = s.streamer->update(*view);
   auto report = [&](const TileError& e, bool error) {
     if (!s.problems.insert(std::string(tile_problem_kind(e.message))).second) return;
     if (error)

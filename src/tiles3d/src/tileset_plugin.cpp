@@ -18,6 +18,7 @@
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/pointcloud/scene.hpp"
 #include "stipple/tiles3d/render_load.hpp"
+#include "stream_view.hpp"
 
 namespace stipple::tiles3d {
 namespace {
@@ -105,22 +106,10 @@ std::optional<pc::PickHit> pick_tileset(Registry& main, const pc::PickRay& ray) 
 void update_tileset(Registry& main) {
   auto& s = main.resource<TilesetStream>();
   auto& stats = main.resource<TilesetStats>();
-  const Camera* camera = nullptr;
-  main.view<Camera>().each([&](const Camera& c) {
-    if (!camera) camera = &c;
-  });
   s.draw.clear();
-  if (!camera) return;
-  View view;
-  view.camera = *camera;
-  view.width = s.width;
-  view.height = s.height;
-  if (const auto* viewport = main.try_resource<Viewport>(); viewport && viewport->valid()) {
-    view.width = viewport->width;
-    view.height = viewport->height;
-  }
-  view.world_from_tileset = s.world_from_tileset;
-  const Selection& selection = s.streamer->update(view);
+  const std::optional<View> view = stream_view(main, s.width, s.height, s.world_from_tileset);
+  if (!view) return;
+  const Selection& selection = s.streamer->update(*view);
   for (const auto& e : s.streamer->take_errors()) {
     report_tile_problem(s, e);
     ++stats.errors;
