@@ -296,7 +296,7 @@ bool draw_capture(Engine& engine) {
   if (image.rgba.empty()) return false;
   EM_ASM(
       {
-        const pixels = new Uint8ClampedArray(HEAPU8.subarray($2, $2 + $0 * $1 * 4));
+        const pixels = new Uint8ClampedArray(HEAPU8.subarray($2 >>> 0, ($2 >>> 0) + $0 * $1 * 4));
         Module.stippleCapture.deliver({width : $0, height : $1, data : pixels});
       },
       image.width, image.height, image.rgba.data());

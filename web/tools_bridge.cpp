@@ -267,7 +267,7 @@ void apply(Engine& engine, const json& c, bool& holds) {
         {
           const f = Module.stippleToolsProfile;
           if (!f) return;
-          const pixels = new Uint8ClampedArray(HEAPU8.subarray($2, $2 + $0 * $1 * 4));
+          const pixels = new Uint8ClampedArray(HEAPU8.subarray($2 >>> 0, ($2 >>> 0) + $0 * $1 * 4));
           f(JSON.parse(UTF8ToString($3)), {width : $0, height : $1, data : pixels});
         },
         view.image.width, view.image.height, view.image.rgba.data(), text.c_str());

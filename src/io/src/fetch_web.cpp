@@ -77,7 +77,7 @@ EM_ASYNC_JS(int, stipple_http_async, (const char* url, const char* range, int* s
 EM_JS(void, stipple_http_take, (int id, uint8_t* out), {
   const body = globalThis.stippleBodies.get(id);
   globalThis.stippleBodies.delete(id);
-  if (out && body) HEAPU8.set(body, out);
+  if (out && body) HEAPU8.set(body, out >>> 0);  // above 2 GiB: unsigned
 });
 
 EM_ASYNC_JS(void, stipple_sleep_async, (double ms), {

@@ -281,6 +281,64 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
   return out;
 }
 
+GpuBatchedCloud upload_batched_chunks(gpu::Context& ctx, const PointCloud& cloud,
+                                      uint64_t group_points) {
+  BatchingOptions options;
+  options.mark_translucent = cloud.attributes.has_translucent;
+  uint64_t total = 0;
+  for (const PointChunk& c : cloud.chunks) total += c.vertices.size();
+  const uint64_t max_points = std::min<uint64_t>({ctx.limits.maxStorageBufferBindingSize,
+                                                  ctx.limits.maxBufferSize, 1ull << 31}) /
+                              4;
+  group_points = std::max<uint64_t>(group_points, 1);
+  if (total < 2 * group_points || total > max_points)
+    return upload_batched_cloud(ctx, build_batches(cloud, options));
+
+  GpuBatchedCloud out;
+  out.point_count = total;
+  GpuBatchedCloud::Segment seg;
+  seg.point_count = uint32_t(total);
+  const auto usage = WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst | WGPUBufferUsage_CopySrc;
+  gpu::Buffer* arrays[] = {&seg.coarse, &seg.medium, &seg.fine, &seg.color, &seg.attributes};
+  for (gpu::Buffer* b : arrays)
+    *b = gpu::create_buffer(ctx, raster_array_bytes(total), usage, "raster-points");
+  const std::span<const PointChunk> chunks(cloud.chunks);
+  uint64_t first = 0;
+  for (size_t c = 0; c < chunks.size();) {
+    size_t end = c;
+    uint64_t points = 0;
+    while (end < chunks.size() && (points < group_points || end == c))
+      points += chunks[end++].vertices.size();
+    BatchedCloud part;
+    append_chunk_batches(part, chunks.subspan(c, end - c), options);
+    for (Batch b : part.batches) {
+      b.first += first;
+      out.batches.push_back(b);
+    }
+    const PointWords* words[] = {&part.coarse, &part.medium, &part.fine, &part.color,
+                                 &part.attributes};
+    std::vector<gpu::BufferUpload> uploads;
+    for (size_t a = 0; a < 5; ++a)
+      uploads.push_back({arrays[a]->get(), first * 4, words[a]->data(), points * 4});
+    gpu::upload_through_staging(ctx, uploads, &batching_pool());
+    first += points;
+    c = end;
+  }
+  seg.batch_count = uint32_t(out.batches.size());
+  seg.batches =
+      gpu::create_buffer(ctx, uint64_t(seg.batch_count) * sizeof(GpuBatch),
+                         WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "raster-batches");
+  seg.params = gpu::create_buffer(
+      ctx, sizeof(Params), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "raster-params");
+  out.bytes = total * kRasterPointBytes + uint64_t(seg.batch_count) * sizeof(GpuBatch);
+  out.segments.push_back(std::move(seg));
+  out.shading =
+      gpu::create_buffer(ctx, sizeof(ShadingUniforms),
+                         WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "raster-shading");
+  ctx.check("uploading batched points");
+  return out;
+}
+
 std::vector<WGPUFeatureName> compute_raster_features() {
   return {WGPUFeatureName(WGPUNativeFeature_ShaderInt64),
           WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax),

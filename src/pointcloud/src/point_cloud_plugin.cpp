@@ -153,8 +153,7 @@ void queue_point_clouds(Registry& render) {
       // for billions of points).
       // Batched once per loaded cloud; the colour mode and its ramps are per-frame uniforms.
       if (!r.batched || r.batched_generation != r.generation) {
-        r.batched = std::make_unique<pc::GpuBatchedCloud>(
-            pc::upload_batched_cloud(ctx, pc::build_batches(*r.cloud)));
+        r.batched = std::make_unique<pc::GpuBatchedCloud>(pc::upload_batched_chunks(ctx, *r.cloud));
         r.batched_generation = r.generation;
       }
       pc::ComputeRasterOptions options;

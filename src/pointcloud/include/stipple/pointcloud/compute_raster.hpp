@@ -81,6 +81,15 @@ struct UploadOptions {
 // (gpu::upload_through_staging).
 GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& cloud,
                                      const UploadOptions& options = {});
+// A loaded cloud batched and uploaded as upload_batched_cloud(build_batches(cloud)) does, a group
+// of chunks (about `group_points` points) at a time, so that the host holds one group's words
+// and curve order beside the chunks (about 30 bytes a point of the group), not the cloud's (28
+// bytes a point of the cloud): the page, whose memory is wasm32's 4 GB, holds seed 003's 136M
+// points as one cloud this way. Batches stay within a group (a group is millions of points:
+// batches as tight as the whole cloud's). Clouds under two groups, or over one storage binding,
+// take the whole build as before.
+GpuBatchedCloud upload_batched_chunks(gpu::Context& ctx, const PointCloud& cloud,
+                                      uint64_t group_points = uint64_t(1) << 24);
 // Bytes of GPU memory a point takes in the rasterizer's arrays (coarse, medium, fine, colour,
 // attributes).
 constexpr uint64_t kRasterPointBytes = 20;
