@@ -49,6 +49,7 @@
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/pointcloud/scene.hpp"
 #include "stipple/scene/scene.hpp"
+#include "stipple/splats/splat_plugin.hpp"
 #include "stipple/tiles3d/splat_stream.hpp"
 #include "stipple/tiles3d/streamer.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
@@ -610,8 +611,8 @@ bool take_camera(Registry& main, Orbit& orbit) {
 // pinch zoom, a two-finger or right-button drag moves the target across the view), or goes where
 // the module sets it. One engine frame per animation frame when something changed: the camera, an
 // option, the canvas's size, or, for a tileset streaming for the new view (`streams`), a tile
-// arrived; none otherwise (the canvas keeps the last frame). Returns what to open next, once the
-// module has something.
+// arrived, or a splat frame lost tile pairs (splats::splat_frames_incomplete); none otherwise
+// (the canvas keeps the last frame). Returns what to open next, once the module has something.
 std::string orbit_view(Engine& engine, Orbit orbit, bool streams, StatsPanel& panel) {
   Registry& main = engine.main();
   report_camera(main, orbit);
@@ -662,7 +663,10 @@ std::string orbit_view(Engine& engine, Orbit orbit, bool streams, StatsPanel& pa
     }
     // Loads under way draw nothing until one finishes (the frame that takes it in).
     const bool arrived = streams && main.resource<tiles3d::TilesetStream>().streamer->has_results();
-    if (!moved && !restyled && !resized && !arrived && !tooled) {
+    // A splat frame that lost tile pairs (its count came back since, the buffers have grown):
+    // drawn once more.
+    const bool incomplete = splats::splat_frames_incomplete(engine);
+    if (!moved && !restyled && !resized && !arrived && !tooled && !incomplete) {
       web::report_tools(engine);  // a tool chosen, a message: nothing to draw
       // A capture draws the unchanged view again: not a view frame (viewFrames, frame time).
       capture = capture || take_capture_request();

@@ -40,6 +40,12 @@ struct SplatDrawSettings {
 // camera.
 Aabb splat_bounds(const io::SplatSet& set);
 
+// Whether a frame drawn earlier with the tile rasterizer wanted more (tile, splat) pairs than
+// its buffers held, which have grown since (settle_tile_pairs): one more frame draws every
+// splat. Never waits for the GPU (only for a pipelined render world's frame); for a front end
+// that draws only when something changed (the web page), asked while it is idle.
+bool splat_frames_incomplete(Engine& engine);
+
 struct SplatPlugin {
   static constexpr std::string_view name = "SplatPlugin";
   static constexpr std::string_view description =
