@@ -194,6 +194,11 @@ Options parse(int argc, char** argv) {
         o.scene.renderer = scene::Renderer::Compute;
       else
         fail("--renderer: auto, billboard or compute: '{}'", r);
+    } else if (a == "--splat-rasterizer") {
+      const std::string r = v;
+      o.scene.splat_rasterizer =
+          r == "auto" ? std::nullopt
+                      : std::optional<splats::SplatRasterizer>(splats::parse_splat_rasterizer(r));
     } else if (a == "--hqs")
       o.scene.hqs = number(a, v) != 0;
     else if (a == "--fill-radius")

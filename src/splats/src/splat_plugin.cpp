@@ -103,7 +103,7 @@ void queue_splats(Registry& render) {
         .write("color");
   }
   SplatPassTargets targets;
-  targets.rasterizer = settings.rasterizer;
+  targets.rasterizer = settings.rasterizer.value_or(default_splat_rasterizer(ctx));
   if (!settings.depth_test || !graph_has(fg.graph, "depth")) targets.depth.clear();
   uint32_t index = 0;
   render.view<RenderSplats>().each([&](RenderSplats& r) {

@@ -402,6 +402,20 @@ SplatRasterizer parse_splat_rasterizer(const std::string& name) {
   fail("unknown splat rasterizer '{}' (quads or tiles)", name);
 }
 
+const char* splat_rasterizer_name(SplatRasterizer rasterizer) {
+  return rasterizer == SplatRasterizer::Tiles ? "tiles" : "quads";
+}
+
+SplatRasterizer default_splat_rasterizer(const gpu::Context& ctx) {
+  // Tiles where the GPU has to blend much (on an H100, 6M splats of SH degree 3 at 1920x1080:
+  // quads 82 ms a frame, bound by blending; tiles 5.8 ms). On a CPU adapter the tiles' compute
+  // passes cost more than the rasterizer's blending: lavapipe, 200k splats of SH degree 3 at
+  // 1280x720 (`stipple bench splats --count 200000 --sh 3 --size 1280x720 --frames 10`), quads
+  // 382-744 ms a frame against tiles 984-1752 ms (wgpu and Dawn, 2 shared cores), and at a
+  // close-up (--view close) 255-329 ms against 714-936 ms: quads there.
+  return gpu::is_cpu_adapter(ctx.description) ? SplatRasterizer::Quads : SplatRasterizer::Tiles;
+}
+
 GpuSplats upload_splats(gpu::Context& ctx, const io::SplatSet& set) {
   const size_t n = set.size();
   if (set.scales.size() != n || set.rotations.size() != n || set.opacities.size() != n ||
@@ -677,6 +691,7 @@ bool settle_tile_pairs(gpu::Context& ctx, GpuSplats& s, bool wait) {
     if (mapped) std::memcpy(&total, mapped, 4);
     wgpuBufferUnmap(slot.readback.get());
     *slot.phase = PairSlotPhase::Free;
+    counts.most = std::max(counts.most, total);
     if (total <= slot.capacity) continue;
     ++counts.overflowed_frames;
     if (total > limit && !counts.warned) {
@@ -687,6 +702,10 @@ bool settle_tile_pairs(gpu::Context& ctx, GpuSplats& s, bool wait) {
           total, limit);
       counts.warned = true;
     }
+    if (total > counts.needed && total <= limit)
+      STIPPLE_INFO(
+          "splats: a frame wanted {} (tile, splat) pairs, {} a splat: the tile buffers grow", total,
+          double(total) / std::max(1u, s.count));
     counts.needed = std::max(counts.needed, total);
     // The next frame's buffers hold at least this many (ensure_tile_buffers).
     grew = grew || slot.capacity < std::min<uint64_t>(total, limit);

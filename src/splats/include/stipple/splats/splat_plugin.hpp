@@ -7,6 +7,7 @@
 // frame, clear the colour target to the background first and draw without a depth test.
 #include <array>
 #include <memory>
+#include <optional>
 #include <string_view>
 #include <vector>
 
@@ -33,7 +34,8 @@ struct SplatData {
 struct SplatDrawSettings {
   glm::vec3 background{0.07f, 0.08f, 0.1f};  // when no point pass draws the frame first
   bool depth_test = true;                    // against the points' depth, when there is one
-  SplatRasterizer rasterizer = SplatRasterizer::Quads;
+  // Empty: the device's faster one (default_splat_rasterizer).
+  std::optional<SplatRasterizer> rasterizer;
 };
 
 // The world-space bounds of the splats' centres (through the set's transform), for framing a

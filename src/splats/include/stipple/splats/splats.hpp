@@ -28,11 +28,17 @@
 
 namespace stipple::splats {
 
-// Quads: sorted instanced quads blended by the fixed-function blender (the default). Tiles: the
-// reference's 16x16 tiles in compute (each tile's splats in depth order through a second, stable
-// sort by tile), blended front to back in f32 with early termination, then laid over the frame.
+// Quads: sorted instanced quads blended by the fixed-function blender. Tiles: the reference's
+// 16x16 tiles in compute (each tile's splats in depth order through a second, stable sort by
+// tile), blended front to back in f32 with early termination, then laid over the frame. The
+// plugin, render, view and the web page draw with the device's faster one unless told
+// (default_splat_rasterizer: tiles on a GPU, quads on a CPU adapter).
 enum class SplatRasterizer { Quads, Tiles };
 SplatRasterizer parse_splat_rasterizer(const std::string& name);
+const char* splat_rasterizer_name(SplatRasterizer rasterizer);
+// The faster of the two on this device (what the plugin draws with unless told): see the figures
+// in splats.cpp.
+SplatRasterizer default_splat_rasterizer(const gpu::Context& ctx);
 
 // The tile rasterizer's per-set buffers (made on its first frame, remade when the size changes
 // or a frame wanted more (tile, splat) pairs than they hold).
@@ -58,7 +64,8 @@ struct TilePairCounts {
     uint32_t capacity = 0;  // the frame's pair capacity
   };
   std::vector<Slot> slots;
-  uint32_t needed = 0;             // the most pairs a frame wanted so far
+  uint32_t needed = 0;             // the most pairs a frame wanted over its capacity
+  uint32_t most = 0;               // the most pairs a frame wanted (every frame read back)
   uint64_t overflowed_frames = 0;  // frames that wanted more pairs than they held
   bool warned = false;             // past the device's limit (said once)
 };
