@@ -742,6 +742,10 @@ std::string run_view(const Options& o) {
   tools_plugin.background_exports = false;
   engine.add_plugin(std::move(tools_plugin));
   const char* renderer = plan.compute() ? "compute" : "billboard";
+  // Splats: the rasterizer asked for, else the device's (before "renderer", the first report).
+  if (!plan.splats.empty() || !plan.splat_tileset.empty())
+    report("splatRasterizer", splats::splat_rasterizer_name(plan.options.splat_rasterizer.value_or(
+                                  splats::default_splat_rasterizer(*main.resource<GpuContext>()))));
   report("renderer", renderer);
   StatsPanel panel(renderer);
   auto report_adapter = [&] {

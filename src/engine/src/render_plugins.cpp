@@ -71,26 +71,9 @@ void execute_frame_graph(Registry& render) {
   auto& stats = render.resource<RenderStats>();
   gpu::PassTimer* timer = gpu::acquire_pass_timer(fg.timers);
   if (!timer && !fg.timers.slots.empty()) ++stats.untimed_frames;
-  auto* requests = render.try_resource<ScreenshotRequests>();
-  auto* capture = render.try_resource<FrameCapture>();
-  const bool want_capture = (requests && (!requests->paths.empty() || requests->capture)) ||
-                            (capture && capture->on_frame);
   fg.graph.execute(ctx, fg.pool, timer);
   fg.executed = true;
   ctx.check("drawing a frame");
-  // A kept frame is whole: drawn again while a check finds it was not (redraw_checks).
-  for (int again = 0; want_capture && again < 2; ++again) {
-    bool redraw = false;
-    for (auto& check : fg.redraw_checks) redraw = check(ctx) || redraw;
-    if (!redraw) break;
-    // The checks may have yielded the page's thread: a late target's texture is taken again.
-    if (auto& late = render.resource<RenderTarget>(); late.acquire) {
-      if (!late.acquire(late)) break;
-      fg.graph.bind_imported_texture("color", late.texture, late.view);
-    }
-    fg.graph.execute(ctx, fg.pool, timer);
-    ctx.check("drawing a frame again");
-  }
   // Mapped now, so that the results come back while the GPU and the next frames go on.
   if (timer) {
     std::vector<std::string> names = fg.graph.timed_pass_names(*timer);
@@ -99,6 +82,10 @@ void execute_frame_graph(Registry& render) {
   }
 
   const auto& target = render.resource<RenderTarget>();
+  auto* requests = render.try_resource<ScreenshotRequests>();
+  auto* capture = render.try_resource<FrameCapture>();
+  bool want_capture = (requests && (!requests->paths.empty() || requests->capture)) ||
+                      (capture && capture->on_frame);
   if (!want_capture) return;
   if (!(target.usage & WGPUTextureUsage_CopySrc)) {
     STIPPLE_WARN("this render target cannot be read back: no screenshot");
@@ -110,6 +97,22 @@ void execute_frame_graph(Registry& render) {
   }
   gpu::Image image =
       gpu::read_texture(ctx, target.texture, target.width, target.height, target.format);
+  // A kept frame is whole: drawn again while a check finds it was not (redraw_checks). Checked
+  // once it is read (the checks may wait, which yields the page's thread, and a browser canvas's
+  // texture expires then: it is taken again for the next draw), and drawn untimed (the frame's
+  // timer is already on its way back).
+  for (int again = 0; again < 2; ++again) {
+    bool redraw = false;
+    for (auto& check : fg.redraw_checks) redraw = check(ctx) || redraw;
+    if (!redraw) break;
+    if (auto& late = render.resource<RenderTarget>(); late.acquire) {
+      if (!late.acquire(late)) break;
+      fg.graph.bind_imported_texture("color", late.texture, late.view);
+    }
+    fg.graph.execute(ctx, fg.pool, nullptr);
+    ctx.check("drawing a frame again");
+    image = gpu::read_texture(ctx, target.texture, target.width, target.height, target.format);
+  }
   if (requests) {
     for (const auto& path : requests->paths) {
       gpu::write_png(path, image);
