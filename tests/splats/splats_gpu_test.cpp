@@ -382,6 +382,43 @@ TEST_P(Splats, TilePairsGrowWithoutWaiting) {
   EXPECT_EQ(gpu_splats.pair_counts.overflowed_frames, 1u);
 }
 
+TEST_P(Splats, TilePairsPastTheLimitKeepTheNearestSplats) {
+  // The close-up's splats and, nearest the camera, a small opaque green one; the pair buffers
+  // may hold 70000 pairs (a lowered limit), the frame wants about 110000: the capacity stops at
+  // the limit, the frame is not redrawn for ever, and the pairs left out are the farthest
+  // splats', so the green one shows.
+  io::SplatSet set = close_up_splats(400, 21);
+  set.positions.push_back({0.0f, 0.0f, 1.2f});
+  set.scales.push_back({0.03f, 0.03f, 0.03f});
+  set.rotations.push_back({0, 0, 0, 1});
+  set.opacities.push_back(1.0f);
+  set.sh_dc.push_back((glm::vec3(0, 1, 0) - 0.5f) / float(kSH0));
+  set.sh_rest.resize(set.sh_rest.size() + set.rest_count(), glm::vec3(0.0f));
+  Camera camera;
+  camera.look_at({0.0, 0.0, 2.5}, {0.0, 0.0, 0.0});
+  camera.fov_y = glm::radians(50.0);
+  const uint32_t w = 320, h = 240;
+  auto pipelines = splats::create_splat_pipelines(*ctx, WGPUTextureFormat_RGBA8Unorm);
+  auto gpu_splats = splats::upload_splats(*ctx, set);
+  gpu_splats.pair_counts.max_capacity = 70000;
+  Target target = make_target(*ctx, w, h, glm::dvec3(0.0), 0.0f);
+  splats::draw_splats(*ctx, pipelines, gpu_splats, camera, target.color.get(),
+                      target.color_view.get(), w, h, nullptr, nullptr, false,
+                      splats::SplatRasterizer::Tiles);
+  EXPECT_EQ(splats::tile_pair_capacity(gpu_splats), 70000u);
+  EXPECT_GT(gpu_splats.pair_counts.needed, 70000u);
+  EXPECT_TRUE(gpu_splats.pair_counts.warned);
+  // Drawn again once, grown to the limit; that frame overflowed too, with nothing more to grow.
+  EXPECT_FALSE(splats::settle_tile_pairs(*ctx, gpu_splats, true));
+  EXPECT_EQ(gpu_splats.pair_counts.overflowed_frames, 2u);
+  gpu::Image image =
+      gpu::read_texture(*ctx, target.color.get(), w, h, WGPUTextureFormat_RGBA8Unorm);
+  const uint8_t* centre = &image.rgba[(size_t(h / 2) * w + w / 2) * 4];
+  EXPECT_GT(centre[1], 200) << "the nearest splat is drawn";
+  EXPECT_LT(centre[0], 60);
+  EXPECT_LT(centre[2], 60);
+}
+
 TEST_P(Splats, TransformedSetMatchesTheReference) {
   // A set with a rotation, a non-uniform scale and a translation far from the origin, seen by a
   // camera there: the SH are evaluated in the set's own frame, the covariance goes through

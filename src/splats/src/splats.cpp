@@ -214,11 +214,13 @@ void ensure_tile_pipelines(gpu::Context& ctx, SplatPipelines& p) {
 }
 
 // The most (tile, splat) pairs one frame's buffers may hold on this device (a u32 a pair in
-// one storage binding).
-uint64_t max_pair_capacity(const gpu::Context& ctx) {
-  return std::min<uint64_t>(
+// one storage binding), or the set's lower bound (TilePairCounts::max_capacity).
+uint64_t max_pair_capacity(const gpu::Context& ctx, const GpuSplats& s) {
+  const uint64_t device = std::min<uint64_t>(
       {std::min<uint64_t>(ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize) / 4,
        uint64_t(UINT32_MAX / 2)});
+  return s.pair_counts.max_capacity ? std::min<uint64_t>(device, s.pair_counts.max_capacity)
+                                    : device;
 }
 
 // Room for each splat to touch four tiles on average, or 1.5 times the most pairs a frame
@@ -226,13 +228,13 @@ uint64_t max_pair_capacity(const gpu::Context& ctx) {
 uint32_t wanted_pair_capacity(const gpu::Context& ctx, const GpuSplats& s) {
   const uint64_t want =
       std::max<uint64_t>({uint64_t(s.count) * 4, 1 << 16, uint64_t(s.pair_counts.needed) * 3 / 2});
-  return uint32_t(std::min(want, max_pair_capacity(ctx)));
+  return uint32_t(std::min(want, max_pair_capacity(ctx, s)));
 }
 
 void ensure_tile_buffers(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& s, uint32_t width,
                          uint32_t height) {
   if (s.tiles && s.tiles->width == width && s.tiles->height == height &&
-      s.tiles->pair_capacity >= std::min<uint64_t>(s.pair_counts.needed, max_pair_capacity(ctx)))
+      s.tiles->pair_capacity >= std::min<uint64_t>(s.pair_counts.needed, max_pair_capacity(ctx, s)))
     return;
   auto t = std::make_unique<TileBuffers>();
   t->width = width;
@@ -679,7 +681,7 @@ bool settle_tile_pairs(gpu::Context& ctx, GpuSplats& s, bool wait) {
   }
   if (ctx.lost) fail("WebGPU device lost while reading the splat tile pairs back");
   bool grew = false;
-  const uint64_t limit = max_pair_capacity(ctx);
+  const uint64_t limit = max_pair_capacity(ctx, s);
   for (auto& slot : counts.slots) {
     if (*slot.phase == PairSlotPhase::Failed) {
       *slot.phase = PairSlotPhase::Free;  // a cancelled map: that frame goes unread

@@ -68,6 +68,7 @@ struct TilePairCounts {
   uint32_t most = 0;               // the most pairs a frame wanted (every frame read back)
   uint64_t overflowed_frames = 0;  // frames that wanted more pairs than they held
   bool warned = false;             // past the device's limit (said once)
+  uint32_t max_capacity = 0;       // a limit below the device's (0: none; tests lower it)
 };
 
 // One splat set on the GPU, with the buffers its frames use (sized for every splat visible).
