@@ -4,12 +4,15 @@
 //   cs_count        per splat in depth order (rank i, farthest first): the tiles its 3-sigma
 //                   square touches, into scan[i]
 //   cs_block_sums   per block of 512 ranks: the sum, into scan[capacity + block]
-//   cs_scan_blocks  one workgroup: exclusive prefix of the block sums; the total pair count
-//                   into tile_data[0] (the tile sort's count)
+//   cs_scan_blocks  one workgroup: exclusive prefix of the block sums; the pairs kept (the
+//                   total, at most pair_capacity) into tile_data[0] (the tile sort's count),
+//                   the total into the word after the ranges (read back: the host grows the
+//                   buffers when it exceeds the capacity)
 //   cs_block_apply  per block: the exclusive prefix of its ranks plus its block's offset
 //   cs_emit         per splat: one (tile, rank) pair per touched tile at its offset, so the
 //                   pairs are in rank order; a stable sort by tile then leaves each tile's
-//                   splats in depth order
+//                   splats in depth order. Over the capacity the first (farthest) pairs are the
+//                   ones left out: the nearest splats are drawn
 //   cs_clear_ranges / cs_ranges   each tile's range of the sorted pairs
 //   cs_raster       one workgroup per tile, one invocation per pixel: the tile's splats front
 //                   to back in batches of 256 through workgroup memory, blended until the
@@ -22,7 +25,7 @@ struct TileParams {
   tiles_x: u32,
   tiles_y: u32,
   capacity: u32,       // splats (the scan's length)
-  pair_capacity: u32,  // (tile, rank) pairs the buffers hold; more are dropped
+  pair_capacity: u32,  // (tile, rank) pairs the buffers hold; the farthest of more are dropped
   blocks: u32,         // of 512 splats
   has_depth: u32,
   pad0: u32,
@@ -44,10 +47,15 @@ const BLOCK: u32 = 512u;
 @group(0) @binding(6) var<storage, read_write> scan: array<u32>;
 @group(0) @binding(7) var<storage, read_write> pair_keys: array<u32>;
 @group(0) @binding(8) var<storage, read_write> pair_values: array<u32>;
-// [0]: the pair count; then per tile its [start, end) in the sorted pairs.
+// [0]: the pairs kept; then per tile its [start, end) in the sorted pairs; then the pairs the
+// frame wanted (pair_total_index).
 @group(0) @binding(9) var<storage, read_write> tile_data: array<u32>;
 
 var<workgroup> wscan: array<u32, 256>;
+
+fn pair_total_index() -> u32 {
+  return 1u + 2u * params.tiles_x * params.tiles_y;
+}
 
 fn visible_count() -> u32 {
   return min(args[1], params.capacity);
@@ -145,6 +153,7 @@ fn cs_scan_blocks(@builtin(local_invocation_index) lid: u32) {
   }
   if (lid == 0u) {
     tile_data[0] = min(carry, params.pair_capacity);
+    tile_data[pair_total_index()] = carry;
   }
 }
 
@@ -184,12 +193,14 @@ fn cs_emit(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) group
     return;
   }
   let r = tile_rect(projected[sorted_values[i]]);
+  // Pairs past the capacity: the first `skip` (the farthest splats') are left out.
+  let skip = tile_data[pair_total_index()] - tile_data[0];
   var slot = scan[i];
   for (var ty = r.y; ty <= r.w; ty = ty + 1) {
     for (var tx = r.x; tx <= r.z; tx = tx + 1) {
-      if (slot < params.pair_capacity) {
-        pair_keys[slot] = u32(ty) * params.tiles_x + u32(tx);
-        pair_values[slot] = i;
+      if (slot >= skip) {
+        pair_keys[slot - skip] = u32(ty) * params.tiles_x + u32(tx);
+        pair_values[slot - skip] = i;
       }
       slot = slot + 1u;
     }

@@ -50,6 +50,7 @@
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/pointcloud/scene.hpp"
 #include "stipple/scene/scene.hpp"
+#include "stipple/splats/splat_plugin.hpp"
 #include "stipple/tiles3d/splat_stream.hpp"
 #include "stipple/tiles3d/streamer.hpp"
 #include "stipple/tiles3d/tileset_plugin.hpp"
@@ -198,6 +199,11 @@ Options parse(int argc, char** argv) {
       // Benches: the compute rasterizer's 32-bit fallback even where the browser offers 64-bit
       // atomics (the variants compared in one page build).
       if (number(a, v) != 0) setenv("STIPPLE_RASTER_FALLBACK", "1", 1);
+    } else if (a == "--splat-rasterizer") {
+      const std::string r = v;
+      o.scene.splat_rasterizer =
+          r == "auto" ? std::nullopt
+                      : std::optional<splats::SplatRasterizer>(splats::parse_splat_rasterizer(r));
     } else if (a == "--hqs")
       o.scene.hqs = number(a, v) != 0;
     else if (a == "--fill-radius")
@@ -615,8 +621,8 @@ bool take_camera(Registry& main, Orbit& orbit) {
 // pinch zoom, a two-finger or right-button drag moves the target across the view), or goes where
 // the module sets it. One engine frame per animation frame when something changed: the camera, an
 // option, the canvas's size, or, for a tileset streaming for the new view (`streams`), a tile
-// arrived; none otherwise (the canvas keeps the last frame). Returns what to open next, once the
-// module has something.
+// arrived, or a splat frame lost tile pairs (splats::splat_frames_incomplete); none otherwise
+// (the canvas keeps the last frame). Returns what to open next, once the module has something.
 std::string orbit_view(Engine& engine, Orbit orbit, bool streams, StatsPanel& panel) {
   Registry& main = engine.main();
   report_camera(main, orbit);
@@ -671,7 +677,10 @@ std::string orbit_view(Engine& engine, Orbit orbit, bool streams, StatsPanel& pa
     const bool arrived =
         (streams && main.resource<tiles3d::TilesetStream>().streamer->has_results()) ||
         (splat_stream && splat_stream->streamer && splat_stream->streamer->has_results());
-    if (!moved && !restyled && !resized && !arrived && !tooled) {
+    // A splat frame that lost tile pairs (its count came back since, the buffers have grown):
+    // drawn once more.
+    const bool incomplete = splats::splat_frames_incomplete(engine);
+    if (!moved && !restyled && !resized && !arrived && !tooled && !incomplete) {
       web::report_tools(engine);  // a tool chosen, a message: nothing to draw
       // A capture draws the unchanged view again: not a view frame (viewFrames, frame time).
       capture = capture || take_capture_request();
@@ -747,6 +756,10 @@ std::string run_view(const Options& o) {
   tools_plugin.background_exports = false;
   engine.add_plugin(std::move(tools_plugin));
   const char* renderer = plan.compute() ? "compute" : "billboard";
+  // Splats: the rasterizer asked for, else the device's (before "renderer", the first report).
+  if (!plan.splats.empty() || !plan.splat_tileset.empty())
+    report("splatRasterizer", splats::splat_rasterizer_name(plan.options.splat_rasterizer.value_or(
+                                  splats::default_splat_rasterizer(*main.resource<GpuContext>()))));
   report("renderer", renderer);
   StatsPanel panel(renderer);
   auto report_adapter = [&] {

@@ -7,9 +7,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <numeric>
 #include <random>
+#include <thread>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
@@ -246,11 +248,17 @@ Difference compare(const gpu::Image& image, const std::vector<glm::dvec3>& refer
   return d;
 }
 
+// What the tile rasterizer's pair buffers did in draw_and_compare.
+struct PairStats {
+  uint32_t capacity = 0;  // after the frame
+  uint64_t overflowed_frames = 0;
+};
+
 // Draws `set` alone over the background and compares it with the reference renderer.
 Difference draw_and_compare(gpu::Context& ctx, const io::SplatSet& set, const Camera& camera,
                             uint32_t* visible,
-                            splats::SplatRasterizer rasterizer = splats::SplatRasterizer::Quads) {
-  const uint32_t w = 200, h = 150;
+                            splats::SplatRasterizer rasterizer = splats::SplatRasterizer::Quads,
+                            uint32_t w = 200, uint32_t h = 150, PairStats* pairs = nullptr) {
   const glm::dvec3 background(0.1, 0.2, 0.3);
   auto pipelines = splats::create_splat_pipelines(ctx, WGPUTextureFormat_RGBA8Unorm);
   auto gpu_splats = splats::upload_splats(ctx, set);
@@ -259,6 +267,10 @@ Difference draw_and_compare(gpu::Context& ctx, const io::SplatSet& set, const Ca
                       target.color_view.get(), w, h, nullptr, nullptr, false, rasterizer);
   gpu::Image image = gpu::read_texture(ctx, target.color.get(), w, h, WGPUTextureFormat_RGBA8Unorm);
   *visible = splats::read_visible_count(ctx, gpu_splats);
+  if (pairs) {
+    pairs->capacity = splats::tile_pair_capacity(gpu_splats);
+    pairs->overflowed_frames = gpu_splats.pair_counts.overflowed_frames;
+  }
   Difference d = compare(image, render_reference(set, camera, w, h, background), background, 4);
   std::printf("visible %u of %zu, covered %.3f, mean |diff| %.3f levels, within 4: %.4f, max %d\n",
               *visible, set.size(), d.covered, d.mean, d.within, d.max);
@@ -290,6 +302,121 @@ TEST_P(Splats, TileRasterizerMatchesTheCpuReference) {
                                   splats::SplatRasterizer::Tiles);
   EXPECT_EQ(visible, 300u);
   expect_close(d);
+}
+
+// A close-up: a few hundred large, faint splats around the camera's target, each covering much
+// of a 320x240 view (300 tiles): about 250 tiles a splat, 60 times the first guess of 4, and
+// over its floor of 65536 pairs.
+io::SplatSet close_up_splats(size_t n, uint32_t seed) {
+  io::SplatSet set = random_splats(n, seed);
+  std::mt19937 rng(seed + 100);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (size_t i = 0; i < n; ++i) {
+    set.positions[i] *= 0.5f;
+    set.scales[i] = {0.4f + 0.4f * u(rng), 0.4f + 0.4f * u(rng), 0.1f + 0.2f * u(rng)};
+    set.opacities[i] = 0.02f + 0.08f * u(rng);  // faint: every layer shows through
+  }
+  return set;
+}
+
+TEST_P(Splats, TileRasterizerDrawsEverySplatOfACloseUp) {
+  // The (tile, splat) pairs of the frame far exceed the buffers' first capacity: the frame is
+  // drawn again once they have grown (draw_splats waits for its pair count), and matches the
+  // reference. Dropped pairs would leave splats out of their tiles.
+  const io::SplatSet set = close_up_splats(400, 21);
+  Camera camera;
+  camera.look_at({0.2, 0.3, 2.5}, {0.0, 0.0, 0.0});
+  camera.fov_y = glm::radians(50.0);
+  uint32_t visible = 0;
+  PairStats pairs;
+  Difference d = draw_and_compare(*ctx, set, camera, &visible, splats::SplatRasterizer::Tiles, 320,
+                                  240, &pairs);
+  std::printf("pair capacity %u, frames over it %llu\n", pairs.capacity,
+              static_cast<unsigned long long>(pairs.overflowed_frames));
+  EXPECT_EQ(visible, 400u);
+  EXPECT_GT(d.covered, 0.9);  // the splats fill the view
+  expect_close(d);
+  EXPECT_EQ(pairs.overflowed_frames, 1u);  // the first frame, drawn again
+  EXPECT_GT(pairs.capacity, 400u * 100);   // grew past 4 a splat (and the 65536 floor)
+}
+
+TEST_P(Splats, TilePairsGrowWithoutWaiting) {
+  // The interactive path: frames through the graph, never waited for; the pair counts come back
+  // later (settle_tile_pairs without waiting, as the plugin calls it before each frame) and the
+  // buffers grow before the next frame, which is then whole.
+  const io::SplatSet set = close_up_splats(400, 21);
+  Camera camera;
+  camera.look_at({0.2, 0.3, 2.5}, {0.0, 0.0, 0.0});
+  camera.fov_y = glm::radians(50.0);
+  const uint32_t w = 320, h = 240;
+  auto pipelines = splats::create_splat_pipelines(*ctx, WGPUTextureFormat_RGBA8Unorm);
+  auto gpu_splats = splats::upload_splats(*ctx, set);
+  Target target = make_target(*ctx, w, h, glm::dvec3(0.0), 0.0f);
+  gpu::TransientPool pool;
+  auto frame = [&] {
+    gpu::RenderGraph graph;
+    graph.import_texture("color", target.color.get(), target.color_view.get(),
+                         {w, h, WGPUTextureFormat_RGBA8Unorm, WGPUTextureUsage_RenderAttachment},
+                         gpu::Access::Writable);
+    splats::SplatPassTargets targets;
+    targets.depth.clear();
+    targets.rasterizer = splats::SplatRasterizer::Tiles;
+    splats::add_splat_passes(graph, pipelines, gpu_splats, camera, w, h, targets);
+    graph.execute(*ctx, pool);
+    ctx->check("tile frame");
+  };
+  frame();
+  const uint32_t first = splats::tile_pair_capacity(gpu_splats);
+  EXPECT_EQ(first, 65536u);  // 4 a splat, at least 65536
+  // Until the first frame's count has come back (no call waits; the bound is generous).
+  bool grew = false;
+  for (int i = 0; i < 60000 && !grew; ++i) {
+    grew = splats::settle_tile_pairs(*ctx, gpu_splats, false);
+    if (!grew) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  EXPECT_TRUE(grew);
+  frame();
+  EXPECT_GT(splats::tile_pair_capacity(gpu_splats), first);
+  // The second frame fit: nothing more to grow.
+  EXPECT_FALSE(splats::settle_tile_pairs(*ctx, gpu_splats, true));
+  EXPECT_EQ(gpu_splats.pair_counts.overflowed_frames, 1u);
+}
+
+TEST_P(Splats, TilePairsPastTheLimitKeepTheNearestSplats) {
+  // The close-up's splats and, nearest the camera, a small opaque green one; the pair buffers
+  // may hold 70000 pairs (a lowered limit), the frame wants about 110000: the capacity stops at
+  // the limit, the frame is not redrawn for ever, and the pairs left out are the farthest
+  // splats', so the green one shows.
+  io::SplatSet set = close_up_splats(400, 21);
+  set.positions.push_back({0.0f, 0.0f, 1.2f});
+  set.scales.push_back({0.03f, 0.03f, 0.03f});
+  set.rotations.push_back({0, 0, 0, 1});
+  set.opacities.push_back(1.0f);
+  set.sh_dc.push_back((glm::vec3(0, 1, 0) - 0.5f) / float(kSH0));
+  set.sh_rest.resize(set.sh_rest.size() + set.rest_count(), glm::vec3(0.0f));
+  Camera camera;
+  camera.look_at({0.0, 0.0, 2.5}, {0.0, 0.0, 0.0});
+  camera.fov_y = glm::radians(50.0);
+  const uint32_t w = 320, h = 240;
+  auto pipelines = splats::create_splat_pipelines(*ctx, WGPUTextureFormat_RGBA8Unorm);
+  auto gpu_splats = splats::upload_splats(*ctx, set);
+  gpu_splats.pair_counts.max_capacity = 70000;
+  Target target = make_target(*ctx, w, h, glm::dvec3(0.0), 0.0f);
+  splats::draw_splats(*ctx, pipelines, gpu_splats, camera, target.color.get(),
+                      target.color_view.get(), w, h, nullptr, nullptr, false,
+                      splats::SplatRasterizer::Tiles);
+  EXPECT_EQ(splats::tile_pair_capacity(gpu_splats), 70000u);
+  EXPECT_GT(gpu_splats.pair_counts.needed, 70000u);
+  EXPECT_TRUE(gpu_splats.pair_counts.warned);
+  // Drawn again once, grown to the limit; that frame overflowed too, with nothing more to grow.
+  EXPECT_FALSE(splats::settle_tile_pairs(*ctx, gpu_splats, true));
+  EXPECT_EQ(gpu_splats.pair_counts.overflowed_frames, 2u);
+  gpu::Image image =
+      gpu::read_texture(*ctx, target.color.get(), w, h, WGPUTextureFormat_RGBA8Unorm);
+  const uint8_t* centre = &image.rgba[(size_t(h / 2) * w + w / 2) * 4];
+  EXPECT_GT(centre[1], 200) << "the nearest splat is drawn";
+  EXPECT_LT(centre[0], 60);
+  EXPECT_LT(centre[2], 60);
 }
 
 TEST_P(Splats, TransformedSetMatchesTheReference) {

@@ -7,7 +7,8 @@
 //
 // The scene: splats uniform in a 20 x 10 x 20 box, scales log-uniform in [0.005, 0.05] (a few
 // pixels each at 1080p, as in captured scenes), random rotations, opacities and SH, seen from
-// outside the box so most are in view.
+// outside the box so most are in view (--view far), or from inside it (--view close: a close-up
+// whose nearest splats cover many 16x16 tiles each).
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -39,6 +40,7 @@ struct BenchSplatsArgs {
   std::string json;
   uint32_t seed = 1;
   std::string rasterizer = "both";
+  std::string view = "far";
 };
 
 io::SplatSet generate_splats(uint32_t n, int sh_degree, uint32_t seed) {
@@ -81,7 +83,10 @@ void run_bench_splats(const BenchSplatsArgs& args) {
   }
   Camera camera;
   camera.fov_y = glm::radians(60.0);
-  camera.look_at({0.0, 6.0, 24.0}, {0.0, 0.0, 0.0});
+  if (args.view == "close")
+    camera.look_at({0.0, 0.5, 2.0}, {0.0, 0.0, 0.0});  // inside the box: near splats are large
+  else
+    camera.look_at({0.0, 6.0, 24.0}, {0.0, 0.0, 0.0});
   const WGPUTextureFormat format = WGPUTextureFormat_RGBA8Unorm;
   gpu::Texture color = gpu::create_texture_2d(*ctx, width, height, format,
                                               WGPUTextureUsage_RenderAttachment, "bench-color");
@@ -157,6 +162,15 @@ void run_bench_splats(const BenchSplatsArgs& args) {
   report["height"] = height;
   report["frames"] = args.frames;
   report["visible"] = visible;
+  report["view"] = args.view;
+  // The tile rasterizer's (tile, splat) pair capacity after the frames (grown from 4 a splat to
+  // 1.5 times the most a frame wanted).
+  const uint32_t pair_capacity = splats::tile_pair_capacity(gpu_splats);
+  const uint32_t most_pairs = gpu_splats.pair_counts.most;
+  if (pair_capacity) {
+    report["tile_pair_capacity"] = pair_capacity;
+    report["tile_pairs_most"] = most_pairs;
+  }
   std::string table;
   double frame = 0, sort_frame = 0;
   for (Variant& v : variants) {
@@ -197,6 +211,9 @@ void run_bench_splats(const BenchSplatsArgs& args) {
       ctx->description.graphics_api.c_str(), args.count, args.sh, width, height, visible,
       args.frames, table.c_str(), sort_frame > 0 ? visible / (sort_frame * 1e-3) * 1e-6 : 0.0,
       sort_alone > 0 ? args.count / (sort_alone * 1e-3) * 1e-6 : 0.0);
+  if (pair_capacity)
+    std::printf("tile pairs: at most %u a frame (%.1f a visible splat), capacity %u\n", most_pairs,
+                double(most_pairs) / std::max(1u, visible), pair_capacity);
   if (frame == 0) std::printf("\n(no timestamp queries on this adapter: no GPU times)\n");
   if (!args.json.empty()) write_file_atomically(args.json, report.dump(2) + "\n");
 }
@@ -221,9 +238,14 @@ void add_bench_splats_command(CLI::App& bench) {
       ->capture_default_str();
   cmd->add_option("--backend", args->backend, "WebGPU implementation: dawn or wgpu")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
-  cmd->add_option("--rasterizer", args->rasterizer,
+  cmd->add_option("--rasterizer,--splat-rasterizer", args->rasterizer,
                   "quads (sorted instanced quads), tiles (16x16 tiles in compute) or both")
       ->check(CLI::IsMember({"quads", "tiles", "both"}))
+      ->capture_default_str();
+  cmd->add_option("--view", args->view,
+                  "far (the box from outside: splats a few pixels each) or close (the camera "
+                  "inside the box: near splats cover many tiles)")
+      ->check(CLI::IsMember({"far", "close"}))
       ->capture_default_str();
   cmd->add_option("--json", args->json, "Write the results as JSON");
   cmd->callback([args] { run_bench_splats(*args); });

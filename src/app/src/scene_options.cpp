@@ -65,6 +65,19 @@ void add_scene_options(CLI::App* cmd, SceneOptions& options) {
                   "Splat tilesets: draw at most this many splats (0: no limit); coarser tiles "
                   "where the view wants more")
       ->capture_default_str();
+  cmd->add_option_function<std::string>(
+         "--splat-rasterizer",
+         [&options](const std::string& v) {
+           options.splat_rasterizer =
+               v == "auto"
+                   ? std::nullopt
+                   : std::optional<splats::SplatRasterizer>(splats::parse_splat_rasterizer(v));
+         },
+         "Gaussian splats: auto (tiles on a GPU, quads on a CPU adapter: the faster there), "
+         "quads (sorted instanced quads, fixed-function blending) or tiles (16x16 tiles in "
+         "compute, f32 blending)")
+      ->check(CLI::IsMember({"auto", "quads", "tiles"}))
+      ->default_str("auto");
   auto* sun_time = cmd->add_option_function<std::string>(
       "--sun-time",
       [&options](const std::string& v) {

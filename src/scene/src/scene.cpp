@@ -421,6 +421,7 @@ void add_splat_plugin(Engine& engine, const ScenePlan& plan) {
   splats::SplatPlugin plugin;
   plugin.sets = plan.splats;
   plugin.settings.background = plan.options.render.background;
+  plugin.settings.rasterizer = plan.options.splat_rasterizer;
   engine.add_plugin(std::move(plugin));
   if (plan.splat_tileset.empty()) return;
   // The streamed tileset: tiles3d packs the drawn tiles into one set (StreamedSplats), which one

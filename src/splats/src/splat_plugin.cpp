@@ -103,7 +103,7 @@ void queue_splats(Registry& render) {
         .write("color");
   }
   SplatPassTargets targets;
-  targets.rasterizer = settings.rasterizer;
+  targets.rasterizer = settings.rasterizer.value_or(default_splat_rasterizer(ctx));
   if (!settings.depth_test || !graph_has(fg.graph, "depth")) targets.depth.clear();
   uint32_t index = 0;
   render.view<RenderSplats>().each([&](RenderSplats& r) {
@@ -111,6 +111,13 @@ void queue_splats(Registry& render) {
     Camera camera = to_camera(*extracted);
     camera.position -= r.translation;
     targets.name = index == 0 ? "splat" : "splat" + std::to_string(index);
+    if (targets.rasterizer == SplatRasterizer::Tiles) {
+      // Earlier frames' tile pair counts that have come back grow the buffers before this one
+      // (never waited for); a kept frame waits for its own and is drawn again if it lost pairs.
+      settle_tile_pairs(ctx, *r.gpu, false);
+      fg.redraw_checks.push_back(
+          [g = r.gpu.get()](gpu::Context& c) { return settle_tile_pairs(c, *g, true); });
+    }
     add_splat_passes(fg.graph, *cache.pipelines, *r.gpu, camera, target.width, target.height,
                      targets);
     ++index;
@@ -125,6 +132,18 @@ Aabb splat_bounds(const io::SplatSet& set) {
   const glm::dvec3 translation(set.transform[3]);
   for (const auto& p : set.positions) box.extend(linear * glm::dvec3(p) + translation);
   return box;
+}
+
+bool splat_frames_incomplete(Engine& engine) {
+  engine.wait_for_render();
+  Registry& render = engine.render();
+  const auto* gpu = render.try_resource<GpuContext>();
+  if (!gpu) return false;
+  bool grew = false;
+  render.view<RenderSplats>().each([&](RenderSplats& r) {
+    if (r.gpu) grew = settle_tile_pairs(**gpu, *r.gpu, false) || grew;
+  });
+  return grew;
 }
 
 void SplatPlugin::build(Engine& engine) {

@@ -11,6 +11,7 @@
 #include <glm/matrix.hpp>
 
 #include "stipple/core/error.hpp"
+#include "stipple/core/log.hpp"
 #include "stipple/renderer/shader_preprocessor.hpp"
 
 namespace stipple::splats {
@@ -212,9 +213,29 @@ void ensure_tile_pipelines(gpu::Context& ctx, SplatPipelines& p) {
   ctx.check("creating the splat tile pipelines");
 }
 
+// The most (tile, splat) pairs one frame's buffers may hold on this device (a u32 a pair in
+// one storage binding), or the set's lower bound (TilePairCounts::max_capacity).
+uint64_t max_pair_capacity(const gpu::Context& ctx, const GpuSplats& s) {
+  const uint64_t device = std::min<uint64_t>(
+      {std::min<uint64_t>(ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize) / 4,
+       uint64_t(UINT32_MAX / 2)});
+  return s.pair_counts.max_capacity ? std::min<uint64_t>(device, s.pair_counts.max_capacity)
+                                    : device;
+}
+
+// Room for each splat to touch four tiles on average, or 1.5 times the most pairs a frame
+// wanted (a close-up's large splats touch many more), within the device's limit.
+uint32_t wanted_pair_capacity(const gpu::Context& ctx, const GpuSplats& s) {
+  const uint64_t want =
+      std::max<uint64_t>({uint64_t(s.count) * 4, 1 << 16, uint64_t(s.pair_counts.needed) * 3 / 2});
+  return uint32_t(std::min(want, max_pair_capacity(ctx, s)));
+}
+
 void ensure_tile_buffers(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& s, uint32_t width,
                          uint32_t height) {
-  if (s.tiles && s.tiles->width == width && s.tiles->height == height) return;
+  if (s.tiles && s.tiles->width == width && s.tiles->height == height &&
+      s.tiles->pair_capacity >= std::min<uint64_t>(s.pair_counts.needed, max_pair_capacity(ctx, s)))
+    return;
   auto t = std::make_unique<TileBuffers>();
   t->width = width;
   t->height = height;
@@ -223,16 +244,14 @@ void ensure_tile_buffers(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& 
   if (uint64_t(t->tiles_x) * t->tiles_y > 65536)
     fail("splats: the tile rasterizer sorts tiles by 16 bits: {}x{} has too many tiles", width,
          height);
-  // Room for each splat to touch four tiles on average; more pairs are dropped.
-  const uint64_t limit =
-      std::min<uint64_t>(ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize) / 4;
-  t->pair_capacity = uint32_t(std::min<uint64_t>(
-      {std::max<uint64_t>(uint64_t(s.count) * 4, 1 << 16), limit, uint64_t(UINT32_MAX / 2)}));
+  t->pair_capacity = wanted_pair_capacity(ctx, s);
   const uint32_t blocks = (s.count + kScanBlock - 1) / kScanBlock;
   t->scan = gpu::create_buffer(ctx, (uint64_t(s.count) + blocks + 1) * 4, WGPUBufferUsage_Storage,
                                "splat-tile-scan");
-  t->tile_data = gpu::create_buffer(ctx, (1 + 2 * uint64_t(t->tiles_x) * t->tiles_y) * 4,
-                                    WGPUBufferUsage_Storage, "splat-tile-ranges");
+  // The pairs kept, each tile's range, the pairs wanted (copied out: TilePairCounts).
+  t->tile_data =
+      gpu::create_buffer(ctx, (2 + 2 * uint64_t(t->tiles_x) * t->tiles_y) * 4,
+                         WGPUBufferUsage_Storage | WGPUBufferUsage_CopySrc, "splat-tile-ranges");
   t->pixels = gpu::create_buffer(ctx, uint64_t(width) * height * 16, WGPUBufferUsage_Storage,
                                  "splat-tile-pixels");
   t->params =
@@ -254,6 +273,33 @@ void ensure_tile_buffers(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& 
       {gpu::bind_buffer(0, s.frame_uniforms.get()), gpu::bind_buffer(1, t->pixels.get())},
       "splat-composite");
   s.tiles = std::move(t);
+}
+
+constexpr uint32_t kPairSlots = 3;  // frames whose pair totals may be on their way at once
+
+// The frame's pair total into a free readback slot (none free: this frame goes unread; a later
+// one tells the same).
+void copy_pair_total(gpu::Context& ctx, WGPUCommandEncoder encoder, GpuSplats& s) {
+  TilePairCounts& counts = s.pair_counts;
+  if (counts.slots.empty()) {
+    for (uint32_t i = 0; i < kPairSlots; ++i) {
+      TilePairCounts::Slot slot;
+      slot.readback = gpu::create_buffer(ctx, 4, WGPUBufferUsage_MapRead | WGPUBufferUsage_CopyDst,
+                                         "splat-tile-pairs-readback");
+      slot.phase = std::make_shared<PairSlotPhase>(PairSlotPhase::Free);
+      counts.slots.push_back(std::move(slot));
+    }
+  }
+  for (auto& slot : counts.slots) {
+    if (*slot.phase != PairSlotPhase::Free) continue;
+    const TileBuffers& t = *s.tiles;
+    const uint64_t offset = (1 + 2 * uint64_t(t.tiles_x) * t.tiles_y) * 4;
+    wgpuCommandEncoderCopyBufferToBuffer(encoder, t.tile_data.get(), offset, slot.readback.get(), 0,
+                                         4);
+    slot.capacity = t.pair_capacity;
+    *slot.phase = PairSlotPhase::Copied;
+    return;
+  }
 }
 
 // The tile rasterizer's passes after the projection and depth sort (see splats.hpp).
@@ -283,6 +329,7 @@ void add_tile_passes(gpu::RenderGraph& graph, SplatPipelines* pp, GpuSplats* sp,
                   gpu::dispatch(pass.get(), pp->tile_block_apply.get(), {g}, bx, by);
                   gpu::dispatch(pass.get(), pp->tile_emit.get(), {g}, sx, sy);
                   wgpuComputePassEncoderEnd(pass.get());
+                  copy_pair_total(ctx, pc.encoder(), *sp);
                 })
       .write(projected);
   graph
@@ -320,6 +367,11 @@ void add_tile_passes(gpu::RenderGraph& graph, SplatPipelines* pp, GpuSplats* sp,
       });
   raster.write(projected);
   if (depth_test) raster.read(targets.depth);
+}
+
+// The tile rasterizer's last pass: its pixels laid over the frame.
+void add_tile_composite(gpu::RenderGraph& graph, SplatPipelines* pp, GpuSplats* sp,
+                        const SplatPassTargets& targets, const std::string& projected) {
   graph
       .add_pass(targets.name + "-composite", gpu::PassKind::Render,
                 [pp, sp, targets](gpu::PassContext& pc) {
@@ -330,12 +382,40 @@ void add_tile_passes(gpu::RenderGraph& graph, SplatPipelines* pp, GpuSplats* sp,
       .write(targets.color);
 }
 
+std::string projected_name(const SplatPassTargets& targets) {
+  return targets.name + "s-projected";
+}
+
+void import_projected(gpu::RenderGraph& graph, const GpuSplats& s,
+                      const SplatPassTargets& targets) {
+  graph.import_buffer(projected_name(targets), s.projected.get(),
+                      {uint64_t(s.count) * kProjectedBytes, WGPUBufferUsage_Storage},
+                      gpu::Access::Writable);
+}
+
+// Which of the tile rasterizer's passes add_splat_passes_to adds.
+enum class TilePart { All, BeforeComposite };
+
 }  // namespace
 
 SplatRasterizer parse_splat_rasterizer(const std::string& name) {
   if (name == "quads") return SplatRasterizer::Quads;
   if (name == "tiles") return SplatRasterizer::Tiles;
   fail("unknown splat rasterizer '{}' (quads or tiles)", name);
+}
+
+const char* splat_rasterizer_name(SplatRasterizer rasterizer) {
+  return rasterizer == SplatRasterizer::Tiles ? "tiles" : "quads";
+}
+
+SplatRasterizer default_splat_rasterizer(const gpu::Context& ctx) {
+  // Tiles where the GPU has to blend much (on an H100, 6M splats of SH degree 3 at 1920x1080:
+  // quads 82 ms a frame, bound by blending; tiles 5.8 ms). On a CPU adapter the tiles' compute
+  // passes cost more than the rasterizer's blending: lavapipe, 200k splats of SH degree 3 at
+  // 1280x720 (`stipple bench splats --count 200000 --sh 3 --size 1280x720 --frames 10`), quads
+  // 382-744 ms a frame against tiles 984-1752 ms (wgpu and Dawn, 2 shared cores), and at a
+  // close-up (--view close) 255-329 ms against 714-936 ms: quads there.
+  return gpu::is_cpu_adapter(ctx.description) ? SplatRasterizer::Quads : SplatRasterizer::Tiles;
 }
 
 GpuSplats upload_splats(gpu::Context& ctx, const io::SplatSet& set) {
@@ -426,17 +506,17 @@ SplatPipelines create_splat_pipelines(gpu::Context& ctx, WGPUTextureFormat color
   return p;
 }
 
-void add_splat_passes(gpu::RenderGraph& graph, SplatPipelines& p, GpuSplats& s,
-                      const Camera& camera, uint32_t width, uint32_t height,
-                      const SplatPassTargets& targets) {
+namespace {
+
+void add_splat_passes_to(gpu::RenderGraph& graph, SplatPipelines& p, GpuSplats& s,
+                         const Camera& camera, uint32_t width, uint32_t height,
+                         const SplatPassTargets& targets, TilePart part) {
   if (s.count == 0) return;
   SplatPipelines* pp = &p;
   GpuSplats* sp = &s;
   auto frame = std::make_shared<FrameUniforms>(make_frame(s, camera, width, height));
-  const std::string projected = targets.name + "s-projected";
-  graph.import_buffer(projected, s.projected.get(),
-                      {uint64_t(s.count) * kProjectedBytes, WGPUBufferUsage_Storage},
-                      gpu::Access::Writable);
+  const std::string projected = projected_name(targets);
+  import_projected(graph, s, targets);
 
   graph
       .add_pass(targets.name + "-project", gpu::PassKind::Compute,
@@ -470,6 +550,7 @@ void add_splat_passes(gpu::RenderGraph& graph, SplatPipelines& p, GpuSplats& s,
   if (targets.rasterizer == SplatRasterizer::Tiles) {
     graph.add_prepare([pp](gpu::Context& ctx) { ensure_tile_pipelines(ctx, *pp); });
     add_tile_passes(graph, pp, sp, targets, projected, width, height);
+    if (part == TilePart::All) add_tile_composite(graph, pp, sp, targets, projected);
     return;
   }
   const bool depth_test = !targets.depth.empty();
@@ -502,6 +583,14 @@ void add_splat_passes(gpu::RenderGraph& graph, SplatPipelines& p, GpuSplats& s,
   if (depth_test) draw.read(targets.depth);
 }
 
+}  // namespace
+
+void add_splat_passes(gpu::RenderGraph& graph, SplatPipelines& p, GpuSplats& s,
+                      const Camera& camera, uint32_t width, uint32_t height,
+                      const SplatPassTargets& targets) {
+  add_splat_passes_to(graph, p, s, camera, width, height, targets, TilePart::All);
+}
+
 std::map<std::string, double> draw_splats(gpu::Context& ctx, SplatPipelines& p, GpuSplats& s,
                                           const Camera& camera, WGPUTexture color,
                                           WGPUTextureView color_view, uint32_t width,
@@ -521,7 +610,12 @@ std::map<std::string, double> draw_splats(gpu::Context& ctx, SplatPipelines& p, 
   } else {
     targets.depth.clear();
   }
-  add_splat_passes(graph, p, s, camera, width, height, targets);
+  // The tile rasterizer's frame in two submissions: all but the composite, drawn again (once its
+  // pair count is known) when it wanted more pairs than the buffers held; then the composite
+  // over `color`, which is drawn over only once.
+  const bool tiles = rasterizer == SplatRasterizer::Tiles && s.count > 0;
+  add_splat_passes_to(graph, p, s, camera, width, height, targets,
+                      tiles ? TilePart::BeforeComposite : TilePart::All);
   graph.compile();
   gpu::PassTimer* timer = nullptr;
   if (timed) {
@@ -531,9 +625,98 @@ std::map<std::string, double> draw_splats(gpu::Context& ctx, SplatPipelines& p, 
   }
   graph.execute(ctx, p.pool, timer);
   gpu::pool_end_frame(p.pool);
+  std::map<std::string, double> times;
+  if (tiles) {
+    // The second is whole unless the device's limit stopped the growth.
+    if (settle_tile_pairs(ctx, s, true)) {
+      graph.execute(ctx, p.pool, timer);
+      gpu::pool_end_frame(p.pool);
+    }
+    if (timer) times = graph.read_pass_times(ctx, *timer);
+    gpu::RenderGraph composite;
+    composite.import_texture("color", color, color_view,
+                             {width, height, p.color_format, WGPUTextureUsage_RenderAttachment},
+                             gpu::Access::Writable);
+    import_projected(composite, s, targets);
+    add_tile_composite(composite, &p, &s, targets, projected_name(targets));
+    composite.execute(ctx, p.pool, timer);
+    gpu::pool_end_frame(p.pool);
+    if (timer) times.merge(composite.read_pass_times(ctx, *timer));
+  }
   ctx.check("drawing splats");
-  if (!timer) return {};
+  if (!timer || tiles) return times;
   return graph.read_pass_times(ctx, *timer);
+}
+
+bool settle_tile_pairs(gpu::Context& ctx, GpuSplats& s, bool wait) {
+  TilePairCounts& counts = s.pair_counts;
+  // Frames recorded since the last call have been submitted by now: map their slots.
+  for (auto& slot : counts.slots) {
+    if (*slot.phase != PairSlotPhase::Copied) continue;
+    *slot.phase = PairSlotPhase::Mapping;
+    WGPUBufferMapCallbackInfo cb = WGPU_BUFFER_MAP_CALLBACK_INFO_INIT;
+    cb.mode = WGPUCallbackMode_AllowProcessEvents;
+    // The phase outlives the set if need be (a map pending when the buffer goes away is
+    // answered later, cancelled): the callback holds a reference of its own.
+    cb.userdata1 = new std::shared_ptr<PairSlotPhase>(slot.phase);
+    cb.callback = [](WGPUMapAsyncStatus status, WGPUStringView, void* userdata, void*) {
+      std::unique_ptr<std::shared_ptr<PairSlotPhase>> phase(
+          static_cast<std::shared_ptr<PairSlotPhase>*>(userdata));
+      **phase =
+          status == WGPUMapAsyncStatus_Success ? PairSlotPhase::Mapped : PairSlotPhase::Failed;
+    };
+    wgpuBufferMapAsync(slot.readback.get(), WGPUMapMode_Read, 0, 4, cb);
+  }
+  auto mapping = [&counts] {
+    return std::any_of(counts.slots.begin(), counts.slots.end(),
+                       [](const auto& slot) { return *slot.phase == PairSlotPhase::Mapping; });
+  };
+  if (counts.slots.empty()) return false;
+  if (wait) {
+    ctx.wait_until([&] { return !mapping() || ctx.lost; });
+  } else {
+#ifndef __EMSCRIPTEN__
+    ctx.poll(false);
+#endif
+  }
+  if (ctx.lost) fail("WebGPU device lost while reading the splat tile pairs back");
+  bool grew = false;
+  const uint64_t limit = max_pair_capacity(ctx, s);
+  for (auto& slot : counts.slots) {
+    if (*slot.phase == PairSlotPhase::Failed) {
+      *slot.phase = PairSlotPhase::Free;  // a cancelled map: that frame goes unread
+      continue;
+    }
+    if (*slot.phase != PairSlotPhase::Mapped) continue;
+    uint32_t total = 0;
+    const void* mapped = wgpuBufferGetConstMappedRange(slot.readback.get(), 0, 4);
+    if (mapped) std::memcpy(&total, mapped, 4);
+    wgpuBufferUnmap(slot.readback.get());
+    *slot.phase = PairSlotPhase::Free;
+    counts.most = std::max(counts.most, total);
+    if (total <= slot.capacity) continue;
+    ++counts.overflowed_frames;
+    if (total > limit && !counts.warned) {
+      STIPPLE_WARN(
+          "splats: a frame wants {} (tile, splat) pairs, over this device's limit of {}: the "
+          "farthest splats' pairs are left out in such frames (the quads rasterizer draws them "
+          "all)",
+          total, limit);
+      counts.warned = true;
+    }
+    if (total > counts.needed && total <= limit)
+      STIPPLE_INFO(
+          "splats: a frame wanted {} (tile, splat) pairs, {} a splat: the tile buffers grow", total,
+          double(total) / std::max(1u, s.count));
+    counts.needed = std::max(counts.needed, total);
+    // The next frame's buffers hold at least this many (ensure_tile_buffers).
+    grew = grew || slot.capacity < std::min<uint64_t>(total, limit);
+  }
+  return grew;
+}
+
+uint32_t tile_pair_capacity(const GpuSplats& s) {
+  return s.tiles ? s.tiles->pair_capacity : 0;
 }
 
 uint32_t read_visible_count(gpu::Context& ctx, const GpuSplats& s) {

@@ -82,6 +82,12 @@ struct FrameGraph {
   std::string dump_path;              // write the first frame's graph as DOT
   bool executed = false;              // this frame
   bool timed = false;                 // this frame's passes are being timed
+  // This frame's checks that it is whole, added by Queue systems (cleared each frame). They run
+  // only in a frame that is captured (a screenshot, CapturedFrame, FrameCapture), once it is
+  // read back, and may wait for the GPU: one that returns true found the frame incomplete (a
+  // buffer too small for what it drew, grown since) and the graph runs again, untimed, and is
+  // read again (at most twice). Frames not captured never wait for them.
+  std::vector<std::function<bool(gpu::Context&)>> redraw_checks;
 };
 
 // Render-world resource: statistics of the frames drawn so far.

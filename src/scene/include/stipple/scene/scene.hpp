@@ -24,6 +24,7 @@
 #include "stipple/pointcloud/point_renderer.hpp"
 #include "stipple/renderer/gpu.hpp"
 #include "stipple/scene/filter_args.hpp"
+#include "stipple/splats/splats.hpp"
 
 namespace stipple {
 class Engine;
@@ -51,6 +52,8 @@ struct SceneOptions {
   double max_sse = 0;
   uint64_t memory_mb = 512;   // streamed sources: resident tile memory budget
   uint64_t splat_budget = 0;  // a streamed splat tileset: at most this many splats drawn (0: any)
+  // Splats: quads or tiles; empty: the device's faster one (splats::default_splat_rasterizer).
+  std::optional<splats::SplatRasterizer> splat_rasterizer;
   // Point clouds larger than the in-memory path's budget (or with --virtual) are drawn from a
   // pointlet cache (pc::VirtualPointCloudPlugin, seed 002).
   bool force_virtual = false;

@@ -7,6 +7,7 @@
 // frame, clear the colour target to the background first and draw without a depth test.
 #include <array>
 #include <memory>
+#include <optional>
 #include <string_view>
 #include <vector>
 
@@ -33,12 +34,19 @@ struct SplatData {
 struct SplatDrawSettings {
   glm::vec3 background{0.07f, 0.08f, 0.1f};  // when no point pass draws the frame first
   bool depth_test = true;                    // against the points' depth, when there is one
-  SplatRasterizer rasterizer = SplatRasterizer::Quads;
+  // Empty: the device's faster one (default_splat_rasterizer).
+  std::optional<SplatRasterizer> rasterizer;
 };
 
 // The world-space bounds of the splats' centres (through the set's transform), for framing a
 // camera.
 Aabb splat_bounds(const io::SplatSet& set);
+
+// Whether a frame drawn earlier with the tile rasterizer wanted more (tile, splat) pairs than
+// its buffers held, which have grown since (settle_tile_pairs): one more frame draws every
+// splat. Never waits for the GPU (only for a pipelined render world's frame); for a front end
+// that draws only when something changed (the web page), asked while it is idle.
+bool splat_frames_incomplete(Engine& engine);
 
 struct SplatPlugin {
   static constexpr std::string_view name = "SplatPlugin";

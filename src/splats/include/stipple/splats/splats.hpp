@@ -17,6 +17,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "stipple/io/splats.hpp"
 #include "stipple/math/camera.hpp"
@@ -27,19 +28,47 @@
 
 namespace stipple::splats {
 
-// Quads: sorted instanced quads blended by the fixed-function blender (the default). Tiles: the
-// reference's 16x16 tiles in compute (each tile's splats in depth order through a second, stable
-// sort by tile), blended front to back in f32 with early termination, then laid over the frame.
+// Quads: sorted instanced quads blended by the fixed-function blender. Tiles: the reference's
+// 16x16 tiles in compute (each tile's splats in depth order through a second, stable sort by
+// tile), blended front to back in f32 with early termination, then laid over the frame. The
+// plugin, render, view and the web page draw with the device's faster one unless told
+// (default_splat_rasterizer: tiles on a GPU, quads on a CPU adapter).
 enum class SplatRasterizer { Quads, Tiles };
 SplatRasterizer parse_splat_rasterizer(const std::string& name);
+const char* splat_rasterizer_name(SplatRasterizer rasterizer);
+// The faster of the two on this device (what the plugin draws with unless told): see the figures
+// in splats.cpp.
+SplatRasterizer default_splat_rasterizer(const gpu::Context& ctx);
 
-// The tile rasterizer's per-set buffers (made on its first frame, remade when the size changes).
+// The tile rasterizer's per-set buffers (made on its first frame, remade when the size changes
+// or a frame wanted more (tile, splat) pairs than they hold).
 struct TileBuffers {
   uint32_t width = 0, height = 0, tiles_x = 0, tiles_y = 0;
-  uint32_t pair_capacity = 0;  // (tile, splat) pairs a frame; more are dropped
+  // (tile, splat) pairs a frame holds: at first 4 a splat, then 1.5 times the most a frame
+  // wanted (TilePairCounts), up to the device's binding limit. A frame that wants more keeps
+  // the nearest splats' pairs.
+  uint32_t pair_capacity = 0;
   gpu::Buffer scan, tile_data, pixels, params;
   RadixSortBuffers sort;  // pairs by tile
   gpu::BindGroup binning, composite;
+};
+
+// The pairs each tile frame wanted, read back without waiting: the binning pass copies its
+// total into a free slot of a small ring of mappable buffers, mapped once the frame is submitted
+// and read a frame or more later (settle_tile_pairs), as gpu::PassTimerRing reads times.
+enum class PairSlotPhase { Free, Copied, Mapping, Mapped, Failed };
+struct TilePairCounts {
+  struct Slot {
+    gpu::Buffer readback;  // 4 bytes, MapRead | CopyDst
+    std::shared_ptr<PairSlotPhase> phase;
+    uint32_t capacity = 0;  // the frame's pair capacity
+  };
+  std::vector<Slot> slots;
+  uint32_t needed = 0;             // the most pairs a frame wanted over its capacity
+  uint32_t most = 0;               // the most pairs a frame wanted (every frame read back)
+  uint64_t overflowed_frames = 0;  // frames that wanted more pairs than they held
+  bool warned = false;             // past the device's limit (said once)
+  uint32_t max_capacity = 0;       // a limit below the device's (0: none; tests lower it)
 };
 
 // One splat set on the GPU, with the buffers its frames use (sized for every splat visible).
@@ -56,6 +85,7 @@ struct GpuSplats {
   RadixSortBuffers sort;
   gpu::BindGroup project_group, draw_group;  // made on first draw
   std::unique_ptr<TileBuffers> tiles;        // SplatRasterizer::Tiles
+  TilePairCounts pair_counts;                // SplatRasterizer::Tiles
 };
 
 // Uploads a set (positions relative to its centre, rotations, scales and SH as f16). Throws
@@ -109,7 +139,9 @@ void add_splat_passes(gpu::RenderGraph& graph, SplatPipelines& pipelines, GpuSpl
 // Records and submits one frame of the set alone over `color` (kept, not cleared) and, when
 // given, depth-tested against `depth` (a Depth32Float view, kept). For tests and benchmarks:
 // returns the passes' GPU milliseconds from timestamp queries (waits for the frame), empty
-// where the adapter has none or `timed` is off.
+// where the adapter has none or `timed` is off. With the tile rasterizer the frame is whole: one
+// that wanted more pairs than the buffers held is drawn again once they have grown (waiting for
+// its pair count; settle_tile_pairs).
 std::map<std::string, double> draw_splats(gpu::Context& ctx, SplatPipelines& pipelines,
                                           GpuSplats& splats, const Camera& camera,
                                           WGPUTexture color, WGPUTextureView color_view,
@@ -120,5 +152,16 @@ std::map<std::string, double> draw_splats(gpu::Context& ctx, SplatPipelines& pip
 
 // Visible splats of the last executed frame (the draw's instance count; blocks).
 uint32_t read_visible_count(gpu::Context& ctx, const GpuSplats& splats);
+
+// Takes in the pair totals of the tile frames submitted so far that have come back (with
+// `wait`, every one is waited for first; without, nothing blocks). Returns whether one of them
+// wanted more pairs than its buffers held and the capacity has grown since (to 1.5 times that,
+// made by the next frame's binning pass), so that drawing the frame again draws every splat.
+// Past the device's limit the capacity stops there (a warning says so once) and this returns
+// false. Call it only between frames (every frame it reads was submitted).
+bool settle_tile_pairs(gpu::Context& ctx, GpuSplats& splats, bool wait);
+
+// The tile rasterizer's pair capacity (0 before its first frame); for tests and statistics.
+uint32_t tile_pair_capacity(const GpuSplats& splats);
 
 }  // namespace stipple::splats
