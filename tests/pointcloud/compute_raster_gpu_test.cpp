@@ -434,6 +434,29 @@ TEST_P(ComputeRaster, FallbackMatchesVisibilityBuffer) {
   EXPECT_LT(test::differing_fraction(fallback.image, automatic.image, 2), 0.01);
 }
 
+// Where a browser offers atomic-vec2u-min-max but its compiler refuses the 64-bit pass, the
+// frame is the fallback's (with a warning), not an error: here a device without 64-bit atomics
+// is told it has the feature, and its compiler (Dawn's, which lacks the extension) refuses the
+// pass. Devices with u64 atomics never try it.
+TEST_P(ComputeRaster, ARefusedVec2uPassDrawsWithTheFallback) {
+  auto ctx = context();
+  if (pc::has_visibility64(*ctx))
+    GTEST_SKIP() << "64-bit atomics as u64: the vec2u pass is not tried";
+  io::SceneParams scene;
+  scene.point_count = 100'000;
+  auto batched = pc::generate_batched_scene(scene, pc::SpatialOrder::Morton);
+  const uint32_t w = 160, h = 90;
+  Camera camera = frame_box(batched.world_bounds, double(w) / h);
+  auto plain = render_compute(*ctx, batched, camera, {}, w, h);
+  ctx->features.push_back(gpu::kFeatureAtomicVec2uMinMax);
+  ASSERT_TRUE(pc::has_visibility64(*ctx));
+  auto refused = render_compute(*ctx, batched, camera, {}, w, h);
+  EXPECT_FALSE(refused.visibility64);
+  EXPECT_FALSE(pc::has_visibility64(*ctx));  // not tried again
+  EXPECT_EQ(test::differing_fraction(plain.image, refused.image, 0), 0.0);
+  EXPECT_GT(test::coverage_stats(refused.image, kBlack, 0).coverage, 0.05);
+}
+
 TEST_P(ComputeRaster, SegmentsAndHqs) {
   auto ctx = context();
   io::SceneParams scene;

@@ -1,6 +1,7 @@
 #include "stipple/pointcloud/compute_raster.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -375,6 +376,10 @@ GpuBatchedCloud create_batched_storage(gpu::Context& ctx, uint64_t points, uint6
 }
 
 namespace {
+// Set once a browser's compiler refused the atomic<vec2u> pass: later pipelines and reports take
+// the fallback without trying again.
+std::atomic<bool> vec2u_refused{false};
+
 bool has_u64_atomics(const gpu::Context& ctx) {
   return ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_ShaderInt64)) &&
          ctx.has_feature(WGPUFeatureName(WGPUNativeFeature_ShaderInt64AtomicMinMax));
@@ -384,7 +389,8 @@ bool has_u64_atomics(const gpu::Context& ctx) {
 bool has_visibility64(const gpu::Context& ctx) {
   if (const char* env = std::getenv("STIPPLE_RASTER_FALLBACK"); env && *env && *env != '0')
     return false;
-  return has_u64_atomics(ctx) || ctx.has_feature(gpu::kFeatureAtomicVec2uMinMax);
+  return has_u64_atomics(ctx) ||
+         (ctx.has_feature(gpu::kFeatureAtomicVec2uMinMax) && !vec2u_refused.load());
 }
 
 ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
@@ -406,8 +412,22 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   // (bench/RESULTS.md, runs W-Y); STIPPLE_SHADER_CHECKS=on keeps the checks.
   constexpr bool trusted = true;
   const auto depth = depth_constants(kernel);
+  if (p.visibility_vec2u) {
+    // A browser's newer feature: should its compiler refuse the pass, the page still draws,
+    // with the fallback (said once).
+    try {
+      p.raster64 = make_compute(ctx, depth_shader(p, false), depth, trusted);
+    } catch (const Error& e) {
+      STIPPLE_WARN(
+          "the 64-bit depth pass (atomic<vec2u>) failed, drawing with the 32-bit "
+          "fallback: {}",
+          e.what());
+      p.visibility64 = p.visibility_vec2u = false;
+      vec2u_refused = true;
+    }
+  }
   if (p.visibility64) {
-    p.raster64 = make_compute(ctx, depth_shader(p, false), depth, trusted);
+    if (!p.raster64) p.raster64 = make_compute(ctx, depth_shader(p, false), depth, trusted);
     p.resolve = make_compute(ctx, "compute_raster_resolve.wgsl");
   } else {
     // wgpu-native lets the early test read the depth buffer through a second, plain binding
