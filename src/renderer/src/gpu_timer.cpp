@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "stipple/core/error.hpp"
+#include "stipple/renderer/staging.hpp"
 #include "webgpu_loader.hpp"
 
 namespace stipple::gpu {
@@ -119,23 +120,7 @@ void pass_timer_submitted(PassTimerRing& ring, PassTimer* timer, uint64_t frame,
   names.resize(timer->capacity);
   slot->frame = frame;
   slot->names = std::move(names);
-  slot->state->phase = Phase::Mapping;
-  WGPUBufferMapCallbackInfo cb = WGPU_BUFFER_MAP_CALLBACK_INFO_INIT;
-  cb.mode = WGPUCallbackMode_AllowProcessEvents;
-  // The state outlives the ring if need be: the callback holds a reference of its own (a map
-  // still pending when the buffer goes away is answered later, cancelled).
-  cb.userdata1 = new std::shared_ptr<PassTimerSlotState>(slot->state);
-  cb.callback = [](WGPUMapAsyncStatus status, WGPUStringView message, void* userdata, void*) {
-    std::unique_ptr<std::shared_ptr<PassTimerSlotState>> state(
-        static_cast<std::shared_ptr<PassTimerSlotState>*>(userdata));
-    if (status == WGPUMapAsyncStatus_Success) {
-      (*state)->phase = Phase::Mapped;
-    } else {
-      (*state)->phase = Phase::Failed;
-      (*state)->message = to_string(message);
-    }
-  };
-  wgpuBufferMapAsync(timer->readback.get(), WGPUMapMode_Read, 0, timer_bytes(*timer), cb);
+  map_async(timer->readback.get(), WGPUMapMode_Read, timer_bytes(*timer), slot->state);
 }
 
 uint32_t pass_times_in_flight(const PassTimerRing& ring) {
@@ -150,15 +135,8 @@ std::vector<FrameTimes> collect_pass_times(Context& ctx, PassTimerRing& ring, bo
     return std::any_of(ring.slots.begin(), ring.slots.end(),
                        [](const auto& slot) { return slot.state->phase == Phase::Mapping; });
   };
-  if (wait) {
-    ctx.wait_until([&] { return !mapping() || ctx.lost; });
-  } else {
-#ifndef __EMSCRIPTEN__
-    ctx.poll(false);
-#endif
-  }
   // (Uncaptured errors are left to the frame's own check, which names what it was doing.)
-  if (ctx.lost) fail("WebGPU device lost while reading pass times back");
+  settle_maps(ctx, wait, mapping, "pass times");
   // Oldest first; a frame still mapping stops the walk (a later one's times wait for it).
   std::vector<PassTimerRing::Slot*> order;
   for (auto& slot : ring.slots)

@@ -26,32 +26,23 @@ struct MapWait {
   std::string message;
 };
 
-void request_map(WGPUBuffer buffer, const std::shared_ptr<StagingSlotState>& state,
-                 WGPUMapMode mode, uint64_t size) {
-  WGPUBufferMapCallbackInfo cb = WGPU_BUFFER_MAP_CALLBACK_INFO_INIT;
-  cb.mode = WGPUCallbackMode_AllowProcessEvents;
-  // The state outlives the callback: the slot keeps it, and so does the callback's reference.
-  auto* keep = new std::shared_ptr<StagingSlotState>(state);
-  cb.callback = [](WGPUMapAsyncStatus status, WGPUStringView message, void* userdata, void*) {
-    std::unique_ptr<std::shared_ptr<StagingSlotState>> state(
-        static_cast<std::shared_ptr<StagingSlotState>*>(userdata));
-    if (status == WGPUMapAsyncStatus_Success) {
-      (*state)->phase = Phase::Mapped;
-    } else {
-      (*state)->phase = Phase::Failed;
-      (*state)->message = to_string(message);
-    }
-  };
-  cb.userdata1 = keep;
-  state->phase = Phase::Mapping;
-  wgpuBufferMapAsync(buffer, mode, 0, size, cb);
-}
-
 void request_map(StagingRing::Slot& slot, uint64_t size) {
-  request_map(slot.buffer.get(), slot.state, WGPUMapMode_Write, size);
+  map_async(slot.buffer.get(), WGPUMapMode_Write, size, slot.state);
 }
 
 }  // namespace
+
+void settle_maps(Context& ctx, bool wait, const std::function<bool()>& mapping,
+                 std::string_view what) {
+  if (wait) {
+    ctx.wait_until([&] { return !mapping() || ctx.lost; });
+  } else {
+#ifndef __EMSCRIPTEN__
+    ctx.poll(false);
+#endif
+  }
+  if (ctx.lost) fail("WebGPU device lost while reading {} back", what);
+}
 
 StagingRing create_staging_ring(Context& ctx, uint64_t slot_bytes, uint32_t slots,
                                 std::string_view label) {
@@ -221,7 +212,7 @@ bool record_readback(ReadbackRing& ring, WGPUCommandEncoder encoder, WGPUBuffer 
 void readback_submitted(ReadbackRing& ring) {
   for (auto& slot : ring.slots)
     if (slot.state->phase == Phase::Submitted)
-      request_map(slot.buffer.get(), slot.state, WGPUMapMode_Read, ring.slot_bytes);
+      map_async(slot.buffer.get(), WGPUMapMode_Read, ring.slot_bytes, slot.state);
 }
 
 bool readback_busy(const ReadbackRing& ring) {

@@ -13,6 +13,7 @@
 #include "stipple/core/error.hpp"
 #include "stipple/core/log.hpp"
 #include "stipple/renderer/shader_preprocessor.hpp"
+#include "stipple/renderer/staging.hpp"
 
 namespace stipple::splats {
 namespace {
@@ -286,18 +287,18 @@ void copy_pair_total(gpu::Context& ctx, WGPUCommandEncoder encoder, GpuSplats& s
       TilePairCounts::Slot slot;
       slot.readback = gpu::create_buffer(ctx, 4, WGPUBufferUsage_MapRead | WGPUBufferUsage_CopyDst,
                                          "splat-tile-pairs-readback");
-      slot.phase = std::make_shared<PairSlotPhase>(PairSlotPhase::Free);
+      slot.state = std::make_shared<PairSlotState>();
       counts.slots.push_back(std::move(slot));
     }
   }
   for (auto& slot : counts.slots) {
-    if (*slot.phase != PairSlotPhase::Free) continue;
+    if (slot.state->phase != PairSlotState::Phase::Free) continue;
     const TileBuffers& t = *s.tiles;
     const uint64_t offset = (1 + 2 * uint64_t(t.tiles_x) * t.tiles_y) * 4;
     wgpuCommandEncoderCopyBufferToBuffer(encoder, t.tile_data.get(), offset, slot.readback.get(), 0,
                                          4);
     slot.capacity = t.pair_capacity;
-    *slot.phase = PairSlotPhase::Copied;
+    slot.state->phase = PairSlotState::Phase::Copied;
     return;
   }
 }
@@ -652,47 +653,29 @@ bool settle_tile_pairs(gpu::Context& ctx, GpuSplats& s, bool wait) {
   TilePairCounts& counts = s.pair_counts;
   // Frames recorded since the last call have been submitted by now: map their slots.
   for (auto& slot : counts.slots) {
-    if (*slot.phase != PairSlotPhase::Copied) continue;
-    *slot.phase = PairSlotPhase::Mapping;
-    WGPUBufferMapCallbackInfo cb = WGPU_BUFFER_MAP_CALLBACK_INFO_INIT;
-    cb.mode = WGPUCallbackMode_AllowProcessEvents;
-    // The phase outlives the set if need be (a map pending when the buffer goes away is
-    // answered later, cancelled): the callback holds a reference of its own.
-    cb.userdata1 = new std::shared_ptr<PairSlotPhase>(slot.phase);
-    cb.callback = [](WGPUMapAsyncStatus status, WGPUStringView, void* userdata, void*) {
-      std::unique_ptr<std::shared_ptr<PairSlotPhase>> phase(
-          static_cast<std::shared_ptr<PairSlotPhase>*>(userdata));
-      **phase =
-          status == WGPUMapAsyncStatus_Success ? PairSlotPhase::Mapped : PairSlotPhase::Failed;
-    };
-    wgpuBufferMapAsync(slot.readback.get(), WGPUMapMode_Read, 0, 4, cb);
+    if (slot.state->phase != PairSlotState::Phase::Copied) continue;
+    gpu::map_async(slot.readback.get(), WGPUMapMode_Read, 4, slot.state);
   }
   auto mapping = [&counts] {
-    return std::any_of(counts.slots.begin(), counts.slots.end(),
-                       [](const auto& slot) { return *slot.phase == PairSlotPhase::Mapping; });
+    return std::any_of(counts.slots.begin(), counts.slots.end(), [](const auto& slot) {
+      return slot.state->phase == PairSlotState::Phase::Mapping;
+    });
   };
   if (counts.slots.empty()) return false;
-  if (wait) {
-    ctx.wait_until([&] { return !mapping() || ctx.lost; });
-  } else {
-#ifndef __EMSCRIPTEN__
-    ctx.poll(false);
-#endif
-  }
-  if (ctx.lost) fail("WebGPU device lost while reading the splat tile pairs back");
+  gpu::settle_maps(ctx, wait, mapping, "the splat tile pairs");
   bool grew = false;
   const uint64_t limit = max_pair_capacity(ctx, s);
   for (auto& slot : counts.slots) {
-    if (*slot.phase == PairSlotPhase::Failed) {
-      *slot.phase = PairSlotPhase::Free;  // a cancelled map: that frame goes unread
+    if (slot.state->phase == PairSlotState::Phase::Failed) {
+      slot.state->phase = PairSlotState::Phase::Free;  // a cancelled map: that frame goes unread
       continue;
     }
-    if (*slot.phase != PairSlotPhase::Mapped) continue;
+    if (slot.state->phase != PairSlotState::Phase::Mapped) continue;
     uint32_t total = 0;
     const void* mapped = wgpuBufferGetConstMappedRange(slot.readback.get(), 0, 4);
     if (mapped) std::memcpy(&total, mapped, 4);
     wgpuBufferUnmap(slot.readback.get());
-    *slot.phase = PairSlotPhase::Free;
+    slot.state->phase = PairSlotState::Phase::Free;
     counts.most = std::max(counts.most, total);
     if (total <= slot.capacity) continue;
     ++counts.overflowed_frames;

@@ -9,9 +9,11 @@
 // Readback is the same in reverse: a MapRead buffer kept for reuse, so reading a result back
 // every frame allocates nothing.
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "stipple/renderer/gpu.hpp"
@@ -21,6 +23,35 @@ class ThreadPool;
 }
 
 namespace stipple::gpu {
+
+// Maps `buffer` asynchronously; its callback leaves the outcome in `state` (any struct with a
+// `phase` whose Phase has Mapping, Mapped and Failed, and a `message`), set to Mapping here. The
+// callback holds a reference of its own, so the state outlives its owner: a map still pending
+// when the buffer goes away is answered later, cancelled.
+template <typename State>
+void map_async(WGPUBuffer buffer, WGPUMapMode mode, uint64_t size,
+               const std::shared_ptr<State>& state) {
+  WGPUBufferMapCallbackInfo cb = WGPU_BUFFER_MAP_CALLBACK_INFO_INIT;
+  cb.mode = WGPUCallbackMode_AllowProcessEvents;
+  cb.userdata1 = new std::shared_ptr<State>(state);
+  cb.callback = [](WGPUMapAsyncStatus status, WGPUStringView message, void* userdata, void*) {
+    std::unique_ptr<std::shared_ptr<State>> kept(static_cast<std::shared_ptr<State>*>(userdata));
+    if (status == WGPUMapAsyncStatus_Success) {
+      (*kept)->phase = State::Phase::Mapped;
+    } else {
+      (*kept)->phase = State::Phase::Failed;
+      (*kept)->message = to_string(message);
+    }
+  };
+  state->phase = State::Phase::Mapping;
+  wgpuBufferMapAsync(buffer, mode, 0, size, cb);
+}
+
+// For readbacks taken a frame or more later: with `wait`, waits until `mapping()` says no map is
+// pending (or the device is lost); else one poll that does not wait (natively: the browser
+// answers maps from its event loop). Fails if the device was lost, naming `what`.
+void settle_maps(Context& ctx, bool wait, const std::function<bool()>& mapping,
+                 std::string_view what);
 
 struct StagingSlotState;  // map state, shared with the map callback
 

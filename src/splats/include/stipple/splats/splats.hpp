@@ -56,12 +56,16 @@ struct TileBuffers {
 // The pairs each tile frame wanted, read back without waiting: the binning pass copies its
 // total into a free slot of a small ring of mappable buffers, mapped once the frame is submitted
 // and read a frame or more later (settle_tile_pairs), as gpu::PassTimerRing reads times.
-enum class PairSlotPhase { Free, Copied, Mapping, Mapped, Failed };
+struct PairSlotState {
+  enum class Phase { Free, Copied, Mapping, Mapped, Failed };
+  Phase phase = Phase::Free;
+  std::string message;
+};
 struct TilePairCounts {
   struct Slot {
-    gpu::Buffer readback;  // 4 bytes, MapRead | CopyDst
-    std::shared_ptr<PairSlotPhase> phase;
-    uint32_t capacity = 0;  // the frame's pair capacity
+    gpu::Buffer readback;                  // 4 bytes, MapRead | CopyDst
+    std::shared_ptr<PairSlotState> state;  // shared with the map callback (gpu::map_async)
+    uint32_t capacity = 0;                 // the frame's pair capacity
   };
   std::vector<Slot> slots;
   uint32_t needed = 0;             // the most pairs a frame wanted over its capacity
