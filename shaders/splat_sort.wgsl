@@ -3,8 +3,8 @@
 // so it runs on every WebGPU implementation and in browsers. One round is four dispatches:
 //
 //   cs_histogram     per block of 512 pairs, how many keys have each digit: hist[digit][block]
-//   cs_scan_digits   one workgroup per digit: exclusive prefix over the blocks (in place), and
-//                    the digit's total into digit_offsets
+//   cs_scan_digits   one workgroup per digit: exclusive prefix over the blocks (in place; each
+//                    invocation a run of blocks), and the digit's total into digit_offsets
 //   cs_scan_totals   one workgroup: exclusive prefix of the 256 totals (digit_offsets)
 //   cs_scatter       per block: a stable local sort of its pairs by the digit (four 2-bit
 //                    split rounds, each one workgroup prefix sum of packed counters), then each
@@ -91,24 +91,27 @@ fn cs_histogram(@builtin(workgroup_id) wid: vec3<u32>,
 @compute @workgroup_size(256)
 fn cs_scan_digits(@builtin(workgroup_id) wid: vec3<u32>,
                   @builtin(local_invocation_index) lid: u32) {
+  // Each invocation sums a run of consecutive blocks, one workgroup scan offsets the runs, and
+  // each writes its run's prefixes: one scan a digit instead of one every 256 blocks (6M keys:
+  // 46, each eight barrier steps).
   let row = wid.x * params.blocks;
-  var carry = 0u;
-  for (var chunk = 0u; chunk < params.blocks; chunk = chunk + WG) {
-    let b = chunk + lid;
-    var v = 0u;
-    if (b < params.blocks) {
-      v = hist[row + b];
-    }
-    let inclusive = inclusive_scan(lid, v);
-    let total = scan[WG - 1u];
-    if (b < params.blocks) {
-      hist[row + b] = carry + inclusive - v;
-    }
-    carry = carry + total;
-    workgroupBarrier();
+  let per = (params.blocks + WG - 1u) / WG;
+  let first = min(lid * per, params.blocks);
+  let last = min(first + per, params.blocks);
+  var sum = 0u;
+  for (var b = first; b < last; b = b + 1u) {
+    sum = sum + hist[row + b];
+  }
+  let inclusive = inclusive_scan(lid, sum);
+  let total = scan[WG - 1u];
+  var running = inclusive - sum;
+  for (var b = first; b < last; b = b + 1u) {
+    let v = hist[row + b];
+    hist[row + b] = running;
+    running = running + v;
   }
   if (lid == 0u) {
-    digit_offsets[wid.x] = carry;
+    digit_offsets[wid.x] = total;
   }
 }
 

@@ -74,8 +74,8 @@ std::vector<uint32_t> random_keys(size_t n, uint32_t range, uint32_t seed) {
 }
 
 TEST_P(RadixSort, FullRangeKeys) {
-  // 300,007 pairs: 586 blocks (more than one 256-block chunk of the digit scan), the last one
-  // partial.
+  // 300,007 pairs: 586 blocks (the digit scan's invocations take three each, the last ones
+  // fewer or none), the last block partial.
   expect_sorted_like_reference(*ctx, pipelines, random_keys(300007, 0, 1));
 }
 
