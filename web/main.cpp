@@ -105,6 +105,10 @@ struct Options {
   uint64_t max_frames = 10000;     // then drawn as is, with a warning
   bool interactive =
       true;  // camera controls once drawn (0: the first view only, kept for captures)
+  // Benches (?burst=K): each view frame drawn K times back to back, so that the GPU is kept busy
+  // as native benchmarks keep it (a page drawing one frame an animation frame leaves it idle most
+  // of the time, and its clocks low); the stats report the last of them.
+  uint32_t burst = 1;
 };
 
 uint64_t number(const std::string& name, const char* value) {
@@ -168,6 +172,8 @@ Options parse(int argc, char** argv) {
       o.frames = std::max<uint64_t>(1, number(a, v));
     else if (a == "--max-frames")
       o.max_frames = number(a, v);
+    else if (a == "--burst")
+      o.burst = uint32_t(std::clamp<uint64_t>(number(a, v), 1, 4));
     else if (a == "--interactive")
       o.interactive = number(a, v) != 0;
     else if (a == "--color")
@@ -199,6 +205,9 @@ Options parse(int argc, char** argv) {
       // Benches: the compute rasterizer's 32-bit fallback even where the browser offers 64-bit
       // atomics (the variants compared in one page build).
       if (number(a, v) != 0) setenv("STIPPLE_RASTER_FALLBACK", "1", 1);
+    } else if (a == "--vec2u-early") {
+      // Benches: the atomic<vec2u> pass without its early depth test (0).
+      if (number(a, v) == 0) setenv("STIPPLE_VEC2U_EARLY", "0", 1);
     } else if (a == "--splat-rasterizer") {
       const std::string r = v;
       o.scene.splat_rasterizer =
@@ -623,7 +632,8 @@ bool take_camera(Registry& main, Orbit& orbit) {
 // option, the canvas's size, or, for a tileset streaming for the new view (`streams`), a tile
 // arrived, or a splat frame lost tile pairs (splats::splat_frames_incomplete); none otherwise
 // (the canvas keeps the last frame). Returns what to open next, once the module has something.
-std::string orbit_view(Engine& engine, Orbit orbit, bool streams, StatsPanel& panel) {
+std::string orbit_view(Engine& engine, Orbit orbit, bool streams, uint32_t burst,
+                       StatsPanel& panel) {
   Registry& main = engine.main();
   report_camera(main, orbit);
   uint64_t moves = 0, frames = 0;
@@ -694,6 +704,10 @@ std::string orbit_view(Engine& engine, Orbit orbit, bool streams, StatsPanel& pa
     engine.update();
     if (!streams) engine.wait_for_render();
     panel.frame(emscripten_get_now() - start);
+    for (uint32_t i = 1; i < burst; ++i) {
+      engine.update();
+      if (!streams) engine.wait_for_render();
+    }
     web::report_tools(engine);
     web::report_overlay(engine);
     // Frames drawn since the first view (tests wait for the one after a control's change).
@@ -877,7 +891,7 @@ std::string run_view(const Options& o) {
   report("done", "1");
   std::string next;
   if (o.interactive) {
-    next = orbit_view(engine, orbit, streamed, panel);
+    next = orbit_view(engine, orbit, streamed, o.burst, panel);
   } else {
     // The view stays as drawn, kept only to be drawn again for the module's captures.
     report_camera(main, orbit);

@@ -149,6 +149,15 @@ std::vector<gpu::PipelineConstant> depth_constants(const RasterKernel& kernel) {
   return {{"WORKGROUP", double(kDepthWorkgroup)}, {"ABLATE", double(kernel.ablate)}};
 }
 
+// The atomic<vec2u> pass's: its early test on or off (STIPPLE_VEC2U_EARLY=0, the page's
+// ?vec2u-early=0: benches compare the two in one build).
+std::vector<gpu::PipelineConstant> vec2u_constants(const RasterKernel& kernel) {
+  auto constants = depth_constants(kernel);
+  const char* env = std::getenv("STIPPLE_VEC2U_EARLY");
+  constants.push_back({"EARLY", env && std::string_view(env) == "0" ? 0.0 : 1.0});
+  return constants;
+}
+
 // The accumulation pass's: HQS's sums go through the workgroup tile and the general loop; the
 // fallback's colours (the nearest points only, few atomics) the screen's sums and the lean loop.
 std::vector<gpu::PipelineConstant> accumulate_constants(const RasterKernel& kernel, bool hqs) {
@@ -191,7 +200,10 @@ void ensure_split_pipelines(gpu::Context& ctx, ComputeRasterPipeline& p) {
   auto& t = p.split;
   if (t.made) return;
   constexpr bool trusted = true;
-  t.depth = make_compute(ctx, depth_shader(p, false), split(depth_constants(p.kernel), 1), trusted);
+  t.depth = make_compute(
+      ctx, depth_shader(p, false),
+      split(p.visibility_vec2u ? vec2u_constants(p.kernel) : depth_constants(p.kernel), 1),
+      trusted);
   if (!p.visibility64 && p.kernel.fallback_events == AutoSwitch::On)
     t.depth_events =
         make_compute(ctx, depth_shader(p, true), split(depth_constants(p.kernel), 1), trusted);
@@ -416,7 +428,7 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
     // A browser's newer feature: should its compiler refuse the pass, the page still draws,
     // with the fallback (said once).
     try {
-      p.raster64 = make_compute(ctx, depth_shader(p, false), depth, trusted);
+      p.raster64 = make_compute(ctx, depth_shader(p, false), vec2u_constants(kernel), trusted);
     } catch (const Error& e) {
       STIPPLE_WARN(
           "the 64-bit depth pass (atomic<vec2u>) failed, drawing with the 32-bit "
@@ -547,6 +559,8 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   const uint64_t pixels = uint64_t(width) * height;
   const std::string depth_name = "raster-depth-buffer", accum_name = "raster-accum";
   const std::string events_name = "raster-events", visibility_name = "raster-visibility";
+  const std::string hint_name = "raster-depth-hint";  // the atomic<vec2u> pass's early test
+  const bool hint = use64 && p.visibility_vec2u;
   constexpr uint64_t kEventRegions = 1024;  // as in compute_raster_depth32_events_pass.wgsl
   uint64_t event_bytes = 0;
   if (events) {
@@ -615,10 +629,12 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   gpu::PassBuilder clear_pass = graph.add_pass(
       "raster-clear", gpu::PassKind::Compute,
       [&p, &cloud, upload_frame, depth_name, accum_name, groups_x, groups_y, accumulate, events,
-       events_name](gpu::PassContext& pc) {
+       events_name, hint, hint_name](gpu::PassContext& pc) {
         gpu::Context& ctx = pc.gpu();
         upload_frame(ctx);
         wgpuCommandEncoderClearBuffer(pc.encoder(), p.counters.get(), 0, WGPU_WHOLE_SIZE);
+        if (hint)
+          wgpuCommandEncoderClearBuffer(pc.encoder(), pc.buffer(hint_name), 0, WGPU_WHOLE_SIZE);
         if (events)  // the regions' counters
           wgpuCommandEncoderClearBuffer(pc.encoder(), pc.buffer(events_name), 0, kEventRegions * 4);
         if (cloud.segments.empty()) return;
@@ -642,10 +658,14 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   if (events)
     clear_pass.create_buffer(events_name,
                              {event_bytes, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst});
+  if (hint)
+    clear_pass.create_buffer(hint_name,
+                             {pixels * 4, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst});
 
   gpu::PassBuilder depth_pass = graph.add_pass(
       "raster-depth", gpu::PassKind::Compute,
-      [&p, &cloud, use64, events, translucent, depth_name, events_name](gpu::PassContext& pc) {
+      [&p, &cloud, use64, events, translucent, depth_name, events_name, hint,
+       hint_name](gpu::PassContext& pc) {
         gpu::Context& ctx = pc.gpu();
         const gpu::ComputePipeline& pipeline = translucent
                                                    ? (events ? p.split.depth_events : p.split.depth)
@@ -672,6 +692,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
           if ((use64 && !p.visibility_vec2u) || p.depth32_plain_early)
             bindings.push_back(gpu::bind_buffer(8, depth));
           if (events) bindings.push_back(gpu::bind_buffer(6, pc.buffer(events_name)));
+          if (hint) bindings.push_back(gpu::bind_buffer(8, pc.buffer(hint_name)));
           groups.push_back(gpu::create_bind_group(ctx, layout.get(), bindings));
         }
         auto pass = pc.begin_compute_pass();
@@ -682,6 +703,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
       });
   depth_pass.write(depth_name);
   if (events) depth_pass.write(events_name);
+  if (hint) depth_pass.write(hint_name);
 
   if (accumulate) {
     graph

@@ -147,7 +147,8 @@ std::vector<WGPUFeatureName> compute_raster_features();
 
 struct ComputeRasterPipeline {
   bool visibility64 = false;
-  // The 64-bit pass through atomic<vec2u> (compute_raster_vec2u.wgsl: no early depth test).
+  // The 64-bit pass through atomic<vec2u> (compute_raster_vec2u.wgsl: its early depth test reads
+  // a depth buffer of its own, "raster-depth-hint").
   bool visibility_vec2u = false;
   RasterKernel kernel;
   WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
