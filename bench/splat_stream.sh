@@ -6,6 +6,8 @@
 # set and sorted together each frame). Frames do not wait for loads, as in a viewer.
 #   bench/splat_stream.sh [--splats N] [--sh D] [--budget B] [--memory-mb M] [--frames F]
 #                         [--backend wgpu|dawn] [--step tile|bench|all] [--json FILE]
+#                         [--max-sse S]   (bench stream's, 16 by default: the flight then stays
+#                                          on coarse tiles; 1 refines to millions of splats)
 # Defaults: 100M splats, SH degree 0, a 6M-splat budget, 8192 MiB resident, 600 frames at
 # 1920x1080. The generated PLY and the tileset are kept in $TMPDIR/stipple_bench_splat_stream
 # and reused, so --step tile and --step bench can run as separate commands (each under a
@@ -15,6 +17,7 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 stipple="${STIPPLE:-$root/build/stipple}"
 work="${TMPDIR:-/tmp}/stipple_bench_splat_stream"
 splats=100000000 sh=0 budget=6000000 memory=8192 frames=600 backend=wgpu step=all json=""
+max_sse=16
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --splats) splats="$2"; shift 2 ;;
@@ -25,6 +28,7 @@ while [[ $# -gt 0 ]]; do
     --backend) backend="$2"; shift 2 ;;
     --step) step="$2"; shift 2 ;;
     --json) json="$2"; shift 2 ;;
+    --max-sse) max_sse="$2"; shift 2 ;;
     *) echo "unknown argument $1" >&2; exit 2 ;;
   esac
 done
@@ -48,5 +52,6 @@ if [[ "$step" == bench || "$step" == all ]]; then
   [[ -n "$json" ]] && json_args=(--json "$json")
   "$stipple" bench stream "$tiles/tileset.json" --renderer billboard --width 1920 --height 1080 \
     --frames "$frames" --memory-mb "$memory" --splat-budget "$budget" --backend "$backend" \
+    --max-sse "$max_sse" \
     "${json_args[@]}"
 fi
