@@ -8,6 +8,7 @@
 #include <memory>
 #include <string_view>
 
+#include <fmt/format.h>
 #include <webgpu/wgpu.h>
 #include <glm/gtc/type_ptr.hpp>
 
@@ -232,6 +233,31 @@ void ensure_split_pipelines(gpu::Context& ctx, ComputeRasterPipeline& p) {
   t.made = true;
 }
 
+// The most bytes one point array of a segment may take: the device's binding and buffer
+// limits, kept at 2 GiB so that u32 byte offsets stay safe.
+uint64_t max_array_bytes(const gpu::Context& ctx) {
+  return std::min<uint64_t>(
+      {ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize, 1ull << 31});
+}
+
+// A segment's batch table (room for `batches`) and uniforms; `prefix` names them
+// ("raster": raster-batches, raster-params).
+void create_segment_tables(gpu::Context& ctx, GpuBatchedCloud::Segment& seg, uint64_t batches,
+                           std::string_view prefix) {
+  seg.batches = gpu::create_buffer(ctx, batches * sizeof(GpuBatch),
+                                   WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst,
+                                   fmt::format("{}-batches", prefix));
+  seg.params =
+      gpu::create_buffer(ctx, sizeof(Params), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst,
+                         fmt::format("{}-params", prefix));
+}
+
+gpu::Buffer create_shading_uniforms(gpu::Context& ctx, std::string_view prefix) {
+  return gpu::create_buffer(ctx, sizeof(ShadingUniforms),
+                            WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst,
+                            fmt::format("{}-shading", prefix));
+}
+
 }  // namespace
 
 GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& cloud,
@@ -241,9 +267,7 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
   out.point_count = cloud.point_count();
   // One storage binding per array: the segment's points must fit the binding and the buffer
   // limits (kept at 2 GiB so u32 byte offsets stay safe). Batches go in rows of workgroups.
-  uint64_t max_bytes = std::min<uint64_t>(
-      {ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize, 1ull << 31});
-  uint64_t max_points = max_bytes / 4;
+  uint64_t max_points = max_array_bytes(ctx) / 4;
   if (options.max_segment_points) max_points = std::min(max_points, options.max_segment_points);
   if (out.point_count >= (1ull << 32))
     fail("the compute rasterizer indexes points with 32 bits: {} points are too many",
@@ -278,17 +302,11 @@ GpuBatchedCloud upload_batched_cloud(gpu::Context& ctx, const BatchedCloud& clou
       *buffer = gpu::create_buffer(ctx, raster_array_bytes(points), usage, "raster-points");
       uploads.push_back({buffer->get(), 0, words->data() + f, points * 4});
     }
-    seg.batches =
-        gpu::create_buffer(ctx, uint64_t(seg.batch_count) * sizeof(GpuBatch),
-                           WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "raster-batches");
-    seg.params = gpu::create_buffer(
-        ctx, sizeof(Params), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "raster-params");
+    create_segment_tables(ctx, seg, seg.batch_count, "raster");
     out.bytes += points * kRasterPointBytes + uint64_t(seg.batch_count) * sizeof(GpuBatch);
     out.segments.push_back(std::move(seg));
   }
-  out.shading =
-      gpu::create_buffer(ctx, sizeof(ShadingUniforms),
-                         WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "raster-shading");
+  out.shading = create_shading_uniforms(ctx, "raster");
   gpu::upload_through_staging(ctx, uploads, &batching_pool());
   ctx.check("uploading batched points");
   return out;
@@ -300,9 +318,7 @@ GpuBatchedCloud upload_batched_chunks(gpu::Context& ctx, const PointCloud& cloud
   options.mark_translucent = cloud.attributes.has_translucent;
   uint64_t total = 0;
   for (const PointChunk& c : cloud.chunks) total += c.vertices.size();
-  const uint64_t max_points = std::min<uint64_t>({ctx.limits.maxStorageBufferBindingSize,
-                                                  ctx.limits.maxBufferSize, 1ull << 31}) /
-                              4;
+  const uint64_t max_points = max_array_bytes(ctx) / 4;
   group_points = std::max<uint64_t>(group_points, 1);
   if (total < 2 * group_points || total > max_points)
     return upload_batched_cloud(ctx, build_batches(cloud, options));
@@ -338,16 +354,10 @@ GpuBatchedCloud upload_batched_chunks(gpu::Context& ctx, const PointCloud& cloud
     c = end;
   }
   seg.batch_count = uint32_t(out.batches.size());
-  seg.batches =
-      gpu::create_buffer(ctx, uint64_t(seg.batch_count) * sizeof(GpuBatch),
-                         WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "raster-batches");
-  seg.params = gpu::create_buffer(
-      ctx, sizeof(Params), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "raster-params");
+  create_segment_tables(ctx, seg, seg.batch_count, "raster");
   out.bytes = total * kRasterPointBytes + uint64_t(seg.batch_count) * sizeof(GpuBatch);
   out.segments.push_back(std::move(seg));
-  out.shading =
-      gpu::create_buffer(ctx, sizeof(ShadingUniforms),
-                         WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "raster-shading");
+  out.shading = create_shading_uniforms(ctx, "raster");
   ctx.check("uploading batched points");
   return out;
 }
@@ -360,8 +370,7 @@ std::vector<WGPUFeatureName> compute_raster_features() {
 
 GpuBatchedCloud create_batched_storage(gpu::Context& ctx, uint64_t points, uint64_t batches,
                                        std::string_view label) {
-  const uint64_t max_bytes = std::min<uint64_t>(
-      {ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize, 1ull << 31});
+  const uint64_t max_bytes = max_array_bytes(ctx);
   if (raster_array_bytes(points) > max_bytes)
     fail("{}: {} points exceed one storage binding ({} bytes)", label, points, max_bytes);
   const auto usage = WGPUBufferUsage_Storage | WGPUBufferUsage_CopySrc | WGPUBufferUsage_CopyDst;
@@ -373,17 +382,11 @@ GpuBatchedCloud create_batched_storage(gpu::Context& ctx, uint64_t points, uint6
   seg.fine = gpu::create_buffer(ctx, words, usage, "store-fine");
   seg.color = gpu::create_buffer(ctx, words, usage, "store-color");
   seg.attributes = gpu::create_buffer(ctx, words, usage, "store-attributes");
-  seg.batches =
-      gpu::create_buffer(ctx, std::max<uint64_t>(batches, 1) * sizeof(GpuBatch),
-                         WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "store-batches");
-  seg.params = gpu::create_buffer(
-      ctx, sizeof(Params), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "store-params");
+  create_segment_tables(ctx, seg, std::max<uint64_t>(batches, 1), "store");
   out.bytes = words * 5 + std::max<uint64_t>(batches, 1) * sizeof(GpuBatch) + sizeof(Params) +
               sizeof(ShadingUniforms);
   out.segments.push_back(std::move(seg));
-  out.shading =
-      gpu::create_buffer(ctx, sizeof(ShadingUniforms),
-                         WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "store-shading");
+  out.shading = create_shading_uniforms(ctx, "store");
   return out;
 }
 
