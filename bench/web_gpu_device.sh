@@ -9,9 +9,9 @@
 # Writes to $OUT (or /tmp/web-gpu-out): one JSON report a page and query, the Chromium logs, and
 # native.txt (stipple render of the same scene and size, Dawn and wgpu-native, 20 frames, the
 # renderer chosen as the page chooses it; once per scene size, NATIVE_RUNS times, after the pages).
-# WEB_DIRS picks page builds; RETRY_ADAPTER=1 has the
-# harness ask for an adapter again where the page's first request gets null; SHOTS=1 keeps the
-# page's view (NAME-I.png) and the native images (native-BACKEND-POINTS.png) to compare.
+# WEB_DIRS picks page builds; RETRY_ADAPTER=1 has the harness ask for an adapter again where the
+# page's first request gets null; SHOTS=1 keeps the page's view (NAME-I.png) and the native images
+# (native-BACKEND-POINTS.png) to compare.
 set -uo pipefail
 out=${OUT:-/tmp/web-gpu-out}
 mkdir -p "$out"
@@ -45,14 +45,14 @@ done
 points_of() { sed -n 's/.*scene-points=\([0-9]*\).*/\1/p' <<<"$1"; }
 for pts in $(for q in "${queries[@]}"; do points_of "$q"; done | awk '!seen[$0]++'); do
   for backend in dawn wgpu; do
-   for run in $(seq 1 "${NATIVE_RUNS:-1}"); do
-    echo "== native $backend: $pts points (run $run)"
-    png=/tmp/native.png
-    [ -n "${SHOTS:-}" ] && png="$out/native-$backend-$pts.png"
-    /tmp/stipple-pkg/run render --scene-points "${pts:-1000000}" --width 1280 --height 720 \
-      --backend $backend --frames 20 --stats /tmp/native.json -o "$png" 2>&1 | tail -3
-    python3 -c "import json,sys;d=json.load(open(sys.argv[1]));r={k:d[k] for k in ('renderer','points','frame_gpu_ms_median','frame_wall_ms_median')};r['passes']={n:round(p['gpu_ms_median'],3) for n,p in d.get('passes',{}).items()};print(r)" /tmp/native.json
-   done
+    for run in $(seq 1 "${NATIVE_RUNS:-1}"); do
+      echo "== native $backend: $pts points (run $run)"
+      png=/tmp/native.png
+      [ -n "${SHOTS:-}" ] && png="$out/native-$backend-$pts.png"
+      /tmp/stipple-pkg/run render --scene-points "${pts:-1000000}" --width 1280 --height 720 \
+        --backend $backend --frames 20 --stats /tmp/native.json -o "$png" 2>&1 | tail -3
+      python3 -c "import json,sys;d=json.load(open(sys.argv[1]));r={k:d[k] for k in ('renderer','points','frame_gpu_ms_median','frame_wall_ms_median')};r['passes']={n:round(p['gpu_ms_median'],3) for n,p in d.get('passes',{}).items()};print(r)" /tmp/native.json
+    done
   done
 done | tee "$out/native.txt"
 # SHOTS=1: each page's view against the native images of the same query (bench/png_diff.py).

@@ -44,27 +44,24 @@ void prepare_canvas(Registry& render) {
   // As configured for this frame (the stats read it once the frame is drawn).
   render.insert_resource(CanvasInfo{s.format, s.width, s.height});
   RenderTarget target;
-  if (s.configured && t.copy) {
-    const WGPUTextureUsage usage = s.usage | WGPUTextureUsage_CopySrc;
-    gpu::Context& ctx = *render.resource<GpuContext>();
-    if (!t.offscreen || t.offscreen_width != s.width || t.offscreen_height != s.height) {
-      t.offscreen =
-          gpu::create_texture_2d(ctx, s.width, s.height, s.format, usage, "canvas-offscreen");
-      t.offscreen_view = gpu::create_view(t.offscreen);
-      t.offscreen_width = s.width;
-      t.offscreen_height = s.height;
-    }
-    target.width = s.width;
-    target.height = s.height;
-    target.format = s.format;
-    target.usage = usage;
-    target.texture = t.offscreen.get();
-    target.view = t.offscreen_view.get();
-  } else if (s.configured) {
+  if (s.configured) {
     target.width = s.width;
     target.height = s.height;
     target.format = s.format;
     target.usage = s.usage;
+  }
+  if (s.configured && t.copy) {
+    target.usage |= WGPUTextureUsage_CopySrc;
+    if (!t.offscreen || t.offscreen_width != s.width || t.offscreen_height != s.height) {
+      t.offscreen = gpu::create_texture_2d(*render.resource<GpuContext>(), s.width, s.height,
+                                           s.format, target.usage, "canvas-offscreen");
+      t.offscreen_view = gpu::create_view(t.offscreen);
+      t.offscreen_width = s.width;
+      t.offscreen_height = s.height;
+    }
+    target.texture = t.offscreen.get();
+    target.view = t.offscreen_view.get();
+  } else if (s.configured) {
     target.acquire = [&render](RenderTarget& late) {
       auto& c = render.resource<CanvasTarget>();
       c.frame = gpu::acquire_surface_frame(*render.resource<GpuContext>(), c.surface);

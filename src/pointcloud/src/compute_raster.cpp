@@ -563,7 +563,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   const std::string depth_name = "raster-depth-buffer", accum_name = "raster-accum";
   const std::string events_name = "raster-events", visibility_name = "raster-visibility";
   const std::string hint_name = "raster-depth-hint";  // the atomic<vec2u> pass's early test
-  const bool hint = use64 && p.visibility_vec2u;
+  const bool hint = p.visibility_vec2u;
   constexpr uint64_t kEventRegions = 1024;  // as in compute_raster_depth32_events_pass.wgsl
   uint64_t event_bytes = 0;
   if (events) {
