@@ -1,18 +1,23 @@
 // A stable least-significant-digit radix sort of (u32 key, u32 value) pairs, 8 bits a round,
-// in plain WGSL: no subgroups, 256 invocations and under 5 KB of workgroup memory a workgroup,
-// so it runs on every WebGPU implementation and in browsers. One round is four dispatches:
+// in plain WGSL: no subgroups, 256 invocations and 11 KB of workgroup memory a workgroup, so it
+// runs on every WebGPU implementation and in browsers. One round is four dispatches:
 //
-//   cs_histogram     per block of 512 pairs, how many keys have each digit: hist[digit][block]
+//   cs_histogram     per block of 2048 pairs, how many keys have each digit: hist[digit][block]
 //   cs_scan_digits   one workgroup per digit: exclusive prefix over the blocks (in place; each
 //                    invocation a run of blocks), and the digit's total into digit_offsets
 //   cs_scan_totals   one workgroup: exclusive prefix of the 256 totals (digit_offsets)
-//   cs_scatter       per block: a stable local sort of its pairs by the digit (four 2-bit
-//                    split rounds, each one workgroup prefix sum of packed counters), then each
-//                    pair goes to digit_offsets[d] + hist[d][block] + its rank among the block's
-//                    pairs of digit d
+//   cs_scatter       per block: a stable local sort of the block's (digit, index) words by the
+//                    digit (four 2-bit split rounds, each one workgroup prefix sum of packed
+//                    counters), then each pair goes to digit_offsets[d] + hist[d][block] + its
+//                    rank among the block's pairs of digit d
 //
-// Stability: a block's pairs keep their order within a digit (each invocation owns two
-// consecutive pairs, and the splits are stable), and blocks are laid out in order.
+// Each invocation owns eight consecutive words of the block, so a split round costs one
+// workgroup scan per 2048 pairs, and a digit's run in the output averages eight pairs. The local
+// sort moves 32-bit words (digit << 16 | index in the block); the pairs themselves are read once
+// from global memory (the block's 16 KB stays in cache) and written once to their places.
+//
+// Stability: a block's pairs keep their order within a digit (each invocation's words are
+// consecutive, and the splits are stable), and blocks are laid out in order.
 // The pair count is read from a storage buffer (count[count_index]) written on the GPU: blocks
 // past it do nothing, so a dispatch sized for the capacity sorts only what was produced.
 
@@ -34,12 +39,13 @@ struct SortParams {
 @group(0) @binding(7) var<storage, read_write> digit_offsets: array<u32>;  // [256]
 
 const WG: u32 = 256u;
-const BLOCK: u32 = 512u;  // pairs a workgroup: two per invocation
+const PER: u32 = 8u;       // words an invocation
+const BLOCK: u32 = 2048u;  // pairs a workgroup (radix_sort.cpp's kBlock)
 
 var<workgroup> digit_counts: array<atomic<u32>, 256>;
 var<workgroup> scan: array<u32, 256>;
-var<workgroup> sk: array<u32, 512>;
-var<workgroup> sv: array<u32, 512>;
+var<workgroup> scan2: array<vec2<u32>, 256>;
+var<workgroup> words: array<u32, 2048>;
 var<workgroup> starts: array<u32, 256>;
 
 fn block_index(wid: vec3<u32>) -> u32 {
@@ -67,6 +73,22 @@ fn inclusive_scan(lid: u32, v: u32) -> u32 {
   return scan[lid];
 }
 
+// The same over two words (four 16-bit counters); scan2[255] is the total afterwards.
+fn inclusive_scan2(lid: u32, v: vec2<u32>) -> vec2<u32> {
+  scan2[lid] = v;
+  workgroupBarrier();
+  for (var offset = 1u; offset < WG; offset = offset << 1u) {
+    var t = scan2[lid];
+    if (lid >= offset) {
+      t = t + scan2[lid - offset];
+    }
+    workgroupBarrier();
+    scan2[lid] = t;
+    workgroupBarrier();
+  }
+  return scan2[lid];
+}
+
 @compute @workgroup_size(256)
 fn cs_histogram(@builtin(workgroup_id) wid: vec3<u32>,
                 @builtin(local_invocation_index) lid: u32) {
@@ -78,7 +100,7 @@ fn cs_histogram(@builtin(workgroup_id) wid: vec3<u32>,
   atomicStore(&digit_counts[lid], 0u);
   workgroupBarrier();
   let base = block * BLOCK;
-  for (var j = 0u; j < 2u; j = j + 1u) {
+  for (var j = 0u; j < PER; j = j + 1u) {
     let i = base + j * WG + lid;
     if (i < n) {
       atomicAdd(&digit_counts[(keys_in[i] >> params.shift) & 255u], 1u);
@@ -92,8 +114,7 @@ fn cs_histogram(@builtin(workgroup_id) wid: vec3<u32>,
 fn cs_scan_digits(@builtin(workgroup_id) wid: vec3<u32>,
                   @builtin(local_invocation_index) lid: u32) {
   // Each invocation sums a run of consecutive blocks, one workgroup scan offsets the runs, and
-  // each writes its run's prefixes: one scan a digit instead of one every 256 blocks (6M keys:
-  // 46, each eight barrier steps).
+  // each writes its run's prefixes: one scan a digit.
   let row = wid.x * params.blocks;
   let per = (params.blocks + WG - 1u) / WG;
   let first = min(lid * per, params.blocks);
@@ -122,17 +143,14 @@ fn cs_scan_totals(@builtin(local_invocation_index) lid: u32) {
   digit_offsets[lid] = inclusive - v;
 }
 
-// Packed counter of a 2-bit digit: 10 bits for each of digits 0-2 (a block has 512 pairs, so no
-// field overflows); digit 3's count is what the other three leave.
-fn packed_one(d: u32) -> u32 {
-  return select(0u, 1u << (10u * d), d < 3u);
+// One of a 2-bit digit in four 16-bit counters (a block has 2048 pairs: no field overflows).
+fn packed_one(d: u32) -> vec2<u32> {
+  let one = 1u << (16u * (d & 1u));
+  return select(vec2<u32>(one, 0u), vec2<u32>(0u, one), d >= 2u);
 }
 
-fn unpack_counts(c: u32, all: u32) -> vec4<u32> {
-  let a = c & 1023u;
-  let b = (c >> 10u) & 1023u;
-  let d = (c >> 20u) & 1023u;
-  return vec4<u32>(a, b, d, all - a - b - d);
+fn unpack_counts(c: vec2<u32>) -> vec4<u32> {
+  return vec4<u32>(c.x & 0xffffu, c.x >> 16u, c.y & 0xffffu, c.y >> 16u);
 }
 
 @compute @workgroup_size(256)
@@ -147,72 +165,73 @@ fn cs_scatter(@builtin(workgroup_id) wid: vec3<u32>,
   if (base >= n) {
     return;
   }
-  // Coalesced loads; missing pairs are the largest key, so they sort after every real one.
-  for (var j = 0u; j < 2u; j = j + 1u) {
-    let i = base + j * WG + lid;
-    var k = 0xffffffffu;
-    var v = 0u;
-    if (i < n) {
-      k = keys_in[i];
-      v = values_in[i];
+  let valid = min(BLOCK, n - base);
+  // Coalesced loads of the digits; missing pairs get digit 255 and the highest indices, so they
+  // sort after every real pair.
+  for (var j = 0u; j < PER; j = j + 1u) {
+    let local = j * WG + lid;
+    var d = 255u;
+    if (local < valid) {
+      d = (keys_in[base + local] >> params.shift) & 255u;
     }
-    sk[j * WG + lid] = k;
-    sv[j * WG + lid] = v;
+    words[local] = (d << 16u) | local;
   }
   workgroupBarrier();
-  var k0 = sk[2u * lid];
-  var k1 = sk[2u * lid + 1u];
-  var v0 = sv[2u * lid];
-  var v1 = sv[2u * lid + 1u];
+  var w: array<u32, 8>;
+  for (var e = 0u; e < PER; e = e + 1u) {
+    w[e] = words[PER * lid + e];
+  }
   workgroupBarrier();
 
   // Four stable 2-bit splits sort the block by the round's 8-bit digit.
   for (var r = 0u; r < 4u; r = r + 1u) {
-    let s = params.shift + 2u * r;
-    let d0 = (k0 >> s) & 3u;
-    let d1 = (k1 >> s) & 3u;
-    let c = packed_one(d0) + packed_one(d1);
-    let inclusive = inclusive_scan(lid, c);
-    let total = scan[WG - 1u];
-    let before = unpack_counts(inclusive - c, 2u * lid);
-    let totals = unpack_counts(total, BLOCK);
-    let run_start = vec4<u32>(0u, totals.x, totals.x + totals.y, totals.x + totals.y + totals.z);
-    let p0 = run_start[d0] + before[d0];
-    let p1 = run_start[d1] + before[d1] + select(0u, 1u, d0 == d1);
-    sk[p0] = k0;
-    sv[p0] = v0;
-    sk[p1] = k1;
-    sv[p1] = v1;
+    let s = 16u + 2u * r;
+    var c = vec2<u32>(0u, 0u);
+    for (var e = 0u; e < PER; e = e + 1u) {
+      c = c + packed_one((w[e] >> s) & 3u);
+    }
+    let inclusive = inclusive_scan2(lid, c);
+    let totals = unpack_counts(scan2[WG - 1u]);
+    var at = unpack_counts(inclusive - c) +
+             vec4<u32>(0u, totals.x, totals.x + totals.y, totals.x + totals.y + totals.z);
+    for (var e = 0u; e < PER; e = e + 1u) {
+      let d = (w[e] >> s) & 3u;
+      words[at[d]] = w[e];
+      at[d] = at[d] + 1u;
+    }
     workgroupBarrier();
-    k0 = sk[2u * lid];
-    k1 = sk[2u * lid + 1u];
-    v0 = sv[2u * lid];
-    v1 = sv[2u * lid + 1u];
+    for (var e = 0u; e < PER; e = e + 1u) {
+      w[e] = words[PER * lid + e];
+    }
     workgroupBarrier();
   }
 
   // Where each digit's run starts in the sorted block.
-  let i0 = 2u * lid;
-  let e0 = (k0 >> params.shift) & 255u;
-  let e1 = (k1 >> params.shift) & 255u;
-  if (i0 == 0u || ((sk[i0 - 1u] >> params.shift) & 255u) != e0) {
-    starts[e0] = i0;
-  }
-  if (e1 != e0) {
-    starts[e1] = i0 + 1u;
+  for (var e = 0u; e < PER; e = e + 1u) {
+    let j = PER * lid + e;
+    let d = w[e] >> 16u;
+    var prev = 0xffffffffu;
+    if (e > 0u) {
+      prev = w[e - 1u] >> 16u;
+    } else if (j > 0u) {
+      prev = words[j - 1u] >> 16u;
+    }
+    if (prev != d) {
+      starts[d] = j;
+    }
   }
   workgroupBarrier();
-  // The block's real pairs are its first min(512, n - base) sorted ones (the padding sorts last
-  // and, as the last of equal keys, after any real key 0xffffffff).
-  let valid = min(BLOCK, n - base);
-  if (i0 < valid) {
-    let dst = digit_offsets[e0] + hist[e0 * params.blocks + block] + (i0 - starts[e0]);
-    keys_out[dst] = k0;
-    values_out[dst] = v0;
-  }
-  if (i0 + 1u < valid) {
-    let dst = digit_offsets[e1] + hist[e1 * params.blocks + block] + (i0 + 1u - starts[e1]);
-    keys_out[dst] = k1;
-    values_out[dst] = v1;
+  // Neighbouring invocations write neighbouring places of a digit's run; the block's real pairs
+  // are its first `valid` sorted ones (the padding sorts last).
+  for (var e = 0u; e < PER; e = e + 1u) {
+    let j = e * WG + lid;
+    let word = words[j];
+    let local = word & 0xffffu;
+    if (local < valid) {
+      let d = word >> 16u;
+      let dst = digit_offsets[d] + hist[d * params.blocks + block] + (j - starts[d]);
+      keys_out[dst] = keys_in[base + local];
+      values_out[dst] = values_in[base + local];
+    }
   }
 }

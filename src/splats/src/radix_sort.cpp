@@ -9,7 +9,7 @@
 namespace stipple::splats {
 namespace {
 
-constexpr uint32_t kBlock = 512;         // pairs a workgroup (splat_sort.wgsl's BLOCK)
+constexpr uint32_t kBlock = 2048;        // pairs a workgroup (splat_sort.wgsl's BLOCK)
 constexpr uint32_t kMaxGroupsX = 65535;  // WebGPU's maxComputeWorkgroupsPerDimension default
 constexpr uint32_t kParamsStride = 256;  // uniform offsets' alignment
 
