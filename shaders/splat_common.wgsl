@@ -54,3 +54,17 @@ fn depth_key(z: f32) -> u32 {
 fn key_depth(key: u32) -> f32 {
   return bitcast<f32>(0xffffffffu - key);
 }
+
+// Half the width and height, in pixels, of the box a splat's pixels can be drawn in: the square
+// of its radius (3 sigma of the larger axis, as the reference) cut to the bounding box of the
+// ellipse outside which its alpha falls under 1/255 and every pixel is dropped (opacity *
+// exp(-m^2 / 2) < 1/255 beyond m^2 = 2 ln(255 opacity)). The same pixels are drawn, from fewer
+// tiles and smaller quads.
+fn splat_half_extent(p: Projected) -> vec2<f32> {
+  let opacity = unpack2x16float(p.color_b_opacity).y;
+  let m2 = 2.0 * log(max(255.0 * opacity, 1.0)) * 1.001;
+  // The 2D covariance's diagonal from the conic (its inverse): a = C / det, c = A / det.
+  let conic_det = p.conic_xy.x * p.conic_z - p.conic_xy.y * p.conic_xy.y;
+  let var_xy = vec2<f32>(p.conic_z, p.conic_xy.x) / max(conic_det, 1e-30);
+  return min(sqrt(m2 * var_xy), vec2<f32>(p.radius));
+}

@@ -1,6 +1,6 @@
 // Splats drawn back to front as instanced quads (4-vertex strips), instance i being the i-th
-// pair of the depth sort: the quad is the splat's 3-sigma square, the fragment its Gaussian,
-// alpha = min(0.99, opacity * exp(power)), fragments under 1/255 dropped, the colour
+// pair of the depth sort: the quad is the splat's box (splat_half_extent), the fragment its
+// Gaussian, alpha = min(0.99, opacity * exp(power)), fragments under 1/255 dropped, the colour
 // premultiplied (blend: one, one minus source alpha). Depth-tested, never written.
 #include "splat_common.wgsl"
 
@@ -20,7 +20,7 @@ struct VertexOut {
 fn vs_splat(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> VertexOut {
   let p = projected[sorted_values[instance]];
   let corner = vec2<f32>(f32(vertex & 1u), f32((vertex >> 1u) & 1u)) * 2.0 - 1.0;
-  let pixel = p.centre + corner * p.radius;
+  let pixel = p.centre + corner * splat_half_extent(p);
   let ndc = vec2<f32>(pixel.x / frame.viewport.x * 2.0 - 1.0, 1.0 - pixel.y / frame.viewport.y * 2.0);
   // Reverse Z with the far plane at infinity: depth = near / z.
   let depth = frame.near / key_depth(sorted_keys[instance]);

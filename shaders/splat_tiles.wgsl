@@ -1,8 +1,8 @@
 // The tile-based splat rasterizer (the reference's 16x16 tiles), an alternative to the sorted
 // quads of splat_draw.wgsl, after the same projection and depth sort:
 //
-//   cs_count        per splat in depth order (rank i, farthest first): the tiles its 3-sigma
-//                   square touches, into scan[i]
+//   cs_count        per splat in depth order (rank i, farthest first): the tiles its footprint
+//                   touches (tile_rect), into scan[i]
 //   cs_block_sums   per block of 512 ranks: the sum, into scan[capacity + block]
 //   cs_scan_blocks  one workgroup: exclusive prefix of the block sums; the pairs kept (the
 //                   total, at most pair_capacity) into tile_data[0] (the tile sort's count),
@@ -80,11 +80,12 @@ fn linear_index(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> u32 {
   return (wid.x + wid.y * groups.x) * WG + lid;
 }
 
-// The tiles whose pixels' centres can lie in the splat's square: (x0, y0, x1, y1), inclusive;
-// empty when x1 < x0.
+// The tiles whose pixels' centres can lie in the splat's box (splat_half_extent): (x0, y0, x1,
+// y1), inclusive; empty when x1 < x0.
 fn tile_rect(p: Projected) -> vec4<i32> {
-  let lo = ceil(p.centre - vec2<f32>(p.radius) - 0.5);
-  let hi = floor(p.centre + vec2<f32>(p.radius) - 0.5);
+  let half = splat_half_extent(p);
+  let lo = ceil(p.centre - half - 0.5);
+  let hi = floor(p.centre + half - 0.5);
   let size = vec2<f32>(frame.viewport);
   let plo = vec2<i32>(clamp(lo, vec2<f32>(0.0), size - 1.0));
   let phi = vec2<i32>(clamp(hi, vec2<f32>(0.0), size - 1.0));
