@@ -18,9 +18,6 @@ enable atomic_vec2u_min_max;
 // holds: a point deeper than it cannot win.
 @group(0) @binding(8) var<storage, read_write> depth_hint: array<atomic<u32>>;
 
-// EARLY off: every point's atomicStoreMin (the variant without the test, for comparisons).
-override EARLY: bool = true;
-
 alias Key = vec2u;
 
 fn point_key(depth: u32, index: u32) -> vec2u {
@@ -35,7 +32,7 @@ fn write_key(pixel: u32, key: vec2u) {
     }
     return;
   }
-  let early = EARLY && !ablated(ABLATE_EARLY);
+  let early = !ablated(ABLATE_EARLY);
   var nearest = 0xffffffffu;
   if (early) {
     // A key whose depth is above the pixel's cannot lower it (a tie in depth may, by its index).

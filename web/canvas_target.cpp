@@ -1,7 +1,5 @@
 #include "canvas_target.hpp"
 
-#include <cstdlib>
-#include <string_view>
 #include <utility>
 
 #include "stipple/engine/engine.hpp"
@@ -17,13 +15,6 @@ struct CanvasTarget {
   gpu::Surface surface;
   gpu::SurfaceFrame frame;
   uint32_t wanted_width = 0, wanted_height = 0;
-  // Benches (?canvas-copy=1, STIPPLE_CANVAS_COPY=1): frames drawn into a texture of the page's
-  // own and copied into the canvas's at present, to compare with writing the canvas's texture
-  // directly (whose display pass measured 0.44 ms at 1280x720 on an H200).
-  bool copy = false;
-  gpu::Texture offscreen;
-  gpu::TextureView offscreen_view;
-  uint32_t offscreen_width = 0, offscreen_height = 0;
 };
 
 void extract_canvas(Registry& main) {
@@ -49,19 +40,6 @@ void prepare_canvas(Registry& render) {
     target.height = s.height;
     target.format = s.format;
     target.usage = s.usage;
-  }
-  if (s.configured && t.copy) {
-    target.usage |= WGPUTextureUsage_CopySrc;
-    if (!t.offscreen || t.offscreen_width != s.width || t.offscreen_height != s.height) {
-      t.offscreen = gpu::create_texture_2d(*render.resource<GpuContext>(), s.width, s.height,
-                                           s.format, target.usage, "canvas-offscreen");
-      t.offscreen_view = gpu::create_view(t.offscreen);
-      t.offscreen_width = s.width;
-      t.offscreen_height = s.height;
-    }
-    target.texture = t.offscreen.get();
-    target.view = t.offscreen_view.get();
-  } else if (s.configured) {
     target.acquire = [&render](RenderTarget& late) {
       auto& c = render.resource<CanvasTarget>();
       c.frame = gpu::acquire_surface_frame(*render.resource<GpuContext>(), c.surface);
@@ -76,23 +54,6 @@ void prepare_canvas(Registry& render) {
 
 void present_canvas(Registry& render) {
   auto& t = render.resource<CanvasTarget>();
-  if (t.copy && t.offscreen && t.surface.configured) {
-    gpu::Context& ctx = *render.resource<GpuContext>();
-    t.frame = gpu::acquire_surface_frame(ctx, t.surface);
-    if (!t.frame.ok) return;
-    WGPUCommandEncoderDescriptor edesc = WGPU_COMMAND_ENCODER_DESCRIPTOR_INIT;
-    gpu::CommandEncoder encoder(wgpuDeviceCreateCommandEncoder(ctx.device.get(), &edesc));
-    WGPUTexelCopyTextureInfo src = WGPU_TEXEL_COPY_TEXTURE_INFO_INIT;
-    src.texture = t.offscreen.get();
-    WGPUTexelCopyTextureInfo dst = WGPU_TEXEL_COPY_TEXTURE_INFO_INIT;
-    dst.texture = t.frame.texture.get();
-    const WGPUExtent3D size{t.offscreen_width, t.offscreen_height, 1};
-    wgpuCommandEncoderCopyTextureToTexture(encoder.get(), &src, &dst, &size);
-    WGPUCommandBufferDescriptor bdesc = WGPU_COMMAND_BUFFER_DESCRIPTOR_INIT;
-    gpu::CommandBuffer commands(wgpuCommandEncoderFinish(encoder.get(), &bdesc));
-    WGPUCommandBuffer raw = commands.get();
-    wgpuQueueSubmit(ctx.queue.get(), 1, &raw);
-  }
   if (!t.frame.ok) return;
   gpu::present_surface(t.surface);  // the browser presents once the thread yields
   auto& target = render.resource<RenderTarget>();
@@ -131,9 +92,6 @@ void CanvasTargetPlugin::finish(Engine& engine) {
       gpu::create_canvas_surface(*engine.main().resource<GpuContext>(), selector.c_str());
   target.wanted_width = width;
   target.wanted_height = height;
-  const char* copy = std::getenv("STIPPLE_CANVAS_COPY");
-  target.copy = copy && std::string_view(copy) == "1";
-  if (target.copy) target.surface.usage |= WGPUTextureUsage_CopyDst;
   engine.render().insert_resource(std::move(target));
 }
 

@@ -205,12 +205,6 @@ Options parse(int argc, char** argv) {
       // Benches: the compute rasterizer's 32-bit fallback even where the browser offers 64-bit
       // atomics (the variants compared in one page build).
       if (number(a, v) != 0) setenv("STIPPLE_RASTER_FALLBACK", "1", 1);
-    } else if (a == "--canvas-copy") {
-      // Benches: frames drawn into a texture of the page's own, copied into the canvas's.
-      if (number(a, v) != 0) setenv("STIPPLE_CANVAS_COPY", "1", 1);
-    } else if (a == "--vec2u-early") {
-      // Benches: the atomic<vec2u> pass without its early depth test (0).
-      if (number(a, v) == 0) setenv("STIPPLE_VEC2U_EARLY", "0", 1);
     } else if (a == "--splat-rasterizer") {
       const std::string r = v;
       o.scene.splat_rasterizer =

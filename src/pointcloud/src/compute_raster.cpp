@@ -150,15 +150,6 @@ std::vector<gpu::PipelineConstant> depth_constants(const RasterKernel& kernel) {
   return {{"WORKGROUP", double(kDepthWorkgroup)}, {"ABLATE", double(kernel.ablate)}};
 }
 
-// The atomic<vec2u> pass's: its early test on or off (STIPPLE_VEC2U_EARLY=0, the page's
-// ?vec2u-early=0: benches compare the two in one build).
-std::vector<gpu::PipelineConstant> vec2u_constants(const RasterKernel& kernel) {
-  auto constants = depth_constants(kernel);
-  const char* env = std::getenv("STIPPLE_VEC2U_EARLY");
-  constants.push_back({"EARLY", env && std::string_view(env) == "0" ? 0.0 : 1.0});
-  return constants;
-}
-
 // The accumulation pass's: HQS's sums go through the workgroup tile and the general loop; the
 // fallback's colours (the nearest points only, few atomics) the screen's sums and the lean loop.
 std::vector<gpu::PipelineConstant> accumulate_constants(const RasterKernel& kernel, bool hqs) {
@@ -201,10 +192,7 @@ void ensure_split_pipelines(gpu::Context& ctx, ComputeRasterPipeline& p) {
   auto& t = p.split;
   if (t.made) return;
   constexpr bool trusted = true;
-  t.depth = make_compute(
-      ctx, depth_shader(p, false),
-      split(p.visibility_vec2u ? vec2u_constants(p.kernel) : depth_constants(p.kernel), 1),
-      trusted);
+  t.depth = make_compute(ctx, depth_shader(p, false), split(depth_constants(p.kernel), 1), trusted);
   if (!p.visibility64 && p.kernel.fallback_events == AutoSwitch::On)
     t.depth_events =
         make_compute(ctx, depth_shader(p, true), split(depth_constants(p.kernel), 1), trusted);
@@ -431,7 +419,7 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
     // A browser's newer feature: should its compiler refuse the pass, the page still draws,
     // with the fallback (said once).
     try {
-      p.raster64 = make_compute(ctx, depth_shader(p, false), vec2u_constants(kernel), trusted);
+      p.raster64 = make_compute(ctx, depth_shader(p, false), depth, trusted);
     } catch (const Error& e) {
       STIPPLE_WARN(
           "the 64-bit depth pass (atomic<vec2u>) failed, drawing with the 32-bit "

@@ -96,7 +96,6 @@ STIPPLE_EM(CommandEncoderBeginRenderPass)
 STIPPLE_EM(CommandEncoderClearBuffer)
 STIPPLE_EM(CommandEncoderCopyBufferToBuffer)
 STIPPLE_EM(CommandEncoderCopyTextureToBuffer)
-STIPPLE_EM(CommandEncoderCopyTextureToTexture)
 STIPPLE_EM(CommandEncoderResolveQuerySet)
 STIPPLE_EM(CommandEncoderFinish)
 STIPPLE_EM(CommandEncoderRelease)
@@ -1015,13 +1014,6 @@ void CommandEncoderCopyTextureToBuffer(WGPUCommandEncoder e, const WGPUTexelCopy
   em::WGPUExtent3D x{extent->width, extent->height, extent->depthOrArrayLayers};
   stipple_em_wgpuCommandEncoderCopyTextureToBuffer(EMH(CommandEncoder, e), &s, &d, &x);
 }
-void CommandEncoderCopyTextureToTexture(WGPUCommandEncoder e, const WGPUTexelCopyTextureInfo* src,
-                                        const WGPUTexelCopyTextureInfo* dst,
-                                        const WGPUExtent3D* extent) {
-  em::WGPUImageCopyTexture s = copy_texture(*src), d = copy_texture(*dst);
-  em::WGPUExtent3D x{extent->width, extent->height, extent->depthOrArrayLayers};
-  stipple_em_wgpuCommandEncoderCopyTextureToTexture(EMH(CommandEncoder, e), &s, &d, &x);
-}
 void CommandEncoderResolveQuerySet(WGPUCommandEncoder e, WGPUQuerySet q, uint32_t first,
                                    uint32_t count, WGPUBuffer dst, uint64_t offset) {
   stipple_em_wgpuCommandEncoderResolveQuerySet(EMH(CommandEncoder, e), EMH(QuerySet, q), first,
@@ -1229,13 +1221,13 @@ const Entry kEntries[] =
                                              STIPPLE_ENTRY(BufferGetMappedRange) STIPPLE_ENTRY(
                                                  BufferGetConstMappedRange) STIPPLE_ENTRY(BufferUnmap)
                                                  STIPPLE_ENTRY(BufferDestroy) STIPPLE_ENTRY(
-                                                     BufferGetSize) STIPPLE_ENTRY(BufferRelease) STIPPLE_ENTRY(TextureCreateView)
-                                                     STIPPLE_ENTRY(TextureRelease) STIPPLE_ENTRY(TextureViewRelease) STIPPLE_ENTRY(
-                                                         SamplerRelease) STIPPLE_ENTRY(ShaderModuleRelease)
-                                                         STIPPLE_ENTRY(BindGroupLayoutRelease) STIPPLE_ENTRY(BindGroupRelease) STIPPLE_ENTRY(
-                                                             PipelineLayoutRelease) STIPPLE_ENTRY(ComputePipelineGetBindGroupLayout)
-                                                             STIPPLE_ENTRY(ComputePipelineRelease) STIPPLE_ENTRY(RenderPipelineGetBindGroupLayout) STIPPLE_ENTRY(RenderPipelineRelease) STIPPLE_ENTRY(QuerySetRelease) STIPPLE_ENTRY(CommandEncoderBeginComputePass) STIPPLE_ENTRY(CommandEncoderBeginRenderPass) STIPPLE_ENTRY(CommandEncoderClearBuffer) STIPPLE_ENTRY(CommandEncoderCopyBufferToBuffer) STIPPLE_ENTRY(CommandEncoderCopyTextureToTexture) STIPPLE_ENTRY(CommandEncoderCopyTextureToBuffer) STIPPLE_ENTRY(CommandEncoderResolveQuerySet) STIPPLE_ENTRY(CommandEncoderFinish) STIPPLE_ENTRY(CommandEncoderRelease) STIPPLE_ENTRY(CommandBufferRelease) STIPPLE_ENTRY(ComputePassEncoderSetPipeline) STIPPLE_ENTRY(
-                                                                 ComputePassEncoderSetBindGroup) STIPPLE_ENTRY(ComputePassEncoderDispatchWorkgroups)
+                                                     BufferGetSize) STIPPLE_ENTRY(BufferRelease)
+                                                     STIPPLE_ENTRY(TextureCreateView) STIPPLE_ENTRY(
+                                                         TextureRelease) STIPPLE_ENTRY(TextureViewRelease)
+                                                         STIPPLE_ENTRY(SamplerRelease) STIPPLE_ENTRY(ShaderModuleRelease) STIPPLE_ENTRY(
+                                                             BindGroupLayoutRelease) STIPPLE_ENTRY(BindGroupRelease)
+                                                             STIPPLE_ENTRY(PipelineLayoutRelease) STIPPLE_ENTRY(
+                                                                 ComputePipelineGetBindGroupLayout) STIPPLE_ENTRY(ComputePipelineRelease) STIPPLE_ENTRY(RenderPipelineGetBindGroupLayout) STIPPLE_ENTRY(RenderPipelineRelease) STIPPLE_ENTRY(QuerySetRelease) STIPPLE_ENTRY(CommandEncoderBeginComputePass) STIPPLE_ENTRY(CommandEncoderBeginRenderPass) STIPPLE_ENTRY(CommandEncoderClearBuffer) STIPPLE_ENTRY(CommandEncoderCopyBufferToBuffer) STIPPLE_ENTRY(CommandEncoderCopyTextureToBuffer) STIPPLE_ENTRY(CommandEncoderResolveQuerySet) STIPPLE_ENTRY(CommandEncoderFinish) STIPPLE_ENTRY(CommandEncoderRelease) STIPPLE_ENTRY(CommandBufferRelease) STIPPLE_ENTRY(ComputePassEncoderSetPipeline) STIPPLE_ENTRY(ComputePassEncoderSetBindGroup) STIPPLE_ENTRY(ComputePassEncoderDispatchWorkgroups)
                                                                  STIPPLE_ENTRY(
                                                                      ComputePassEncoderDispatchWorkgroupsIndirect) STIPPLE_ENTRY(ComputePassEncoderEnd)
                                                                      STIPPLE_ENTRY(
