@@ -67,21 +67,28 @@ double thread_cpu_ms() {
 // bytes as a cache record): a load task converts what it reads, so a frame's new points are
 // copied to staging as they are, and the conversion runs on the loaders, off the frame. Load tasks
 // on a worker pool grow a prefix to what the LoD asks for, up to 25% more while the host budget
-// allows; prefixes no longer asked for shrink when the budget runs short. Each pointlet has its own
-// lock, and a task re-checks the state it was made for, so a stale task does nothing.
+// allows; prefixes no longer asked for shrink when the budget runs short. A task re-checks the
+// state it was made for, so a stale task does nothing.
+//
+// No lock per pointlet: a pointlet has one load in flight at most, and only that task writes its
+// prefix meanwhile (the selection unloads only pointlets not in flight, on the frame's thread). A
+// load reads and converts outside any lock, into a new buffer of exactly the new size (a vector
+// grown by doubling would hold up to twice what is counted), and swaps it in under
+// `buffers_mutex`, which the frame's new-point copy holds while it reads the buffers (once a
+// frame, not once a pointlet). What the frame scans every selection (loaded counts, in-flight
+// flags, buffer addresses) lies in arrays of its own, a few bytes a pointlet.
 static_assert(sizeof(PointletRecord) == kStoreWords * 4, "budgets count a point as its record");
 struct VirtualResidency {
-  struct Slot {
-    std::mutex mutex;
-    std::vector<uint32_t> words;  // the loaded prefix, kStoreWords a point
-    std::atomic<uint32_t> loaded{0};
-    std::atomic<bool> in_flight{false};
-  };
   std::shared_ptr<const PointletCache> cache;
   std::vector<Aabb> boxes;  // per pointlet, world space: what the store quantizes against
-  std::unique_ptr<Slot[]> slots;
   size_t count = 0;
-  uint64_t budget = 0;  // bytes of records
+  // Per pointlet: the loaded prefix (kStoreWords words a point, `loaded` points), whether a load
+  // is in flight.
+  std::unique_ptr<std::unique_ptr<uint32_t[]>[]> words;
+  std::unique_ptr<std::atomic<uint32_t>[]> loaded;
+  std::unique_ptr<std::atomic<bool>[]> in_flight;
+  std::mutex buffers_mutex;  // held to replace a pointlet's buffer, and while a frame copies
+  uint64_t budget = 0;       // bytes of records
   std::atomic<uint64_t> bytes{0}, loads{0}, points_read{0};
   uint64_t unloaded_since_trim = 0;  // main thread: record bytes freed since the last trim
   std::atomic<uint32_t> pending{0};
@@ -92,23 +99,39 @@ struct VirtualResidency {
   std::vector<uint32_t> finished;  // pointlets whose load ended since the selection took them
   std::string error;               // the first failed load (under progress_mutex)
 
+  explicit VirtualResidency(std::shared_ptr<const PointletCache> c)
+      : cache(std::move(c)),
+        boxes(pointlet_world_boxes(*cache)),
+        count(cache->pointlets().size()),
+        words(std::make_unique<std::unique_ptr<uint32_t[]>[]>(count)),
+        loaded(std::make_unique<std::atomic<uint32_t>[]>(count)),
+        in_flight(std::make_unique<std::atomic<bool>[]>(count)) {}
+
+  // `keep` points of pointlet `index`'s prefix (at most what it holds) in a buffer of their own.
+  std::unique_ptr<uint32_t[]> resized(uint32_t index, uint32_t keep, uint32_t size) const {
+    if (size == 0) return nullptr;
+    auto out = std::make_unique_for_overwrite<uint32_t[]>(uint64_t(size) * kStoreWords);
+    if (keep > 0) std::memcpy(out.get(), words[index].get(), uint64_t(keep) * kStoreWords * 4);
+    return out;
+  }
   void load(uint32_t index, uint32_t target) {
-    Slot& slot = slots[index];
     try {
-      std::lock_guard lock(slot.mutex);
-      const uint32_t have = slot.loaded.load();
+      const uint32_t have = loaded[index].load();  // only this task changes it while in flight
       if (target > have) {
-        // Exactly what is counted: a vector grown by doubling would hold up to twice that.
-        slot.words.reserve(uint64_t(target) * kStoreWords);
         thread_local std::vector<PointletRecord> records;
         records.clear();
         cache->read(index, have, target - have, records);
         if (records.size() != target - have)
           fail("pointlet {}: {} points read, {} asked for", index, records.size(), target - have);
-        slot.words.resize(uint64_t(target) * kStoreWords);
+        std::unique_ptr<uint32_t[]> grown = resized(index, have, target);
         pointlet_words(*cache, cache->pointlets()[index], boxes[index], records,
-                       slot.words.data() + uint64_t(have) * kStoreWords);
-        slot.loaded.store(target);
+                       grown.get() + uint64_t(have) * kStoreWords);
+        {
+          std::lock_guard lock(buffers_mutex);
+          words[index].swap(grown);
+          loaded[index].store(target);
+        }
+        grown.reset();  // the old buffer, freed outside the lock
         bytes += uint64_t(target - have) * sizeof(PointletRecord);
         points_read += target - have;
         ++loads;
@@ -117,7 +140,7 @@ struct VirtualResidency {
       std::lock_guard lock(progress_mutex);
       if (error.empty()) error = e.what();
     }
-    slot.in_flight.store(false);
+    in_flight[index].store(false);
     {
       // Before `completed` moves: a selection that sees the count has this pointlet to visit.
       std::lock_guard lock(finished_mutex);
@@ -127,14 +150,16 @@ struct VirtualResidency {
     ++completed;
     progress.notify_all();
   }
+  // On the frame's thread, for a pointlet not in flight.
   void unload(uint32_t index, uint32_t keep) {
-    Slot& slot = slots[index];
-    std::lock_guard lock(slot.mutex);
-    const uint32_t have = slot.loaded.load();
+    const uint32_t have = loaded[index].load();
     if (keep >= have) return;
-    slot.words.resize(uint64_t(keep) * kStoreWords);
-    slot.words.shrink_to_fit();
-    slot.loaded.store(keep);
+    std::unique_ptr<uint32_t[]> shrunk = resized(index, keep, keep);
+    {
+      std::lock_guard lock(buffers_mutex);
+      words[index].swap(shrunk);
+      loaded[index].store(keep);
+    }
     bytes -= uint64_t(have - keep) * sizeof(PointletRecord);
     unloaded_since_trim += uint64_t(have - keep) * sizeof(PointletRecord);
   }
@@ -194,28 +219,70 @@ bool same_view(const ExtractedCamera& a, const ExtractedCamera& b) {
          a.near_plane == b.near_plane;
 }
 
-// The new points of an update, copied from the pointlets' host buffers (each under its lock).
+// Runs body(begin, end) over [0, count) in pieces of `grain`, taken in turn by the calling thread
+// and by up to pool.size() tasks on `pool`: the caller works too, so a pool whose workers are
+// busy (or not yet scheduled) delays only the pieces they took, and a task that starts after
+// every piece was taken returns at once (it holds the shared state, never the caller's). Rethrows
+// the first exception a piece threw, once every piece has ended.
+void parallel_pieces(ThreadPool& pool, size_t count, size_t grain,
+                     const std::function<void(size_t, size_t)>& body) {
+  grain = std::max<size_t>(grain, 1);
+  const size_t pieces = (count + grain - 1) / grain;
+  if (pieces <= 1) {
+    if (count > 0) body(0, count);
+    return;
+  }
+  struct Shared {
+    std::atomic<size_t> next{0}, done{0};
+    size_t pieces = 0, count = 0, grain = 0;
+    const std::function<void(size_t, size_t)>* body = nullptr;
+    std::mutex mutex;
+    std::exception_ptr error;  // under mutex
+    void work() {
+      for (size_t k; (k = next.fetch_add(1)) < pieces;) {
+        try {
+          (*body)(k * grain, std::min(count, (k + 1) * grain));
+        } catch (...) {
+          std::lock_guard lock(mutex);
+          if (!error) error = std::current_exception();
+        }
+        if (done.fetch_add(1) + 1 == pieces) done.notify_all();
+      }
+    }
+  };
+  auto shared = std::make_shared<Shared>();
+  shared->pieces = pieces;
+  shared->count = count;
+  shared->grain = grain;
+  shared->body = &body;
+  const size_t helpers = std::min<size_t>(pieces - 1, pool.size());
+  for (size_t h = 0; h < helpers; ++h) pool.submit([shared] { shared->work(); });
+  shared->work();
+  for (size_t d; (d = shared->done.load()) < pieces;) shared->done.wait(d);
+  if (shared->error) std::rethrow_exception(shared->error);
+}
+
+// The new points of an update, copied from the pointlets' host buffers. They are a few points
+// each of tens of thousands of pointlets, so the copy costs per range (the pointlet's buffer and
+// its words are cache misses), not per byte: the ranges are shared among every core as soon as
+// there are more than a piece of them, the calling thread taking its share.
 FreshWriter fresh_writer(VirtualResidency& r, ThreadPool& pool) {
   return [&r, &pool](std::span<const FreshRange> ranges, uint32_t* words) {
     auto copy = [&](size_t begin, size_t end) {
       for (size_t k = begin; k < end; ++k) {
         const FreshRange& f = ranges[k];
-        VirtualResidency::Slot& slot = r.slots[f.pointlet];
-        std::lock_guard lock(slot.mutex);
-        if (slot.words.size() < (uint64_t(f.first) + f.count) * kStoreWords)
-          fail("virtual memory: pointlet {} holds {} points, {} asked for", f.pointlet,
-               slot.words.size() / kStoreWords, uint64_t(f.first) + f.count);
+        const uint32_t held = r.loaded[f.pointlet].load(std::memory_order_relaxed);
+        if (held < uint64_t(f.first) + f.count)
+          fail("virtual memory: pointlet {} holds {} points, {} asked for", f.pointlet, held,
+               uint64_t(f.first) + f.count);
         std::memcpy(words + uint64_t(f.at) * kStoreWords,
-                    slot.words.data() + uint64_t(f.first) * kStoreWords,
+                    r.words[f.pointlet].get() + uint64_t(f.first) * kStoreWords,
                     uint64_t(f.count) * kStoreWords * 4);
       }
     };
-    // A few megabytes are copied sooner here than handed to workers (which may be busy).
-    const uint64_t points = ranges.empty() ? 0 : uint64_t(ranges.back().at) + ranges.back().count;
-    if (points < (uint64_t(1) << 18)) return copy(0, ranges.size());
-    // A few chunks per worker: a task per range would cost more than the range.
-    const size_t grain = std::max<size_t>(16, ranges.size() / (size_t(pool.size()) * 4 + 1));
-    pool.parallel_for(ranges.size(), grain, copy);
+    // No pointlet's buffer is replaced while they are read (loads wait to swap theirs in).
+    std::lock_guard lock(r.buffers_mutex);
+    parallel_pieces(pool, ranges.size(), 2048, copy);
   };
 }
 
@@ -488,7 +555,7 @@ void select_points(Registry& render) {
   }
   // What a visit learns of a pointlet: the sums move by the difference to its last visit.
   auto visit = [&](uint32_t i) {
-    const uint32_t want = v.desired[i], have = r.slots[i].loaded.load();
+    const uint32_t want = v.desired[i], have = r.loaded[i].load();
     const uint32_t lack = want > have ? want - have : 0;
     v.lacking += uint64_t(lack) - v.seen_lack[i];
     v.wanted += uint64_t(want) - v.seen_want[i];
@@ -500,7 +567,7 @@ void select_points(Registry& render) {
   // Unload first: what the view no longer needs goes when what it needs would not fit.
   const uint64_t needed = v.lacking * sizeof(PointletRecord);
   for (uint32_t i = 0; i < r.count && r.bytes.load() + needed > r.budget; ++i)
-    if (!r.slots[i].in_flight.load() && r.slots[i].loaded.load() > v.desired[i]) {
+    if (!r.in_flight[i].load() && r.loaded[i].load() > v.desired[i]) {
       r.unload(i, v.desired[i]);
       touch(i);
     }
@@ -509,8 +576,8 @@ void select_points(Registry& render) {
   if (const uint64_t bytes = r.bytes.load(); bytes > r.budget) {
     const double share = double(r.budget) / double(bytes);
     for (uint32_t i = 0; i < r.count; ++i)
-      if (!r.slots[i].in_flight.load()) {
-        r.unload(i, uint32_t(double(r.slots[i].loaded.load()) * share));
+      if (!r.in_flight[i].load()) {
+        r.unload(i, uint32_t(double(r.loaded[i].load()) * share));
         touch(i);
       }
   }
@@ -550,9 +617,9 @@ void select_points(Registry& render) {
   for (uint32_t i : touched) {
     v.marked[i] = 0;
     visit(i);
-    const uint32_t want = v.desired[i], have = r.slots[i].loaded.load();
+    const uint32_t want = v.desired[i], have = r.loaded[i].load();
     draw[i] = std::min(want, have);
-    if (want <= have || r.slots[i].in_flight.load()) continue;  // in flight: visited when done
+    if (want <= have || r.in_flight[i].load()) continue;  // in flight: visited when done
     if (v.loads_held) {  // the first selection loads nothing: visited again at the next
       v.waiting.push_back(i);
       continue;
@@ -565,7 +632,7 @@ void select_points(Registry& render) {
       continue;
     }
     planned += uint64_t(goal - have) * sizeof(PointletRecord);
-    r.slots[i].in_flight.store(true);
+    r.in_flight[i].store(true);
     ++r.pending;
     loads.push_back({i, goal, want - have});
   }
@@ -757,11 +824,7 @@ void open_virtual_cloud(Registry& main, Registry& render, const VirtualCloudOpti
   main.insert_resource(settings);
   render.insert_resource(settings);
 
-  auto residency = std::make_shared<VirtualResidency>();
-  residency->cache = cache;
-  residency->count = cache->pointlets().size();
-  residency->boxes = pointlet_world_boxes(*cache);
-  residency->slots = std::make_unique<VirtualResidency::Slot[]>(residency->count);
+  auto residency = std::make_shared<VirtualResidency>(cache);
   residency->budget = options.host_budget;
   main.insert_resource(VirtualCloudHandle{residency});
   VirtualCloudRender v;
