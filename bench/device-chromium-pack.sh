@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Packs Debian's chromium for a GPU machine that has neither GTK nor NSS (bench/RESULTS.md, "The
 # page on a GPU"): the browser's folder and every shared library ldd lists except glibc's own, in
-# .devpkg/chromium-part-0{0,1,2}.xz (thirds of one tar.xz, 39 MiB each: with the 13 MiB of the
-# working tree each stays under a call's 64 MiB), so that three calls to a warm machine can bring
-# them; a runner (chromium-pkg/run) points LD_LIBRARY_PATH at the libraries.
+# .devpkg/chromium-part-0{0,1,2,3}.xz (quarters of one tar.xz, 29 MiB each: a call's 64 MiB counts
+# the working tree as a tar, about 25 MB, and what else the call carries), so that four calls to a
+# warm machine can bring them; a runner (chromium-pkg/run) points LD_LIBRARY_PATH at the libraries.
 #   bench/device-chromium-pack.sh
 # On the device: keep each part under /tmp as it comes, then
 #   cat /tmp/chromium-part-0? | xz -d | tar x -C /tmp && /tmp/chromium-pkg/run --version
@@ -31,8 +31,8 @@ chmod +x "$stage/run"
 mkdir -p "$root/.devpkg"
 tar -C "$(dirname "$stage")" -cf - chromium-pkg | xz -6 -T0 >"$root/.devpkg/chromium.tar.xz"
 rm -rf "$(dirname "$stage")"
-# Thirds of one stream.
+# Quarters of one stream.
 rm -f "$root"/.devpkg/chromium-part-*
-split -n 3 -d --additional-suffix=.xz "$root/.devpkg/chromium.tar.xz" "$root/.devpkg/chromium-part-"
+split -n 4 -d --additional-suffix=.xz "$root/.devpkg/chromium.tar.xz" "$root/.devpkg/chromium-part-"
 rm "$root/.devpkg/chromium.tar.xz"
 ls -la "$root"/.devpkg/chromium-part-*

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The web viewer beside native stipple on the GPU machine (bench/RESULTS.md, "The page on a
 # GPU"), from the repository root there, with what bench/device-chromium-pack.sh and
-# bench/device-pack.sh packed here carried over: the three chromium parts kept under /tmp by
+# bench/device-pack.sh packed here carried over: the four chromium parts kept under /tmp by
 # earlier calls (or chromium already unpacked there), .devpkg/stipple.tar.xz, each page build to
 # measure as .devpkg/web-NAME/ (stipple.html, .mjs, .js, .wasm), .devpkg/fonts/ (a TrueType font:
 # Chromium's font manager aborts without one) and the Vulkan loader's .gl/*.deb (device README).
