@@ -323,7 +323,7 @@ TEST_P(Splats, TileRasterizerDrawsEverySplatOfACloseUp) {
   // The (tile, splat) pairs of the frame far exceed the buffers' first capacity: the frame is
   // drawn again once they have grown (draw_splats waits for its pair count), and matches the
   // reference. Dropped pairs would leave splats out of their tiles.
-  const io::SplatSet set = close_up_splats(400, 21);
+  const io::SplatSet set = close_up_splats(600, 21);
   Camera camera;
   camera.look_at({0.2, 0.3, 2.5}, {0.0, 0.0, 0.0});
   camera.fov_y = glm::radians(50.0);
@@ -333,18 +333,18 @@ TEST_P(Splats, TileRasterizerDrawsEverySplatOfACloseUp) {
                                   240, &pairs);
   std::printf("pair capacity %u, frames over it %llu\n", pairs.capacity,
               static_cast<unsigned long long>(pairs.overflowed_frames));
-  EXPECT_EQ(visible, 400u);
+  EXPECT_EQ(visible, 600u);
   EXPECT_GT(d.covered, 0.9);  // the splats fill the view
   expect_close(d);
   EXPECT_EQ(pairs.overflowed_frames, 1u);  // the first frame, drawn again
-  EXPECT_GT(pairs.capacity, 400u * 100);   // grew past 4 a splat (and the 65536 floor)
+  EXPECT_GT(pairs.capacity, 600u * 120);   // grew past 4 a splat (and the 65536 floor)
 }
 
 TEST_P(Splats, TilePairsGrowWithoutWaiting) {
   // The interactive path: frames through the graph, never waited for; the pair counts come back
   // later (settle_tile_pairs without waiting, as the plugin calls it before each frame) and the
   // buffers grow before the next frame, which is then whole.
-  const io::SplatSet set = close_up_splats(400, 21);
+  const io::SplatSet set = close_up_splats(600, 21);
   Camera camera;
   camera.look_at({0.2, 0.3, 2.5}, {0.0, 0.0, 0.0});
   camera.fov_y = glm::radians(50.0);
@@ -384,10 +384,10 @@ TEST_P(Splats, TilePairsGrowWithoutWaiting) {
 
 TEST_P(Splats, TilePairsPastTheLimitKeepTheNearestSplats) {
   // The close-up's splats and, nearest the camera, a small opaque green one; the pair buffers
-  // may hold 70000 pairs (a lowered limit), the frame wants about 110000: the capacity stops at
-  // the limit, the frame is not redrawn for ever, and the pairs left out are the farthest
-  // splats', so the green one shows.
-  io::SplatSet set = close_up_splats(400, 21);
+  // may hold 70000 pairs (a lowered limit, above the first capacity of 65536), the frame wants
+  // about 105000: the capacity stops at the limit, the frame is not redrawn for ever, and the
+  // pairs left out are the farthest splats', so the green one shows.
+  io::SplatSet set = close_up_splats(600, 21);
   set.positions.push_back({0.0f, 0.0f, 1.2f});
   set.scales.push_back({0.03f, 0.03f, 0.03f});
   set.rotations.push_back({0, 0, 0, 1});
