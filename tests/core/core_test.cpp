@@ -119,3 +119,18 @@ TEST(ThreadPool, ParallelForEndsEveryPieceBeforeRethrowing) {
   }
   EXPECT_EQ(ended.load(), 7);
 }
+
+// The calling thread takes pieces too: every index is covered once, and a parallel_for called
+// from the pool's only worker ends (the worker does the pieces itself instead of waiting for a
+// task that could never start).
+TEST(ThreadPool, ParallelForCoversEachIndexOnceAndNestsOnABusyPool) {
+  ThreadPool pool(1);
+  std::vector<std::atomic<int>> hits(1001);
+  pool.submit([&] {
+        pool.parallel_for(hits.size(), 7, [&](size_t begin, size_t end) {
+          for (size_t i = begin; i < end; ++i) ++hits[i];
+        });
+      })
+      .get();
+  for (size_t i = 0; i < hits.size(); ++i) ASSERT_EQ(hits[i].load(), 1) << "index " << i;
+}

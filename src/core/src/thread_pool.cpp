@@ -1,7 +1,9 @@
 #include "stipple/core/thread_pool.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <exception>
+#include <memory>
 
 namespace stipple {
 
@@ -44,25 +46,48 @@ std::future<void> ThreadPool::submit(std::function<void()> task) {
   return future;
 }
 
+// The pieces are taken in turn by the calling thread and by up to size() tasks: the caller works
+// too, so pool workers that are busy (or not yet scheduled) delay only the pieces they took, a
+// parallel_for inside a task cannot wait on itself, and a task that starts after every piece was
+// taken returns at once. The tasks hold the shared state, never the caller's frame.
 void ThreadPool::parallel_for(size_t count, size_t grain,
                               const std::function<void(size_t, size_t)>& body) {
   grain = std::max<size_t>(1, grain);
-  std::vector<std::future<void>> pending;
-  for (size_t begin = 0; begin < count; begin += grain) {
-    size_t end = std::min(count, begin + grain);
-    pending.push_back(submit([&body, begin, end] { body(begin, end); }));
+  const size_t pieces = count / grain + (count % grain != 0);
+  if (pieces <= 1) {
+    if (count > 0) body(0, count);
+    return;
   }
-  // Every task holds `body` and what it refers to (the caller's stack): all of them must end
-  // before an exception leaves this frame, so the first one is kept and thrown after the rest.
-  std::exception_ptr first;
-  for (auto& f : pending) {
-    try {
-      f.get();
-    } catch (...) {
-      if (!first) first = std::current_exception();
+  struct Shared {
+    std::atomic<size_t> next{0}, done{0};
+    size_t pieces = 0, count = 0, grain = 0;
+    const std::function<void(size_t, size_t)>* body = nullptr;
+    std::mutex mutex;
+    std::exception_ptr error;  // the first a piece threw, under mutex
+    void work() {
+      for (size_t k; (k = next.fetch_add(1)) < pieces;) {
+        try {
+          (*body)(k * grain, std::min(count, (k + 1) * grain));
+        } catch (...) {
+          std::lock_guard lock(mutex);
+          if (!error) error = std::current_exception();
+        }
+        if (done.fetch_add(1) + 1 == pieces) done.notify_all();
+      }
     }
-  }
-  if (first) std::rethrow_exception(first);
+  };
+  auto shared = std::make_shared<Shared>();
+  shared->pieces = pieces;
+  shared->count = count;
+  shared->grain = grain;
+  shared->body = &body;
+  const size_t helpers = std::min<size_t>(pieces - 1, size());
+  for (size_t h = 0; h < helpers; ++h) submit([shared] { shared->work(); });
+  shared->work();
+  // Every piece must end before an exception leaves this frame: they use `body` and what it
+  // refers to (the caller's stack).
+  for (size_t d; (d = shared->done.load()) < pieces;) shared->done.wait(d);
+  if (shared->error) std::rethrow_exception(shared->error);
 }
 
 }  // namespace stipple

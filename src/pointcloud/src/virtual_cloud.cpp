@@ -219,49 +219,6 @@ bool same_view(const ExtractedCamera& a, const ExtractedCamera& b) {
          a.near_plane == b.near_plane;
 }
 
-// Runs body(begin, end) over [0, count) in pieces of `grain`, taken in turn by the calling thread
-// and by up to pool.size() tasks on `pool`: the caller works too, so a pool whose workers are
-// busy (or not yet scheduled) delays only the pieces they took, and a task that starts after
-// every piece was taken returns at once (it holds the shared state, never the caller's). Rethrows
-// the first exception a piece threw, once every piece has ended.
-void parallel_pieces(ThreadPool& pool, size_t count, size_t grain,
-                     const std::function<void(size_t, size_t)>& body) {
-  grain = std::max<size_t>(grain, 1);
-  const size_t pieces = (count + grain - 1) / grain;
-  if (pieces <= 1) {
-    if (count > 0) body(0, count);
-    return;
-  }
-  struct Shared {
-    std::atomic<size_t> next{0}, done{0};
-    size_t pieces = 0, count = 0, grain = 0;
-    const std::function<void(size_t, size_t)>* body = nullptr;
-    std::mutex mutex;
-    std::exception_ptr error;  // under mutex
-    void work() {
-      for (size_t k; (k = next.fetch_add(1)) < pieces;) {
-        try {
-          (*body)(k * grain, std::min(count, (k + 1) * grain));
-        } catch (...) {
-          std::lock_guard lock(mutex);
-          if (!error) error = std::current_exception();
-        }
-        if (done.fetch_add(1) + 1 == pieces) done.notify_all();
-      }
-    }
-  };
-  auto shared = std::make_shared<Shared>();
-  shared->pieces = pieces;
-  shared->count = count;
-  shared->grain = grain;
-  shared->body = &body;
-  const size_t helpers = std::min<size_t>(pieces - 1, pool.size());
-  for (size_t h = 0; h < helpers; ++h) pool.submit([shared] { shared->work(); });
-  shared->work();
-  for (size_t d; (d = shared->done.load()) < pieces;) shared->done.wait(d);
-  if (shared->error) std::rethrow_exception(shared->error);
-}
-
 // The new points of an update, copied from the pointlets' host buffers. They are a few points
 // each of tens of thousands of pointlets, so the copy costs per range (the pointlet's buffer and
 // its words are cache misses), not per byte: the ranges are shared among every core as soon as
@@ -282,7 +239,7 @@ FreshWriter fresh_writer(VirtualResidency& r, ThreadPool& pool) {
     };
     // No pointlet's buffer is replaced while they are read (loads wait to swap theirs in).
     std::lock_guard lock(r.buffers_mutex);
-    parallel_pieces(pool, ranges.size(), 2048, copy);
+    pool.parallel_for(ranges.size(), 2048, copy);
   };
 }
 
