@@ -1,5 +1,5 @@
 // A stable least-significant-digit radix sort of (u32 key, u32 value) pairs, 8 bits a round,
-// in plain WGSL: no subgroups, 256 invocations and 11 KB of workgroup memory a workgroup, so it
+// in plain WGSL: no subgroups, 256 invocations and 12 KB of workgroup memory a workgroup, so it
 // runs on every WebGPU implementation and in browsers. One round is four dispatches:
 //
 //   cs_histogram     per block of 2048 pairs, how many keys have each digit: hist[digit][block]
@@ -43,8 +43,7 @@ const PER: u32 = 8u;       // words an invocation
 const BLOCK: u32 = 2048u;  // pairs a workgroup (radix_sort.cpp's kBlock)
 
 var<workgroup> digit_counts: array<atomic<u32>, 256>;
-var<workgroup> scan: array<u32, 256>;
-var<workgroup> scan2: array<vec2<u32>, 256>;
+var<workgroup> scan: array<vec2<u32>, 256>;
 var<workgroup> words: array<u32, 2048>;
 var<workgroup> starts: array<u32, 256>;
 
@@ -56,9 +55,10 @@ fn pair_count() -> u32 {
   return min(count[params.count_index], params.capacity);
 }
 
-// Inclusive prefix sum of `v` over the workgroup (Hillis-Steele); scan[255] is the total
-// afterwards. Every invocation must call it.
-fn inclusive_scan(lid: u32, v: u32) -> u32 {
+// Inclusive prefix sum of `v` over the workgroup (Hillis-Steele), two words at once: the scatter
+// scans four 16-bit counters, the digit scans one count (the second word 0). scan[255] is the
+// total afterwards. Every invocation must call it.
+fn inclusive_scan(lid: u32, v: vec2<u32>) -> vec2<u32> {
   scan[lid] = v;
   workgroupBarrier();
   for (var offset = 1u; offset < WG; offset = offset << 1u) {
@@ -71,22 +71,6 @@ fn inclusive_scan(lid: u32, v: u32) -> u32 {
     workgroupBarrier();
   }
   return scan[lid];
-}
-
-// The same over two words (four 16-bit counters); scan2[255] is the total afterwards.
-fn inclusive_scan2(lid: u32, v: vec2<u32>) -> vec2<u32> {
-  scan2[lid] = v;
-  workgroupBarrier();
-  for (var offset = 1u; offset < WG; offset = offset << 1u) {
-    var t = scan2[lid];
-    if (lid >= offset) {
-      t = t + scan2[lid - offset];
-    }
-    workgroupBarrier();
-    scan2[lid] = t;
-    workgroupBarrier();
-  }
-  return scan2[lid];
 }
 
 @compute @workgroup_size(256)
@@ -123,8 +107,8 @@ fn cs_scan_digits(@builtin(workgroup_id) wid: vec3<u32>,
   for (var b = first; b < last; b = b + 1u) {
     sum = sum + hist[row + b];
   }
-  let inclusive = inclusive_scan(lid, sum);
-  let total = scan[WG - 1u];
+  let inclusive = inclusive_scan(lid, vec2<u32>(sum, 0u)).x;
+  let total = scan[WG - 1u].x;
   var running = inclusive - sum;
   for (var b = first; b < last; b = b + 1u) {
     let v = hist[row + b];
@@ -139,7 +123,7 @@ fn cs_scan_digits(@builtin(workgroup_id) wid: vec3<u32>,
 @compute @workgroup_size(256)
 fn cs_scan_totals(@builtin(local_invocation_index) lid: u32) {
   let v = digit_offsets[lid];
-  let inclusive = inclusive_scan(lid, v);
+  let inclusive = inclusive_scan(lid, vec2<u32>(v, 0u)).x;
   digit_offsets[lid] = inclusive - v;
 }
 
@@ -190,8 +174,8 @@ fn cs_scatter(@builtin(workgroup_id) wid: vec3<u32>,
     for (var e = 0u; e < PER; e = e + 1u) {
       c = c + packed_one((w[e] >> s) & 3u);
     }
-    let inclusive = inclusive_scan2(lid, c);
-    let totals = unpack_counts(scan2[WG - 1u]);
+    let inclusive = inclusive_scan(lid, c);
+    let totals = unpack_counts(scan[WG - 1u]);
     var at = unpack_counts(inclusive - c) +
              vec4<u32>(0u, totals.x, totals.x + totals.y, totals.x + totals.y + totals.z);
     for (var e = 0u; e < PER; e = e + 1u) {
