@@ -2,7 +2,7 @@
 # A splat tileset streamed along the seed's camera path (issue 46's goal: 100M splats from the
 # tiler, a 6M-splat budget, >= 60 FPS average): `stipple generate` N splats (.ply, streamed),
 # `stipple tile` them (SPZ glb, merged inner tiles), then `stipple bench stream` on the tileset
-# (tiles3d::SplatTilesetPlugin: traversal, SSE, budgets; the drawn tiles' splats packed into one
+# (tiles3d::SplatTilesetPlugin: traversal, SSE, budgets; the drawn tiles' splats composed into one
 # set and sorted together each frame). Frames do not wait for loads, as in a viewer.
 #   bench/splat_stream.sh [--splats N] [--sh D] [--budget B] [--memory-mb M] [--frames F]
 #                         [--backend wgpu|dawn] [--step tile|bench|all] [--json FILE]

@@ -254,14 +254,15 @@ struct PairStats {
   uint64_t overflowed_frames = 0;
 };
 
-// Draws `set` alone over the background and compares it with the reference renderer.
-Difference draw_and_compare(gpu::Context& ctx, const io::SplatSet& set, const Camera& camera,
-                            uint32_t* visible,
-                            splats::SplatRasterizer rasterizer = splats::SplatRasterizer::Quads,
-                            uint32_t w = 200, uint32_t h = 150, PairStats* pairs = nullptr) {
+// Draws `gpu_splats` alone over the background and compares it with the reference renderer's
+// image of `set`.
+Difference draw_uploaded_and_compare(gpu::Context& ctx, splats::GpuSplats& gpu_splats,
+                                     const io::SplatSet& set, const Camera& camera,
+                                     uint32_t* visible, splats::SplatRasterizer rasterizer,
+                                     uint32_t w = 200, uint32_t h = 150,
+                                     PairStats* pairs = nullptr) {
   const glm::dvec3 background(0.1, 0.2, 0.3);
   auto pipelines = splats::create_splat_pipelines(ctx, WGPUTextureFormat_RGBA8Unorm);
-  auto gpu_splats = splats::upload_splats(ctx, set);
   Target target = make_target(ctx, w, h, background, 0.0f);
   splats::draw_splats(ctx, pipelines, gpu_splats, camera, target.color.get(),
                       target.color_view.get(), w, h, nullptr, nullptr, false, rasterizer);
@@ -275,6 +276,15 @@ Difference draw_and_compare(gpu::Context& ctx, const io::SplatSet& set, const Ca
   std::printf("visible %u of %zu, covered %.3f, mean |diff| %.3f levels, within 4: %.4f, max %d\n",
               *visible, set.size(), d.covered, d.mean, d.within, d.max);
   return d;
+}
+
+// Uploads `set`, draws it alone over the background and compares it with the reference.
+Difference draw_and_compare(gpu::Context& ctx, const io::SplatSet& set, const Camera& camera,
+                            uint32_t* visible,
+                            splats::SplatRasterizer rasterizer = splats::SplatRasterizer::Quads,
+                            uint32_t w = 200, uint32_t h = 150, PairStats* pairs = nullptr) {
+  auto gpu_splats = splats::upload_splats(ctx, set);
+  return draw_uploaded_and_compare(ctx, gpu_splats, set, camera, visible, rasterizer, w, h, pairs);
 }
 
 // Tolerance: the GPU blends into 8 bits after every splat and keeps SH, rotations and DC
@@ -434,6 +444,77 @@ TEST_P(Splats, TransformedSetMatchesTheReference) {
   Difference d = draw_and_compare(*ctx, set, camera, &visible);
   EXPECT_GT(visible, 200u);
   expect_close(d);
+}
+
+// A streamed tileset's drawn tiles: sets in one frame, composed on the GPU into one set placed by
+// a transform (compose_splats). Each part is packed and uploaded once; a later list reuses the
+// uploaded parts and the set's buffers while they have room, and grows them when not; a part of
+// a lower SH degree is padded with zeros. Every composition draws as the reference draws the
+// parts' splats together.
+TEST_P(Splats, ComposedPartsMatchTheReference) {
+  const glm::dvec3 far(2.0e4, 10.0, -5.0e4);
+  const glm::dmat4 transform = glm::translate(glm::dmat4(1.0), far) *
+                               glm::rotate(glm::dmat4(1.0), 0.4, glm::dvec3(0.0, 1.0, 0.0));
+  auto slice = [](const io::SplatSet& from, size_t first, size_t n, int degree) {
+    io::SplatSet part;
+    part.sh_degree = degree;
+    for (size_t i = first; i < first + n; ++i) {
+      part.positions.push_back(from.positions[i]);
+      part.scales.push_back(from.scales[i]);
+      part.rotations.push_back(from.rotations[i]);
+      part.opacities.push_back(from.opacities[i]);
+      part.sh_dc.push_back(from.sh_dc[i]);
+      for (size_t k = 0; k < part.rest_count(); ++k)
+        part.sh_rest.push_back(from.sh_rest[i * from.rest_count() + k]);
+    }
+    return std::make_shared<const io::SplatSet>(std::move(part));
+  };
+  const io::SplatSet source = random_splats(500, 21);
+  const auto a = slice(source, 0, 100, 3), b = slice(source, 100, 100, 1),
+             c = slice(source, 200, 100, 3), d = slice(source, 300, 200, 3);
+  // The reference's set: the parts' splats in order at degree 3 (b's higher coefficients zero).
+  auto together = [&](const std::vector<std::shared_ptr<const io::SplatSet>>& parts) {
+    io::SplatSet all;
+    all.sh_degree = 3;
+    all.transform = transform;
+    for (const auto& part : parts)
+      for (size_t i = 0; i < part->size(); ++i) {
+        all.positions.push_back(part->positions[i]);
+        all.scales.push_back(part->scales[i]);
+        all.rotations.push_back(part->rotations[i]);
+        all.opacities.push_back(part->opacities[i]);
+        all.sh_dc.push_back(part->sh_dc[i]);
+        for (size_t k = 0; k < all.rest_count(); ++k)
+          all.sh_rest.push_back(k < part->rest_count() ? part->sh_rest[i * part->rest_count() + k]
+                                                       : glm::vec3(0.0f));
+      }
+    return all;
+  };
+  Camera camera = test_camera();
+  camera.position = glm::dvec3(transform * glm::dvec4(camera.position, 1.0));
+  camera.look_at(camera.position, far);
+  splats::SplatPartCache cache;
+  std::unique_ptr<splats::GpuSplats> composed;
+  auto check = [&](const std::vector<std::shared_ptr<const io::SplatSet>>& parts, uint64_t packed,
+                   uint32_t capacity) {
+    splats::compose_splats(*ctx, cache, composed, parts, transform);
+    EXPECT_EQ(cache.packed_splats, packed);
+    EXPECT_EQ(composed->capacity, capacity);
+    const io::SplatSet all = together(parts);
+    for (auto rasterizer : {splats::SplatRasterizer::Quads, splats::SplatRasterizer::Tiles}) {
+      SCOPED_TRACE(splats::splat_rasterizer_name(rasterizer));
+      uint32_t visible = 0;
+      expect_close(draw_uploaded_and_compare(*ctx, *composed, all, camera, &visible, rasterizer));
+      EXPECT_EQ(visible, all.size());
+    }
+  };
+  check({a, b, c}, 300, 450);  // every part packed; room for half again
+  const splats::GpuSplats* kept = composed.get();
+  check({c, a}, 300, 450);  // nothing packed, the same buffers, another order
+  EXPECT_EQ(composed.get(), kept);
+  check({a, b, c, d}, 500, 750);  // only d packed; 500 splats outgrow 450: new buffers
+  EXPECT_EQ(cache.parts.size(), 4u);
+  composed.reset();
 }
 
 TEST_P(Splats, CulledBehindTheCameraAndOffScreen) {

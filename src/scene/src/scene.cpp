@@ -424,8 +424,9 @@ void add_splat_plugin(Engine& engine, const ScenePlan& plan) {
   plugin.settings.rasterizer = plan.options.splat_rasterizer;
   engine.add_plugin(std::move(plugin));
   if (plan.splat_tileset.empty()) return;
-  // The streamed tileset: tiles3d packs the drawn tiles into one set (StreamedSplats), which one
-  // SplatData entity hands to the SplatPlugin, so every drawn tile is sorted with the others.
+  // The streamed tileset: tiles3d lists the drawn tiles' splats (StreamedSplats), which one
+  // SplatData entity hands to the SplatPlugin as the parts of one set, so every drawn tile is
+  // sorted with the others.
   // The wiring is here because neither module may see the other (DESIGN.md's table).
   tiles3d::SplatTilesetPlugin stream;
   stream.uri = plan.splat_tileset;
@@ -446,7 +447,8 @@ void add_splat_plugin(Engine& engine, const ScenePlan& plan) {
         r.view<splats::SplatData, StreamedSplatEntity>().each(
             [&](splats::SplatData& data, const StreamedSplatEntity&) {
               if (data.generation == stream.generation) return;
-              data.set = stream.set;
+              data.parts = stream.parts;
+              data.parts_transform = stream.transform;
               data.generation = stream.generation;
             });
       },

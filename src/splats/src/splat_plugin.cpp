@@ -19,7 +19,11 @@ namespace {
 // Render-world component on a set's twin.
 struct RenderSplats {
   std::shared_ptr<const io::SplatSet> set;
+  std::vector<std::shared_ptr<const io::SplatSet>> parts;  // SplatData::parts
+  glm::dmat4 parts_transform{1.0};
+  SplatPartCache part_cache;  // the parts uploaded (kept while the main world holds them)
   uint64_t generation = 0;
+  bool taken = false;           // set, parts and generation taken from the main world once
   glm::dvec3 translation{0.0};  // from the entity's GlobalTransform
   uint64_t uploaded_generation = std::numeric_limits<uint64_t>::max();
   // The passes read it when the graph executes (Draw): boxed, its address must not move.
@@ -39,8 +43,11 @@ void extract_splats(Registry& main) {
       [&](Entity e, const SplatData& data, const RenderEntity& twin) {
         auto* r = render.try_get<RenderSplats>(twin.entity);
         if (!r) r = &render.emplace<RenderSplats>(twin.entity);
-        if (r->generation != data.generation || !r->set) {
+        if (!r->taken || r->generation != data.generation) {
+          r->taken = true;
           r->set = data.set;
+          r->parts = data.parts;
+          r->parts_transform = data.parts_transform;
           r->generation = data.generation;
         }
         const auto* global = main.try_get<GlobalTransform>(e);
@@ -51,8 +58,11 @@ void extract_splats(Registry& main) {
 void upload_splat_sets(Registry& render) {
   gpu::Context& ctx = *render.resource<GpuContext>();
   render.view<RenderSplats>().each([&](RenderSplats& r) {
-    if (!r.set || r.uploaded_generation == r.generation) return;
-    r.gpu = std::make_unique<GpuSplats>(upload_splats(ctx, *r.set));
+    if (r.uploaded_generation == r.generation) return;
+    if (r.set)
+      r.gpu = std::make_unique<GpuSplats>(upload_splats(ctx, *r.set));
+    else  // parts, perhaps none (a stream that draws nothing now)
+      compose_splats(ctx, r.part_cache, r.gpu, r.parts, r.parts_transform);
     r.uploaded_generation = r.generation;
   });
 }
@@ -152,7 +162,10 @@ void SplatPlugin::build(Engine& engine) {
   for (const auto& set : sets) {
     if (!set) continue;
     Entity e = main.create();
-    main.emplace<SplatData>(e, SplatData{set, generation++});
+    SplatData data;
+    data.set = set;
+    data.generation = generation++;
+    main.emplace<SplatData>(e, std::move(data));
     main.emplace<Transform>(e);
     main.emplace<SyncTo<RenderWorldTag>>(e);
   }

@@ -1,9 +1,11 @@
 #include "stipple/splats/splats.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <string_view>
 #include <utility>
 
 #include <glm/gtc/packing.hpp>
@@ -246,9 +248,10 @@ void ensure_tile_buffers(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& 
     fail("splats: the tile rasterizer sorts tiles by 16 bits: {}x{} has too many tiles", width,
          height);
   t->pair_capacity = wanted_pair_capacity(ctx, s);
-  const uint32_t blocks = (s.count + kScanBlock - 1) / kScanBlock;
-  t->scan = gpu::create_buffer(ctx, (uint64_t(s.count) + blocks + 1) * 4, WGPUBufferUsage_Storage,
-                               "splat-tile-scan");
+  // Room for the set's capacity: a composed set's count changes within it (compose_splats).
+  const uint32_t blocks = (s.capacity + kScanBlock - 1) / kScanBlock;
+  t->scan = gpu::create_buffer(ctx, (uint64_t(s.capacity) + blocks + 1) * 4,
+                               WGPUBufferUsage_Storage, "splat-tile-scan");
   // The pairs kept, each tile's range, the pairs wanted (copied out: TilePairCounts).
   t->tile_data =
       gpu::create_buffer(ctx, (2 + 2 * uint64_t(t->tiles_x) * t->tiles_y) * 4,
@@ -419,42 +422,34 @@ SplatRasterizer default_splat_rasterizer(const gpu::Context& ctx) {
   return gpu::is_cpu_adapter(ctx.description) ? SplatRasterizer::Quads : SplatRasterizer::Tiles;
 }
 
-GpuSplats upload_splats(gpu::Context& ctx, const io::SplatSet& set) {
+namespace {
+
+void check_set(const io::SplatSet& set, std::string_view what) {
   const size_t n = set.size();
   if (set.scales.size() != n || set.rotations.size() != n || set.opacities.size() != n ||
       set.sh_dc.size() != n || set.sh_rest.size() != n * set.rest_count())
-    fail("splats: the set's arrays disagree on its size ({} positions)", n);
+    fail("splats: {}'s arrays disagree on its size ({} positions)", what, n);
   if (set.sh_degree < 0 || set.sh_degree > 3)
-    fail("splats: SH degree {} (0 to 3 are drawn)", set.sh_degree);
-  GpuSplats g;
-  g.count = uint32_t(n);
-  g.sh_degree = set.sh_degree;
+    fail("splats: {} has SH degree {} (0 to 3 are drawn)", what, set.sh_degree);
+}
+
+// u32 words of f16 SH a splat for a degree.
+uint32_t sh_stride_of(int sh_degree) {
+  return uint32_t(((sh_degree + 1) * (sh_degree + 1) - 1) * 3 + 1) / 2;
+}
+
+// A set's splats in the GPU's layout, positions relative to `origin` (in the set's frame), SH as
+// f16 at `sh_stride` words a splat (a lower degree's missing coefficients zero). `splats` and `sh`
+// hold max(1, n) splats.
+void pack_splats(const io::SplatSet& set, const glm::dvec3& origin, uint32_t sh_stride,
+                 std::vector<GpuSplat>& splats, std::vector<uint32_t>& sh) {
+  const size_t n = set.size();
   const size_t rest = set.rest_count();
-  g.sh_stride = uint32_t((rest * 3 + 1) / 2);
-  const uint64_t limit =
-      std::min<uint64_t>(ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize);
-  const uint64_t splat_bytes = uint64_t(std::max<size_t>(1, n)) * sizeof(GpuSplat);
-  const uint64_t sh_bytes = uint64_t(std::max<size_t>(1, n)) * std::max(1u, g.sh_stride) * 4;
-  if (splat_bytes > limit || sh_bytes > limit ||
-      uint64_t(std::max<size_t>(1, n)) * kProjectedBytes > limit)
-    fail(
-        "splats: {} splats of SH degree {} need {} bytes in one storage binding, over this "
-        "device's limit of {}",
-        n, set.sh_degree, std::max(splat_bytes, sh_bytes), limit);
-
-  // Positions relative to their mean (float keeps its precision near the splats), the mean
-  // through the set's transform in double.
-  glm::dvec3 mean(0.0);
-  for (const auto& p : set.positions) mean += glm::dvec3(p);
-  if (n) mean /= double(n);
-  g.linear = glm::dmat3(set.transform);
-  g.centre = g.linear * mean + glm::dvec3(set.transform[3]);
-
-  std::vector<GpuSplat> splats(std::max<size_t>(1, n), GpuSplat{});
-  std::vector<uint32_t> sh(std::max<size_t>(1, n * g.sh_stride), 0u);
+  splats.assign(std::max<size_t>(1, n), GpuSplat{});
+  sh.assign(std::max<size_t>(1, n * sh_stride), 0u);
   for (size_t i = 0; i < n; ++i) {
     GpuSplat& s = splats[i];
-    const glm::dvec3 p = glm::dvec3(set.positions[i]) - mean;
+    const glm::dvec3 p = glm::dvec3(set.positions[i]) - origin;
     for (int k = 0; k < 3; ++k) {
       s.position[k] = float(p[k]);
       s.scale[k] = set.scales[i][k];
@@ -470,26 +465,134 @@ GpuSplats upload_splats(gpu::Context& ctx, const io::SplatSet& set) {
     for (size_t h = 0; h < rest * 3; h += 2) {
       const float a = coefs[h / 3][int(h % 3)];
       const float b = h + 1 < rest * 3 ? coefs[(h + 1) / 3][int((h + 1) % 3)] : 0.0f;
-      sh[i * g.sh_stride + h / 2] = pack_half2(a, b);
+      sh[i * sh_stride + h / 2] = pack_half2(a, b);
     }
   }
-  g.splats = gpu::create_buffer(ctx, splat_bytes, WGPUBufferUsage_Storage, "splats", splats.data());
-  g.sh = gpu::create_buffer(ctx, uint64_t(sh.size()) * 4, WGPUBufferUsage_Storage, "splat-sh",
-                            sh.data());
-  g.projected = gpu::create_buffer(ctx, uint64_t(std::max<size_t>(1, n)) * kProjectedBytes,
-                                   WGPUBufferUsage_Storage, "splats-projected");
-  g.args = gpu::create_buffer(ctx, 16,
-                              WGPUBufferUsage_Storage | WGPUBufferUsage_Indirect |
-                                  WGPUBufferUsage_CopyDst | WGPUBufferUsage_CopySrc,
-                              "splat-draw-args");
-  g.frame_uniforms = gpu::create_buffer(
+}
+
+// A set's buffers for `capacity` splats of `sh_stride` words of SH, empty (the caller fills the
+// splats and SH); throws where one would exceed a storage binding.
+std::unique_ptr<GpuSplats> allocate_splats(gpu::Context& ctx, uint64_t count, uint64_t capacity,
+                                           int sh_degree, WGPUBufferUsage extra_usage) {
+  auto g = std::make_unique<GpuSplats>();
+  g->count = uint32_t(count);
+  g->sh_degree = sh_degree;
+  g->sh_stride = sh_stride_of(sh_degree);
+  const uint64_t limit =
+      std::min<uint64_t>(ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize);
+  const uint64_t room = std::max<uint64_t>(1, capacity);
+  const uint64_t splat_bytes = room * sizeof(GpuSplat);
+  const uint64_t sh_bytes = std::max<uint64_t>(1, room * g->sh_stride) * 4;
+  if (splat_bytes > limit || sh_bytes > limit || room * kProjectedBytes > limit ||
+      room > UINT32_MAX)
+    fail(
+        "splats: {} splats of SH degree {} need {} bytes in one storage binding, over this "
+        "device's limit of {}",
+        count, sh_degree, std::max(splat_bytes, sh_bytes), limit);
+  g->capacity = uint32_t(room);
+  const WGPUBufferUsage usage = WGPUBufferUsage_Storage | extra_usage;
+  g->splats = gpu::create_buffer(ctx, splat_bytes, usage, "splats");
+  g->sh = gpu::create_buffer(ctx, sh_bytes, usage, "splat-sh");
+  g->projected =
+      gpu::create_buffer(ctx, room * kProjectedBytes, WGPUBufferUsage_Storage, "splats-projected");
+  g->args = gpu::create_buffer(ctx, 16,
+                               WGPUBufferUsage_Storage | WGPUBufferUsage_Indirect |
+                                   WGPUBufferUsage_CopyDst | WGPUBufferUsage_CopySrc,
+                               "splat-draw-args");
+  g->frame_uniforms = gpu::create_buffer(
       ctx, sizeof(FrameUniforms), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst, "splat-frame");
   return g;
 }
 
+}  // namespace
+
+GpuSplats upload_splats(gpu::Context& ctx, const io::SplatSet& set) {
+  check_set(set, "the set");
+  std::unique_ptr<GpuSplats> g =
+      allocate_splats(ctx, set.size(), set.size(), set.sh_degree, WGPUBufferUsage_CopyDst);
+  // Positions relative to their mean (float keeps its precision near the splats), the mean
+  // through the set's transform in double.
+  glm::dvec3 mean(0.0);
+  for (const auto& p : set.positions) mean += glm::dvec3(p);
+  if (set.size()) mean /= double(set.size());
+  g->linear = glm::dmat3(set.transform);
+  g->centre = g->linear * mean + glm::dvec3(set.transform[3]);
+  std::vector<GpuSplat> splats;
+  std::vector<uint32_t> sh;
+  pack_splats(set, mean, g->sh_stride, splats, sh);
+  gpu::write_buffer(ctx, g->splats.get(), 0, splats.data(), splats.size() * sizeof(GpuSplat));
+  gpu::write_buffer(ctx, g->sh.get(), 0, sh.data(), sh.size() * 4);
+  return std::move(*g);
+}
+
+void compose_splats(gpu::Context& ctx, SplatPartCache& cache, std::unique_ptr<GpuSplats>& into,
+                    const std::vector<std::shared_ptr<const io::SplatSet>>& parts,
+                    const glm::dmat4& transform) {
+  std::erase_if(cache.parts, [](const auto& entry) { return entry.second.set.expired(); });
+  uint64_t total = 0;
+  int degree = 0;
+  for (const auto& part : parts) {
+    check_set(*part, "a part");
+    total += part->size();
+    degree = std::max(degree, part->sh_degree);
+  }
+  const uint32_t stride = sh_stride_of(degree);
+  if (!into || into->capacity < total || into->sh_stride != stride) {
+    // Half again what is needed, so that a growing selection does not remake the buffers (and
+    // the tile rasterizer's, whose pair capacity it keeps) every few changes; within the limit.
+    const uint64_t limit =
+        std::min<uint64_t>(ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize) /
+        std::max<uint64_t>(sizeof(GpuSplat), std::max(1u, stride) * 4);
+    const uint64_t room = std::max(total, std::min(total + total / 2, limit));
+    std::unique_ptr<GpuSplats> fresh =
+        allocate_splats(ctx, total, room, degree, WGPUBufferUsage_CopyDst);
+    if (into) fresh->pair_counts = std::move(into->pair_counts);
+    into = std::move(fresh);
+  }
+  into->count = uint32_t(total);
+  into->sh_degree = degree;
+  into->linear = glm::dmat3(transform);
+  into->centre = glm::dvec3(transform[3]);
+
+  WGPUCommandEncoderDescriptor desc = WGPU_COMMAND_ENCODER_DESCRIPTOR_INIT;
+  gpu::CommandEncoder encoder(wgpuDeviceCreateCommandEncoder(ctx.device.get(), &desc));
+  std::vector<GpuSplat> packed;
+  std::vector<uint32_t> sh;
+  uint64_t at = 0;
+  for (const auto& part : parts) {
+    const uint32_t n = uint32_t(part->size());
+    if (n == 0) continue;
+    SplatPartCache::Part& entry = cache.parts[part.get()];
+    if (!entry.splats || entry.sh_stride != stride) {
+      pack_splats(*part, glm::dvec3(0.0), stride, packed, sh);
+      entry.set = part;
+      entry.count = n;
+      entry.sh_stride = stride;
+      entry.splats = gpu::create_buffer(ctx, uint64_t(n) * sizeof(GpuSplat),
+                                        WGPUBufferUsage_CopySrc, "splat-part", packed.data());
+      entry.sh = stride ? gpu::create_buffer(ctx, uint64_t(n) * stride * 4, WGPUBufferUsage_CopySrc,
+                                             "splat-part-sh", sh.data())
+                        : gpu::Buffer{};
+      cache.packed_splats += n;
+    }
+    wgpuCommandEncoderCopyBufferToBuffer(encoder.get(), entry.splats.get(), 0, into->splats.get(),
+                                         at * sizeof(GpuSplat), uint64_t(n) * sizeof(GpuSplat));
+    if (stride)
+      wgpuCommandEncoderCopyBufferToBuffer(encoder.get(), entry.sh.get(), 0, into->sh.get(),
+                                           at * stride * 4, uint64_t(n) * stride * 4);
+    at += n;
+  }
+  cache.composed_splats += at;
+  gpu::CommandBuffer commands(wgpuCommandEncoderFinish(encoder.get(), nullptr));
+  WGPUCommandBuffer raw = commands.get();
+  wgpuQueueSubmit(ctx.queue.get(), 1, &raw);
+}
+
 SplatPipelines create_splat_pipelines(gpu::Context& ctx, WGPUTextureFormat color_format,
                                       WGPUTextureFormat depth_format) {
+  static std::atomic<uint64_t> created{0};
   SplatPipelines p;
+  p.id = ++created;
   p.color_format = color_format;
   p.depth_format = depth_format;
   gpu::ShaderModule project = gpu::create_shader_from_file(ctx, "splat_project.wgsl");
@@ -523,9 +626,17 @@ void add_splat_passes_to(gpu::RenderGraph& graph, SplatPipelines& p, GpuSplats& 
       .add_pass(targets.name + "-project", gpu::PassKind::Compute,
                 [pp, sp, frame](gpu::PassContext& pc) {
                   gpu::Context& ctx = pc.gpu();
+                  if (sp->pipelines_id != pp->id) {
+                    // Bind groups of other pipelines' (automatic) layouts do not fit these.
+                    sp->sort = {};
+                    sp->project_group = {};
+                    sp->draw_group = {};
+                    sp->tiles.reset();
+                    sp->pipelines_id = pp->id;
+                  }
                   if (!sp->sort.capacity)
                     sp->sort =
-                        create_radix_sort_buffers(ctx, pp->sort, sp->count, sp->args.get(), 1);
+                        create_radix_sort_buffers(ctx, pp->sort, sp->capacity, sp->args.get(), 1);
                   ensure_groups(ctx, *pp, *sp);
                   gpu::write_buffer(ctx, sp->frame_uniforms.get(), 0, *frame);
                   const uint32_t args[4] = {4, 0, 0, 0};

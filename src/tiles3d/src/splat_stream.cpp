@@ -21,13 +21,8 @@ namespace {
 // glTF's Y-up frame to 3D Tiles' Z-up: (x, y, z) -> (x, -z, y).
 const glm::dmat4 kYupToZup(1, 0, 0, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 0, 0, 1);
 
-template <typename T>
-void append(std::vector<T>& to, const std::vector<T>& from) {
-  to.insert(to.end(), from.begin(), from.end());
-}
-
-// MainStage::Update: one streamer update with the first camera; a new packed set when the drawn
-// tiles changed.
+// MainStage::Update: one streamer update with the first camera; a new list of parts when the
+// drawn tiles changed.
 void update_splat_stream(Registry& main) {
   auto& s = main.resource<StreamedSplats>();
   const std::optional<View> view = stream_view(main, s.width, s.height, s.world_from_tileset);
@@ -60,9 +55,11 @@ void update_splat_stream(Registry& main) {
   }
   if (drawn != s.drawn) {
     s.drawn = std::move(drawn);
-    auto set = pack_splat_tiles(*s.streamer, s.drawn);
-    set->transform = glm::inverse(kYupToZup) * s.tileset->tiles[0].transform * kYupToZup;
-    s.set = std::move(set);
+    s.parts.clear();
+    for (uint32_t t : s.drawn)
+      for (const auto& c : *s.streamer->content(t))
+        if (c.splats && c.splats->size() > 0) s.parts.push_back(c.splats);
+    s.transform = glm::inverse(kYupToZup) * s.tileset->tiles[0].transform * kYupToZup;
     ++s.generation;
   }
   s.drawn_tiles = uint32_t(s.drawn.size());
@@ -96,52 +93,6 @@ io::SplatSet splats_in_root_frame(const io::SplatSet& splats, const glm::dmat4& 
   for (glm::vec3& p : out.positions) p = glm::vec3(glm::dvec3(p) + offset);
   out.transform = glm::dmat4(1.0);
   return out;
-}
-
-std::shared_ptr<io::SplatSet> pack_splat_tiles(const TileStreamer& streamer,
-                                               const std::vector<uint32_t>& tiles) {
-  auto all = std::make_shared<io::SplatSet>();
-  all->format = "3D Tiles of glTF KHR_gaussian_splatting (streamed)";
-  size_t total = 0;
-  for (uint32_t t : tiles)
-    if (const auto* contents = streamer.content(t))
-      for (const auto& c : *contents)
-        if (c.splats) {
-          total += c.splats->size();
-          all->sh_degree = std::max(all->sh_degree, c.splats->sh_degree);
-        }
-  const size_t rest = all->rest_count();
-  all->positions.reserve(total);
-  all->scales.reserve(total);
-  all->rotations.reserve(total);
-  all->opacities.reserve(total);
-  all->sh_dc.reserve(total);
-  all->sh_rest.reserve(total * rest);
-  for (uint32_t t : tiles) {
-    const auto* contents = streamer.content(t);
-    if (!contents) continue;
-    for (const auto& c : *contents) {
-      if (!c.splats) continue;
-      const io::SplatSet& s = *c.splats;
-      append(all->positions, s.positions);
-      append(all->scales, s.scales);
-      append(all->rotations, s.rotations);
-      append(all->opacities, s.opacities);
-      append(all->sh_dc, s.sh_dc);
-      const size_t own = s.rest_count();
-      if (own == rest) {
-        append(all->sh_rest, s.sh_rest);
-        continue;
-      }
-      // A lower degree: its coefficients first, zeros for the degrees it lacks.
-      for (size_t i = 0; i < s.size(); ++i) {
-        all->sh_rest.insert(all->sh_rest.end(), s.sh_rest.begin() + std::ptrdiff_t(i * own),
-                            s.sh_rest.begin() + std::ptrdiff_t((i + 1) * own));
-        all->sh_rest.resize(all->sh_rest.size() + (rest - own), glm::vec3(0.0f));
-      }
-    }
-  }
-  return all;
 }
 
 void SplatTilesetPlugin::build(Engine& engine) {

@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include <glm/mat4x4.hpp>
 #include <glm/vec3.hpp>
 
 #include "stipple/io/splats.hpp"
@@ -24,9 +25,13 @@ class Engine;
 namespace stipple::splats {
 
 // Main-world component: one splat set, shared with the render world (never modified; a reload
-// makes a new one with a higher generation).
+// makes a new one with a higher generation). Or, where `parts` is not empty, a set made of parts
+// in one frame that `parts_transform` places (a streamed tileset's drawn tiles): each part is
+// uploaded once, and a new generation's parts are composed on the GPU (compose_splats).
 struct SplatData {
   std::shared_ptr<const io::SplatSet> set;
+  std::vector<std::shared_ptr<const io::SplatSet>> parts;
+  glm::dmat4 parts_transform{1.0};
   uint64_t generation = 0;
 };
 

@@ -17,6 +17,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "stipple/io/splats.hpp"
@@ -78,6 +79,7 @@ struct TilePairCounts {
 // One splat set on the GPU, with the buffers its frames use (sized for every splat visible).
 struct GpuSplats {
   uint32_t count = 0;
+  uint32_t capacity = 0;  // splats the buffers have room for (a composed set keeps some spare)
   int sh_degree = 0;
   uint32_t sh_stride = 0;  // u32 words of SH a splat (f16 pairs)
   glm::dvec3 centre{0.0};  // the local origin of the uploaded positions, in world space
@@ -88,6 +90,7 @@ struct GpuSplats {
   gpu::Buffer projected, args, frame_uniforms;
   RadixSortBuffers sort;
   gpu::BindGroup project_group, draw_group;  // made on first draw
+  uint64_t pipelines_id = 0;  // the SplatPipelines its groups were made for (their layouts)
   std::unique_ptr<TileBuffers> tiles;        // SplatRasterizer::Tiles
   TilePairCounts pair_counts;                // SplatRasterizer::Tiles
 };
@@ -96,7 +99,34 @@ struct GpuSplats {
 // stipple::Error when the set is larger than one storage binding of the device allows.
 GpuSplats upload_splats(gpu::Context& ctx, const io::SplatSet& set);
 
+// The parts of composed sets uploaded so far (compose_splats): each part in buffers of its own,
+// packed once and kept while something else holds the part (a streamer keeps its resident tiles'
+// splats), so the GPU holds what the host holds.
+struct SplatPartCache {
+  struct Part {
+    std::weak_ptr<const io::SplatSet> set;
+    gpu::Buffer splats, sh;
+    uint32_t count = 0, sh_stride = 0;
+  };
+  std::unordered_map<const io::SplatSet*, Part> parts;
+  uint64_t packed_splats = 0;    // splats packed and uploaded, over every call (each part once)
+  uint64_t composed_splats = 0;  // splats copied on the GPU into composed sets, over every call
+};
+
+// Makes `into` draw `parts` together: splat sets in one frame (each with an identity transform,
+// as a streamed tileset's tiles in its root's frame), placed in the world by `transform`. Parts
+// not in `cache` are packed and uploaded into buffers of their own; then one submission copies
+// every part into `into`'s buffers on the GPU, in order (lower SH degrees padded with zeros).
+// `into` is kept, with its frame buffers and the tile rasterizer's pair capacity, while it has
+// room; made anew otherwise, with half again the room it lacks. So a change of parts costs the new
+// parts' packing and a copy on the GPU, not a pack and upload of the whole set. Throws
+// stipple::Error where a part's arrays disagree or the total exceeds a storage binding.
+void compose_splats(gpu::Context& ctx, SplatPartCache& cache, std::unique_ptr<GpuSplats>& into,
+                    const std::vector<std::shared_ptr<const io::SplatSet>>& parts,
+                    const glm::dmat4& transform);
+
 struct SplatPipelines {
+  uint64_t id = 0;  // unique a creation: a set drawn by other pipelines remakes its bind groups
   WGPUTextureFormat color_format = WGPUTextureFormat_RGBA8Unorm;
   WGPUTextureFormat depth_format = WGPUTextureFormat_Depth32Float;
   gpu::ComputePipeline project;

@@ -6,9 +6,10 @@
 //
 // Workers decode each tile's splats (decode_content) and move them into the root tile's frame
 // (the hook StreamerOptions::prepare). Each frame whose drawn tiles changed, the main thread
-// packs the drawn tiles' splats into ONE io::SplatSet and publishes it in the main-world resource
-// StreamedSplats with a new generation: one set, so the splat renderer projects, sorts and draws
-// every drawn tile together, not tile by tile.
+// publishes the list of the drawn tiles' splat sets in the main-world resource StreamedSplats with
+// a new generation: the splat renderer draws them as ONE set (projected, sorted and drawn
+// together, not tile by tile), composed on the GPU from each tile's own upload, so the main
+// thread copies no splat.
 //
 // tiles3d does not draw splats itself: in DESIGN.md's module table the splats module sits beside
 // pointcloud, not below tiles3d. StreamedSplats is the seam: a consumer above both (scene) hands
@@ -36,11 +37,12 @@ namespace stipple::tiles3d {
 
 // Main-world resource: the splat stream and what it drew this frame.
 struct StreamedSplats {
-  // The drawn tiles' splats together, in the root tile's frame (glTF Y-up, relative to the root's
-  // transform, which is `set->transform`: float positions stay small for geo-referenced
-  // tilesets); null until a tile is in. Replaced (never modified) when the drawn tiles change.
-  std::shared_ptr<const io::SplatSet> set;
-  uint64_t generation = 0;  // bumped with each new set
+  // The drawn tiles' splats, each in the root tile's frame (glTF Y-up, relative to the root's
+  // transform, which is `transform`: float positions stay small for geo-referenced tilesets), in
+  // traversal order; empty until a tile is in. Replaced when the drawn tiles change.
+  std::vector<std::shared_ptr<const io::SplatSet>> parts;
+  glm::dmat4 transform{1.0};
+  uint64_t generation = 0;  // bumped with each new list
   std::shared_ptr<const io::Tileset> tileset;
   std::shared_ptr<TileStreamer> streamer;
   // Tileset frame (Z-up) -> engine world (Y-up): the plain axis swap, as for a splat file or
@@ -49,7 +51,7 @@ struct StreamedSplats {
   glm::dmat4 world_from_tileset{1, 0, 0, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1};
   Aabb world_bounds;                    // the root volume, world space
   uint32_t width = 1280, height = 720;  // viewport for the screen-space error (a window overrides)
-  std::vector<uint32_t> drawn;          // tiles whose splats are in `set`, traversal order
+  std::vector<uint32_t> drawn;          // tiles whose splats are in `parts`, traversal order
   std::set<std::string> problems;       // tile problem kinds printed (each once)
   // This frame's figures (tests, `stipple render`'s summary).
   uint64_t frames = 0;
@@ -60,13 +62,8 @@ struct StreamedSplats {
   uint64_t errors = 0;
   bool budget_limited = false;
   double sse_threshold = 0;
-  bool idle = false;  // nothing queued or in flight, and `set` holds this frame's selection
+  bool idle = false;  // nothing queued or in flight, and `parts` hold this frame's selection
 };
-
-// Packs the splats of `tiles`' contents (already in one frame) into one set. Tiles of lower SH
-// degree get zero coefficients up to the highest degree among them.
-std::shared_ptr<io::SplatSet> pack_splat_tiles(const TileStreamer& streamer,
-                                               const std::vector<uint32_t>& tiles);
 
 // A tile's splats, decoded in its glb's frame, moved into the root tile's glTF Y-up frame
 // (`tile_transform`, `root_transform`: tile and root frames -> tileset frame, Z-up). Throws
@@ -78,8 +75,8 @@ io::SplatSet splats_in_root_frame(const io::SplatSet& splats, const glm::dmat4& 
 struct SplatTilesetPlugin {
   static constexpr std::string_view name = "SplatTilesetPlugin";
   static constexpr std::string_view description =
-      "streams a splat tileset with the camera (traversal, budgets, LRU) and packs the drawn "
-      "tiles' splats into one set (StreamedSplats)";
+      "streams a splat tileset with the camera (traversal, budgets, LRU) and lists the drawn "
+      "tiles' splats, to be drawn as one set (StreamedSplats)";
   static constexpr std::array<std::string_view, 2> dependencies{"CameraPlugin", "TransformPlugin"};
   std::string uri;  // tileset.json path or URL
   StreamerOptions streamer;
