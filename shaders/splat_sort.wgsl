@@ -38,12 +38,13 @@ struct SortParams {
 @group(0) @binding(6) var<storage, read_write> hist: array<u32>;  // [256 * blocks], digit-major
 @group(0) @binding(7) var<storage, read_write> digit_offsets: array<u32>;  // [256]
 
+#include "workgroup_scan.wgsl"
+
 const WG: u32 = 256u;
 const PER: u32 = 8u;       // words an invocation
 const BLOCK: u32 = 2048u;  // pairs a workgroup (radix_sort.cpp's kBlock)
 
 var<workgroup> digit_counts: array<atomic<u32>, 256>;
-var<workgroup> scan: array<vec2<u32>, 256>;
 var<workgroup> words: array<u32, 2048>;
 var<workgroup> starts: array<u32, 256>;
 
@@ -53,24 +54,6 @@ fn block_index(wid: vec3<u32>) -> u32 {
 
 fn pair_count() -> u32 {
   return min(count[params.count_index], params.capacity);
-}
-
-// Inclusive prefix sum of `v` over the workgroup (Hillis-Steele), two words at once: the scatter
-// scans four 16-bit counters, the digit scans one count (the second word 0). scan[255] is the
-// total afterwards. Every invocation must call it.
-fn inclusive_scan(lid: u32, v: vec2<u32>) -> vec2<u32> {
-  scan[lid] = v;
-  workgroupBarrier();
-  for (var offset = 1u; offset < WG; offset = offset << 1u) {
-    var t = scan[lid];
-    if (lid >= offset) {
-      t = t + scan[lid - offset];
-    }
-    workgroupBarrier();
-    scan[lid] = t;
-    workgroupBarrier();
-  }
-  return scan[lid];
 }
 
 @compute @workgroup_size(256)
@@ -108,7 +91,7 @@ fn cs_scan_digits(@builtin(workgroup_id) wid: vec3<u32>,
     sum = sum + hist[row + b];
   }
   let inclusive = inclusive_scan(lid, vec2<u32>(sum, 0u)).x;
-  let total = scan[WG - 1u].x;
+  let total = scan_total().x;
   var running = inclusive - sum;
   for (var b = first; b < last; b = b + 1u) {
     let v = hist[row + b];
@@ -175,7 +158,7 @@ fn cs_scatter(@builtin(workgroup_id) wid: vec3<u32>,
       c = c + packed_one((w[e] >> s) & 3u);
     }
     let inclusive = inclusive_scan(lid, c);
-    let totals = unpack_counts(scan[WG - 1u]);
+    let totals = unpack_counts(scan_total());
     var at = unpack_counts(inclusive - c) +
              vec4<u32>(0u, totals.x, totals.x + totals.y, totals.x + totals.y + totals.z);
     for (var e = 0u; e < PER; e = e + 1u) {

@@ -20,6 +20,7 @@
 //                   ends), depth-tested against the points' depth; (colour, 1 - T) per pixel
 //   fs_composite    lays that over the frame (premultiplied: one, one minus source alpha)
 #include "splat_common.wgsl"
+#include "workgroup_scan.wgsl"
 
 struct TileParams {
   tiles_x: u32,
@@ -51,29 +52,12 @@ const BLOCK: u32 = 512u;
 // frame wanted (pair_total_index).
 @group(0) @binding(9) var<storage, read_write> tile_data: array<u32>;
 
-var<workgroup> wscan: array<u32, 256>;
-
 fn pair_total_index() -> u32 {
   return 1u + 2u * params.tiles_x * params.tiles_y;
 }
 
 fn visible_count() -> u32 {
   return min(args[1], params.capacity);
-}
-
-fn inclusive_scan(lid: u32, v: u32) -> u32 {
-  wscan[lid] = v;
-  workgroupBarrier();
-  for (var offset = 1u; offset < WG; offset = offset << 1u) {
-    var t = wscan[lid];
-    if (lid >= offset) {
-      t = t + wscan[lid - offset];
-    }
-    workgroupBarrier();
-    wscan[lid] = t;
-    workgroupBarrier();
-  }
-  return wscan[lid];
 }
 
 fn linear_index(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> u32 {
@@ -129,7 +113,7 @@ fn cs_block_sums(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
   if (i + 1u < n) {
     v = v + scan[i + 1u];
   }
-  let inclusive = inclusive_scan(lid, v);
+  let inclusive = inclusive_scan(lid, vec2<u32>(v, 0u)).x;
   if (lid == WG - 1u) {
     scan[params.capacity + block] = inclusive;
   }
@@ -144,8 +128,8 @@ fn cs_scan_blocks(@builtin(local_invocation_index) lid: u32) {
     if (b < params.blocks) {
       v = scan[params.capacity + b];
     }
-    let inclusive = inclusive_scan(lid, v);
-    let total = wscan[WG - 1u];
+    let inclusive = inclusive_scan(lid, vec2<u32>(v, 0u)).x;
+    let total = scan_total().x;
     if (b < params.blocks) {
       scan[params.capacity + b] = carry + inclusive - v;
     }
@@ -176,7 +160,7 @@ fn cs_block_apply(@builtin(workgroup_id) wid: vec3<u32>,
   if (i + 1u < n) {
     b = scan[i + 1u];
   }
-  let inclusive = inclusive_scan(lid, a + b);
+  let inclusive = inclusive_scan(lid, vec2<u32>(a + b, 0u)).x;
   let base = scan[params.capacity + block] + inclusive - a - b;
   if (i < n) {
     scan[i] = base;
