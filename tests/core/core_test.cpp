@@ -134,3 +134,19 @@ TEST(ThreadPool, ParallelForCoversEachIndexOnceAndNestsOnABusyPool) {
       .get();
   for (size_t i = 0; i < hits.size(); ++i) ASSERT_EQ(hits[i].load(), 1) << "index " << i;
 }
+
+// The caller and the workers together run at most size() pieces at once (the tiler's memory
+// budgets are per worker).
+TEST(ThreadPool, ParallelForRunsAtMostSizePiecesAtOnce) {
+  ThreadPool pool(3);
+  std::atomic<int> running{0}, most{0};
+  pool.parallel_for(24, 1, [&](size_t, size_t) {
+    const int now = ++running;
+    for (int seen = most.load(); now > seen && !most.compare_exchange_weak(seen, now);) {
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    --running;
+  });
+  EXPECT_LE(most.load(), 3);
+  EXPECT_GE(most.load(), 2);  // the caller and at least one worker
+}

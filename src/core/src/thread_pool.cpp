@@ -46,10 +46,11 @@ std::future<void> ThreadPool::submit(std::function<void()> task) {
   return future;
 }
 
-// The pieces are taken in turn by the calling thread and by up to size() tasks: the caller works
-// too, so pool workers that are busy (or not yet scheduled) delay only the pieces they took, a
-// parallel_for inside a task cannot wait on itself, and a task that starts after every piece was
-// taken returns at once. The tasks hold the shared state, never the caller's frame.
+// The pieces are taken in turn by the calling thread and by up to size() - 1 tasks, so at most
+// size() run at once (the tiler's memory budgets count on that). The caller works too: pool
+// workers that are busy (or not yet scheduled) delay only the pieces they took, a parallel_for
+// inside a task cannot wait on itself, and a task that starts after every piece was taken
+// returns at once. The tasks hold the shared state, never the caller's frame.
 void ThreadPool::parallel_for(size_t count, size_t grain,
                               const std::function<void(size_t, size_t)>& body) {
   grain = std::max<size_t>(1, grain);
@@ -81,8 +82,12 @@ void ThreadPool::parallel_for(size_t count, size_t grain,
   shared->count = count;
   shared->grain = grain;
   shared->body = &body;
-  const size_t helpers = std::min<size_t>(pieces - 1, size());
-  for (size_t h = 0; h < helpers; ++h) submit([shared] { shared->work(); });
+  const size_t helpers = std::min<size_t>(pieces - 1, size() - 1);
+  try {
+    for (size_t h = 0; h < helpers; ++h) submit([shared] { shared->work(); });
+  } catch (...) {
+    // Fewer helpers (no memory for a task): the pieces are still all taken, here if need be.
+  }
   shared->work();
   // Every piece must end before an exception leaves this frame: they use `body` and what it
   // refers to (the caller's stack).

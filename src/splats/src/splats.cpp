@@ -530,7 +530,9 @@ void compose_splats(gpu::Context& ctx, SplatPartCache& cache, std::unique_ptr<Gp
                     const glm::dmat4& transform) {
   std::erase_if(cache.parts, [](const auto& entry) { return entry.second.set.expired(); });
   uint64_t total = 0;
-  int degree = 0;
+  // The set's SH degree only grows: parts are packed at its stride, so a list whose highest
+  // degree drops (coarser tiles, or none) keeps the set and every uploaded part as they are.
+  int degree = into ? into->sh_degree : 0;
   for (const auto& part : parts) {
     check_set(*part, "a part");
     total += part->size();
@@ -549,10 +551,6 @@ void compose_splats(gpu::Context& ctx, SplatPartCache& cache, std::unique_ptr<Gp
     if (into) fresh->pair_counts = std::move(into->pair_counts);
     into = std::move(fresh);
   }
-  into->count = uint32_t(total);
-  into->sh_degree = degree;
-  into->linear = glm::dmat3(transform);
-  into->centre = glm::dvec3(transform[3]);
 
   WGPUCommandEncoderDescriptor desc = WGPU_COMMAND_ENCODER_DESCRIPTOR_INIT;
   gpu::CommandEncoder encoder(wgpuDeviceCreateCommandEncoder(ctx.device.get(), &desc));
@@ -582,10 +580,14 @@ void compose_splats(gpu::Context& ctx, SplatPartCache& cache, std::unique_ptr<Gp
                                            at * stride * 4, uint64_t(n) * stride * 4);
     at += n;
   }
-  cache.composed_splats += at;
   gpu::CommandBuffer commands(wgpuCommandEncoderFinish(encoder.get(), nullptr));
   WGPUCommandBuffer raw = commands.get();
   wgpuQueueSubmit(ctx.queue.get(), 1, &raw);
+  cache.composed_splats += at;
+  into->count = uint32_t(total);
+  into->sh_degree = degree;
+  into->linear = glm::dmat3(transform);
+  into->centre = glm::dvec3(transform[3]);
 }
 
 SplatPipelines create_splat_pipelines(gpu::Context& ctx, WGPUTextureFormat color_format,

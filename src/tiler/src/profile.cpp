@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <future>
 #include <latch>
 
 #include "stipple/core/thread_pool.hpp"
@@ -72,13 +73,17 @@ void Profiler::attach(ThreadPool& pool, bool sample) {
   const unsigned n = pool.size();
   std::vector<clockid_t> workers(n);
   std::vector<int> tids(n);
+  // Tasks, not parallel_for: its calling thread takes pieces too.
   std::latch all{std::ptrdiff_t(n)};
-  pool.parallel_for(n, 1, [&](size_t b, size_t) {
-    clockid_t c{};
-    workers[b] = ::pthread_getcpuclockid(::pthread_self(), &c) == 0 ? c : clockid_t(-1);
-    tids[b] = int(::gettid());
-    all.arrive_and_wait();
-  });
+  std::vector<std::future<void>> registered;
+  for (unsigned b = 0; b < n; ++b)
+    registered.push_back(pool.submit([&, b] {
+      clockid_t c{};
+      workers[b] = ::pthread_getcpuclockid(::pthread_self(), &c) == 0 ? c : clockid_t(-1);
+      tids[b] = int(::gettid());
+      all.arrive_and_wait();
+    }));
+  for (auto& r : registered) r.get();
   for (size_t i = 0; i < n; ++i)
     if (workers[i] != clockid_t(-1)) clocks_.push_back(workers[i]);
   tids_.insert(tids_.end(), tids.begin(), tids.end());

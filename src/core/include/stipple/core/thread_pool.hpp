@@ -19,9 +19,9 @@ class ThreadPool {
   ThreadPool& operator=(const ThreadPool&) = delete;
 
   std::future<void> submit(std::function<void()> task);
-  // Runs body(begin, end) over [0, count) in pieces of `grain`, on the pool and on the calling
-  // thread, and waits; when bodies throw, every piece still ends before the first exception is
-  // rethrown.
+  // Runs body(begin, end) over [0, count) in pieces of `grain`, on the calling thread and the
+  // pool's workers, at most size() at once, and waits; when bodies throw, every piece still ends
+  // before the first exception (in time) is rethrown.
   void parallel_for(size_t count, size_t grain, const std::function<void(size_t, size_t)>& body);
   unsigned size() const { return unsigned(workers_.size()); }
 

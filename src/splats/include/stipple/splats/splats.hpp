@@ -91,8 +91,8 @@ struct GpuSplats {
   RadixSortBuffers sort;
   gpu::BindGroup project_group, draw_group;  // made on first draw
   uint64_t pipelines_id = 0;  // the SplatPipelines its groups were made for (their layouts)
-  std::unique_ptr<TileBuffers> tiles;        // SplatRasterizer::Tiles
-  TilePairCounts pair_counts;                // SplatRasterizer::Tiles
+  std::unique_ptr<TileBuffers> tiles;  // SplatRasterizer::Tiles
+  TilePairCounts pair_counts;          // SplatRasterizer::Tiles
 };
 
 // Uploads a set (positions relative to its centre, rotations, scales and SH as f16). Throws
@@ -101,7 +101,8 @@ GpuSplats upload_splats(gpu::Context& ctx, const io::SplatSet& set);
 
 // The parts of composed sets uploaded so far (compose_splats): each part in buffers of its own,
 // packed once and kept while something else holds the part (a streamer keeps its resident tiles'
-// splats), so the GPU holds what the host holds.
+// splats), so the GPU holds what the host holds, and the composed set on top (room for half
+// again the splats drawn).
 struct SplatPartCache {
   struct Part {
     std::weak_ptr<const io::SplatSet> set;
@@ -116,7 +117,8 @@ struct SplatPartCache {
 // Makes `into` draw `parts` together: splat sets in one frame (each with an identity transform,
 // as a streamed tileset's tiles in its root's frame), placed in the world by `transform`. Parts
 // not in `cache` are packed and uploaded into buffers of their own; then one submission copies
-// every part into `into`'s buffers on the GPU, in order (lower SH degrees padded with zeros).
+// every part into `into`'s buffers on the GPU, in order (lower SH degrees padded with zeros; the
+// set's degree never drops, so parts are not packed again when the list's highest degree does).
 // `into` is kept, with its frame buffers and the tile rasterizer's pair capacity, while it has
 // room; made anew otherwise, with half again the room it lacks. So a change of parts costs the new
 // parts' packing and a copy on the GPU, not a pack and upload of the whole set. Throws
