@@ -7,6 +7,7 @@
 // process's RSS, the resident tile bytes against the budget, the tiles' GPU bytes as the
 // allocators account them, loads, evictions and errors (bench/soak.sh checks every row).
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
@@ -192,6 +193,12 @@ void run_stream_bench(const StreamBenchArgs& a) {
                   frames, main.resource<tiles3d::TilesetStats>(),
                   render.try_resource<tiles3d::TilesetGpuStats>());
   const auto stats = tileset_stats(main);
+  // The frame's CPU by stage (where a frame's wall beyond its GPU time goes), read while the
+  // render world is idle.
+  engine.wait_for_render();
+  const double main_cpu = engine.main_cpu_ms() / std::max<size_t>(wall_ms.size(), 1);
+  std::array<double, 5> render_cpu = engine.render_cpu_ms();
+  for (double& ms : render_cpu) ms /= double(std::max<size_t>(wall_ms.size(), 1));
   engine.shutdown();
 
   const double total = std::accumulate(wall_ms.begin(), wall_ms.end(), 0.0);
@@ -216,6 +223,10 @@ void run_stream_bench(const StreamBenchArgs& a) {
       static_cast<unsigned long long>(stats.evictions),
       static_cast<unsigned long long>(stats.errors), stats.peak_resident_bytes / 1048576.0,
       stats.memory_budget / 1048576.0, rss / 1048576.0);
+  std::printf(
+      "  CPU ms a frame by stage: main %.3f | render Prepare %.3f, Queue %.3f, PreDraw %.3f, Draw "
+      "%.3f, PostDraw %.3f\n",
+      main_cpu, render_cpu[0], render_cpu[1], render_cpu[2], render_cpu[3], render_cpu[4]);
   if (!a.json.empty()) {
     nlohmann::json j;
     j["input"] = a.input;
@@ -238,6 +249,9 @@ void run_stream_bench(const StreamBenchArgs& a) {
     j["peak_resident_bytes"] = stats.peak_resident_bytes;
     j["memory_budget"] = stats.memory_budget;
     j["peak_rss_bytes"] = rss;
+    j["cpu_ms_mean"] = {{"main_stages", main_cpu},       {"render_prepare", render_cpu[0]},
+                        {"render_queue", render_cpu[1]}, {"render_predraw", render_cpu[2]},
+                        {"render_draw", render_cpu[3]},  {"render_postdraw", render_cpu[4]}};
     write_file_atomically(a.json, j.dump(1));
   }
 }
