@@ -168,4 +168,9 @@ TEST(SplatStream, BenchStreamFliesASplatTileset) {
   EXPECT_GT(j.at("splats_drawn_mean").get<double>(), 0.0);
   EXPECT_LE(j.at("splats_drawn_mean").get<double>(), 5000.0);
   EXPECT_GT(j.at("loads").get<uint64_t>(), 0u);
+  // The frame's CPU by stage: the render world's Queue records the splat passes every frame.
+  const auto& cpu = j.at("cpu_ms_mean");
+  EXPECT_GT(cpu.at("render_queue").get<double>(), 0.0);
+  EXPECT_GT(cpu.at("main_stages").get<double>(), 0.0);
+  EXPECT_NE(r.output.find("CPU ms a frame by stage"), std::string::npos) << r.output;
 }
