@@ -564,7 +564,6 @@ void compose_splats(gpu::Context& ctx, SplatPartCache& cache, std::unique_ptr<Gp
     if (!entry.splats || entry.sh_stride != stride) {
       pack_splats(*part, glm::dvec3(0.0), stride, packed, sh);
       entry.set = part;
-      entry.count = n;
       entry.sh_stride = stride;
       entry.splats = gpu::create_buffer(ctx, uint64_t(n) * sizeof(GpuSplat),
                                         WGPUBufferUsage_CopySrc, "splat-part", packed.data());
@@ -583,7 +582,6 @@ void compose_splats(gpu::Context& ctx, SplatPartCache& cache, std::unique_ptr<Gp
   gpu::CommandBuffer commands(wgpuCommandEncoderFinish(encoder.get(), nullptr));
   WGPUCommandBuffer raw = commands.get();
   wgpuQueueSubmit(ctx.queue.get(), 1, &raw);
-  cache.composed_splats += at;
   into->count = uint32_t(total);
   into->sh_degree = degree;
   into->linear = glm::dmat3(transform);

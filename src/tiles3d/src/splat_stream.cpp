@@ -59,7 +59,6 @@ void update_splat_stream(Registry& main) {
     for (uint32_t t : s.drawn)
       for (const auto& c : *s.streamer->content(t))
         if (c.splats && c.splats->size() > 0) s.parts.push_back(c.splats);
-    s.transform = glm::inverse(kYupToZup) * s.tileset->tiles[0].transform * kYupToZup;
     ++s.generation;
   }
   s.drawn_tiles = uint32_t(s.drawn.size());
@@ -109,6 +108,7 @@ void SplatTilesetPlugin::build(Engine& engine) {
   if (tileset->tiles.empty()) fail("{}: the tileset has no tiles", uri);
   StreamedSplats s;
   s.tileset = tileset;
+  s.transform = glm::inverse(kYupToZup) * tileset->tiles[0].transform * kYupToZup;
   s.world_bounds = tiles3d::world_bounds(*tileset, s.world_from_tileset);
   s.width = width;
   s.height = height;

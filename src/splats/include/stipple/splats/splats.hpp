@@ -107,11 +107,10 @@ struct SplatPartCache {
   struct Part {
     std::weak_ptr<const io::SplatSet> set;
     gpu::Buffer splats, sh;
-    uint32_t count = 0, sh_stride = 0;
+    uint32_t sh_stride = 0;
   };
   std::unordered_map<const io::SplatSet*, Part> parts;
-  uint64_t packed_splats = 0;    // splats packed and uploaded, over every call (each part once)
-  uint64_t composed_splats = 0;  // splats copied on the GPU into composed sets, over every call
+  uint64_t packed_splats = 0;  // splats packed and uploaded, over every call (each part once)
 };
 
 // Makes `into` draw `parts` together: splat sets in one frame (each with an identity transform,
