@@ -15,6 +15,7 @@
 
 #include "scene_pointlets.hpp"
 
+#include "stipple/core/thread_pool.hpp"
 #include "stipple/math/camera.hpp"
 #include "stipple/pointcloud/point_store.hpp"
 #include "stipple/pointcloud/pointlet_lod.hpp"
@@ -79,6 +80,7 @@ TEST_P(PointStore, BuffersEqualTheCpuModelAfterACameraSequence) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> u(-0.6, 0.6);
   uint64_t limited_steps = 0, kept_total = 0;
+  ThreadPool workers(2);
   for (int step = 0; step < 12; ++step) {
     SCOPED_TRACE(step);
     Camera camera;
@@ -95,7 +97,9 @@ TEST_P(PointStore, BuffersEqualTheCpuModelAfterACameraSequence) {
         pc::compute_pointlet_lod(*ctx, lod, gpu_pointlets, camera, width, height, bucket);
     // Frames with this camera until the transfer is complete (at most a handful).
     for (int frame = 0; frame < 20; ++frame) {
-      pc::StoreUpdate update = pc::update_point_store(*ctx, store, wanted, writer);
+      // Odd steps plan on a pool (the same result).
+      pc::StoreUpdate update =
+          pc::update_point_store(*ctx, store, wanted, writer, step % 2 ? &workers : nullptr);
       gpu::RenderGraph graph;
       pc::add_point_store_pass(graph, store);
       gpu::TransientPool pool;

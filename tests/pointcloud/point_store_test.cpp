@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "stipple/core/thread_pool.hpp"
 #include "stipple/pointcloud/point_store.hpp"
 
 using namespace stipple;
@@ -99,4 +100,42 @@ TEST(Compaction, RandomSequencesWithABoundedTransfer) {
 TEST(Compaction, RefusesAMismatchedPointletCount) {
   auto plan = pc::plan_compaction({}, {1, 2}, 10);
   EXPECT_THROW(pc::plan_compaction(plan.next, {1, 2, 3}, 10), std::exception);
+}
+
+// Planned on a pool, in pieces of pointlets: the same plan as on one thread (jobs, new ranges,
+// layout), and still one that rebuilds every prefix, across pieces and with a bounded transfer.
+TEST(Compaction, APoolPlansWhatOneThreadPlans) {
+  ThreadPool pool(3);
+  std::mt19937 rng(11);
+  for (uint64_t max_fresh : {uint64_t(1) << 40, uint64_t(20'000)}) {
+    SCOPED_TRACE(max_fresh);
+    pc::StoreLayout layout;
+    for (int step = 0; step < 6; ++step) {
+      std::vector<uint32_t> wanted(30'011);  // four pieces, the last one short
+      for (auto& w : wanted) w = rng() % 3 == 0 ? 0 : rng() % 9;
+      if (step == 5) wanted = layout.count;  // unchanged: nothing to do
+      const auto alone = pc::plan_compaction(layout, wanted, max_fresh);
+      const auto pooled = pc::plan_compaction(layout, wanted, max_fresh, &pool);
+      expect_plan_builds_prefixes(layout, pooled);
+      if (HasFatalFailure()) return;
+      ASSERT_EQ(pooled.jobs.size(), alone.jobs.size());
+      for (size_t j = 0; j < alone.jobs.size(); ++j) {
+        EXPECT_EQ(pooled.jobs[j].dst, alone.jobs[j].dst);
+        EXPECT_EQ(pooled.jobs[j].src, alone.jobs[j].src);
+        EXPECT_EQ(pooled.jobs[j].count, alone.jobs[j].count);
+        EXPECT_EQ(pooled.jobs[j].fresh, alone.jobs[j].fresh);
+      }
+      ASSERT_EQ(pooled.fresh.size(), alone.fresh.size());
+      EXPECT_EQ(pooled.next.first, alone.next.first);
+      EXPECT_EQ(pooled.next.count, alone.next.count);
+      EXPECT_EQ(pooled.fresh_points, alone.fresh_points);
+      EXPECT_EQ(pooled.kept, alone.kept);
+      EXPECT_EQ(pooled.limited, alone.limited);
+      EXPECT_EQ(pooled.changed, step != 5);
+      if (max_fresh < 100'000 && step == 0) {
+        EXPECT_TRUE(pooled.limited);
+      }
+      layout = pooled.next;
+    }
+  }
 }

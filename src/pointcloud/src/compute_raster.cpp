@@ -90,6 +90,7 @@ ShadingUniforms shading_uniforms(const PointShading& s, const Camera& camera) {
 
 // One workgroup per batch, in rows of at most 65,535 (WebGPU's guaranteed dimension limit).
 constexpr uint32_t kDispatchRow = 65'535;
+constexpr size_t kFrameTablePiece = 16'384;  // batches made camera-relative a piece
 
 void dispatch_batches(WGPUComputePassEncoder pass, WGPUComputePipeline pipeline,
                       WGPUBindGroup group, uint32_t batches) {
@@ -603,14 +604,24 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
       params.segment_points = seg.point_count;
       gpu::write_buffer(ctx, seg.params.get(), 0, params);
       table.resize(seg.batch_count);
-      for (uint32_t i = 0; i < seg.batch_count; ++i) {
-        const Batch& b = cloud.batches[seg.first_batch + i];
-        glm::vec3 offset(b.min - camera.position), size(b.size);
-        table[i] = {{offset.x, offset.y, offset.z},
-                    b.count,
-                    {size.x, size.y, size.z},
-                    uint32_t(b.first - seg.first_point)};
-      }
+      // (A thread_local named in a lambda is the running thread's: the workers get this one.)
+      GpuBatch* rows = table.data();
+      auto convert = [&](size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
+          const Batch& b = cloud.batches[seg.first_batch + i];
+          glm::vec3 offset(b.min - camera.position), size(b.size);
+          rows[i] = {{offset.x, offset.y, offset.z},
+                     b.count,
+                     {size.x, size.y, size.z},
+                     uint32_t(b.first - seg.first_point)};
+        }
+      };
+      // A virtualized cloud has a batch or more per drawn pointlet (100K and more a frame):
+      // those tables are made on every core.
+      if (seg.batch_count >= 2 * kFrameTablePiece)
+        batching_pool().parallel_for(seg.batch_count, kFrameTablePiece, convert);
+      else
+        convert(0, seg.batch_count);
       if (!table.empty())
         gpu::write_buffer(ctx, seg.batches.get(), 0, table.data(), table.size() * sizeof(GpuBatch));
     }

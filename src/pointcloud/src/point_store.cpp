@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "stipple/core/error.hpp"
+#include "stipple/core/thread_pool.hpp"
 #include "stipple/math/camera.hpp"
 #include "stipple/renderer/shader_preprocessor.hpp"
 
@@ -18,18 +19,118 @@ struct CompactParams {
 constexpr uint32_t kCompactWorkgroup = 256;  // vms_compact.wgsl
 constexpr uint32_t kRow = 65'535;            // workgroups per dispatch row
 
-// Appends a job, merged into the previous one when both ranges continue it.
-void push_job(std::vector<CompactionJob>& jobs, CompactionJob job) {
-  if (!jobs.empty()) {
-    CompactionJob& last = jobs.back();
-    if (last.fresh == job.fresh && last.dst + last.count == job.dst &&
-        last.src + last.count == job.src) {
-      last.count += job.count;
-      return;
+// Pointlets a piece of the plan: jobs merge within a piece, never across one, so the plan is
+// the same on any number of threads.
+constexpr size_t kPlanPiece = 8192;
+
+// What a piece of pointlets adds to the plan (counted first, so pieces are placed in parallel).
+struct PieceCounts {
+  uint64_t points = 0, fresh = 0, kept = 0, jobs = 0, ranges = 0;
+  bool changed = false;  // a pointlet's count differs from the previous frame's
+};
+
+// Whether a job continues the piece's last one: kept points when the last job kept the range
+// just before them in the previous buffers, new points after new points (consecutive in staging).
+struct JobMerge {
+  bool any = false, last_fresh = false;
+  uint64_t kept_end = 0;
+  bool kept(uint32_t src, uint32_t count) {
+    const bool continues = any && !last_fresh && kept_end == src;
+    any = true;
+    last_fresh = false;
+    kept_end = uint64_t(src) + count;
+    return continues;
+  }
+  bool fresh() {
+    const bool continues = any && last_fresh;
+    any = last_fresh = true;
+    return continues;
+  }
+};
+
+// A pointlet's points kept from the previous frame, and its new ones (all it lacks, or its share
+// of a bounded transfer).
+struct PointletStep {
+  uint32_t before, keep, lack;
+};
+PointletStep step_of(const StoreLayout& previous, bool had, const std::vector<uint32_t>& wanted,
+                     const uint32_t* share, size_t i) {
+  const uint32_t before = had ? previous.count[i] : 0;
+  const uint32_t keep = std::min(before, wanted[i]);
+  return {before, keep, share ? share[i] : wanted[i] - keep};
+}
+
+void count_piece(const StoreLayout& previous, bool had, const std::vector<uint32_t>& wanted,
+                 const uint32_t* share, size_t begin, size_t end, PieceCounts& c) {
+  JobMerge merge;
+  for (size_t i = begin; i < end; ++i) {
+    const PointletStep s = step_of(previous, had, wanted, share, i);
+    c.changed |= s.keep + s.lack != s.before;
+    c.points += s.keep + s.lack;
+    c.kept += s.keep;
+    c.fresh += s.lack;
+    if (s.keep > 0 && !merge.kept(previous.first[i], s.keep)) ++c.jobs;
+    if (s.lack > 0) {
+      ++c.ranges;
+      if (!merge.fresh()) ++c.jobs;
     }
   }
-  jobs.push_back(job);
 }
+
+// Writes a piece's layout, jobs and new ranges from where the pieces before it end (`at`).
+void place_piece(const StoreLayout& previous, bool had, const std::vector<uint32_t>& wanted,
+                 const uint32_t* share, size_t begin, size_t end, const PieceCounts& at,
+                 CompactionPlan& plan) {
+  JobMerge merge;
+  uint64_t point = at.points, fresh = at.fresh;
+  size_t job = at.jobs, range = at.ranges;
+  for (size_t i = begin; i < end; ++i) {
+    const PointletStep s = step_of(previous, had, wanted, share, i);
+    const uint32_t count = s.keep + s.lack;
+    plan.next.first[i] = count > 0 ? uint32_t(point) : 0;
+    plan.next.count[i] = count;
+    if (s.keep > 0) {
+      const uint32_t src = previous.first[i];
+      if (merge.kept(src, s.keep))
+        plan.jobs[job - 1].count += s.keep;
+      else
+        plan.jobs[job++] = {uint32_t(point), src, s.keep, 0};
+    }
+    if (s.lack > 0) {
+      if (merge.fresh())
+        plan.jobs[job - 1].count += s.lack;
+      else
+        plan.jobs[job++] = {uint32_t(point + s.keep), uint32_t(fresh), s.lack, 1};
+      plan.fresh[range++] = {uint32_t(i), s.keep, s.lack, uint32_t(fresh)};
+      fresh += s.lack;
+    }
+    point += count;
+  }
+}
+
+// body(k) for k in [0, pieces): on the pool's threads and the caller's when there is a pool.
+template <typename Body>
+void for_each_piece(ThreadPool* pool, size_t pieces, Body&& body) {
+  if (!pool || pieces <= 1) {
+    for (size_t k = 0; k < pieces; ++k) body(k);
+    return;
+  }
+  pool->parallel_for(pieces, 1, [&body](size_t begin, size_t end) {
+    for (size_t k = begin; k < end; ++k) body(k);
+  });
+}
+
+// body(begin, end) over [0, count) in pieces of `grain`, on the pool when there is one.
+template <typename Body>
+void for_each_range(ThreadPool* pool, size_t count, size_t grain, Body&& body) {
+  if (!pool || count <= grain) {
+    if (count > 0) body(size_t(0), count);
+    return;
+  }
+  pool->parallel_for(count, grain, [&body](size_t begin, size_t end) { body(begin, end); });
+}
+constexpr size_t kBlockPiece = 16384;  // workgroups' first jobs looked up a piece
+constexpr size_t kJobPiece = 32768;    // jobs copied into staging a piece
 
 // The compaction info as the shader reads it: per workgroup of destinations the index of its
 // first job (and one more entry), padded to 16 bytes, then the jobs.
@@ -50,70 +151,83 @@ uint64_t fresh_offset_for(uint64_t capacity, uint32_t pointlets) {
 }  // namespace
 
 CompactionPlan plan_compaction(const StoreLayout& previous, const std::vector<uint32_t>& wanted,
-                               uint64_t max_fresh) {
+                               uint64_t max_fresh, ThreadPool* pool) {
   CompactionPlan plan;
-  plan_compaction(previous, wanted, max_fresh, plan);
+  plan_compaction(previous, wanted, max_fresh, plan, pool);
   return plan;
 }
 
 void plan_compaction(const StoreLayout& previous, const std::vector<uint32_t>& wanted,
-                     uint64_t max_fresh, CompactionPlan& plan) {
+                     uint64_t max_fresh, CompactionPlan& plan, ThreadPool* pool) {
   const size_t n = wanted.size();
   const bool had = previous.count.size() == n;
   if (!previous.count.empty() && !had)
     fail("plan_compaction: {} pointlets before, {} now", previous.count.size(), n);
   // Every frame plans anew: the vectors keep their capacity (a frame allocates nothing here).
-  plan.jobs.clear();
-  plan.fresh.clear();
-  plan.kept = plan.fresh_points = 0;
   plan.limited = false;
-  thread_local std::vector<uint32_t> keep, lack, share;
-  keep.resize(n);
-  lack.resize(n);
+  const size_t pieces = (n + kPlanPiece - 1) / kPlanPiece;
+  // (Named through references: a thread_local named in a lambda is the running thread's.)
+  thread_local std::vector<PieceCounts> counts_storage, at_storage;
+  std::vector<PieceCounts>& counts = counts_storage;
+  std::vector<PieceCounts>& at = at_storage;
+  counts.assign(pieces, {});
+  at.resize(pieces);
+  auto piece_end = [n](size_t k) { return std::min(n, (k + 1) * kPlanPiece); };
+  const uint32_t* share = nullptr;
+  auto count_all = [&] {
+    for_each_piece(pool, pieces, [&](size_t k) {
+      counts[k] = {};
+      count_piece(previous, had, wanted, share, k * kPlanPiece, piece_end(k), counts[k]);
+    });
+  };
+  count_all();
   uint64_t total_lack = 0;
-  for (size_t i = 0; i < n; ++i) {
-    const uint32_t before = had ? previous.count[i] : 0;
-    keep[i] = std::min(before, wanted[i]);
-    lack[i] = wanted[i] - keep[i];
-    total_lack += lack[i];
-  }
+  for (const PieceCounts& c : counts) total_lack += c.fresh;
   // Too many new points for one transfer: each pointlet gets its share (floor), the remainder
   // one point each in index order, so the whole view refines evenly over the next frames.
   if (total_lack > max_fresh) {
     plan.limited = true;
+    thread_local std::vector<uint32_t> shares;
+    shares.resize(n);
+    auto lack_of = [&](size_t i) {
+      return wanted[i] - std::min(had ? previous.count[i] : 0u, wanted[i]);
+    };
     uint64_t given = 0;
-    share.resize(n);
     for (size_t i = 0; i < n; ++i) {
-      share[i] = uint32_t(uint64_t(lack[i]) * max_fresh / total_lack);
-      given += share[i];
+      shares[i] = uint32_t(uint64_t(lack_of(i)) * max_fresh / total_lack);
+      given += shares[i];
     }
     for (size_t i = 0; i < n && given < max_fresh; ++i)
-      if (share[i] < lack[i]) {
-        ++share[i];
+      if (shares[i] < lack_of(i)) {
+        ++shares[i];
         ++given;
       }
-    lack.swap(share);
+    share = shares.data();
+    count_all();
   }
-  plan.next.first.assign(n, 0);
-  plan.next.count.assign(n, 0);
-  uint64_t at = 0, fresh_at = 0;
-  for (size_t i = 0; i < n; ++i) {
-    const uint32_t count = keep[i] + lack[i];
-    if (count == 0) continue;
-    if (at + count > UINT32_MAX) fail("plan_compaction: more than 2^32 points in one frame");
-    plan.next.first[i] = uint32_t(at);
-    plan.next.count[i] = count;
-    if (keep[i] > 0) push_job(plan.jobs, {uint32_t(at), previous.first[i], keep[i], 0});
-    if (lack[i] > 0) {
-      push_job(plan.jobs, {uint32_t(at + keep[i]), uint32_t(fresh_at), lack[i], 1});
-      plan.fresh.push_back({uint32_t(i), keep[i], lack[i], uint32_t(fresh_at)});
-      fresh_at += lack[i];
-    }
-    plan.kept += keep[i];
-    at += count;
+  // Where each piece starts: the sums of the pieces before it.
+  PieceCounts total;
+  for (size_t k = 0; k < pieces; ++k) {
+    at[k] = total;
+    total.points += counts[k].points;
+    total.fresh += counts[k].fresh;
+    total.kept += counts[k].kept;
+    total.jobs += counts[k].jobs;
+    total.ranges += counts[k].ranges;
+    total.changed |= counts[k].changed;
   }
-  plan.next.total = at;
-  plan.fresh_points = fresh_at;
+  if (total.points > UINT32_MAX) fail("plan_compaction: more than 2^32 points in one frame");
+  plan.next.first.resize(n);
+  plan.next.count.resize(n);
+  plan.jobs.resize(total.jobs);
+  plan.fresh.resize(total.ranges);
+  for_each_piece(pool, pieces, [&](size_t k) {
+    place_piece(previous, had, wanted, share, k * kPlanPiece, piece_end(k), at[k], plan);
+  });
+  plan.next.total = total.points;
+  plan.fresh_points = total.fresh;
+  plan.kept = total.kept;
+  plan.changed = total.changed || !had;
 }
 
 GpuPointStore create_point_store(gpu::Context& ctx, uint64_t capacity, std::vector<Aabb> boxes,
@@ -179,7 +293,8 @@ uint64_t max_fresh_points(const GpuPointStore& store) {
 }
 
 StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
-                               const std::vector<uint32_t>& wanted, const FreshWriter& write) {
+                               const std::vector<uint32_t>& wanted, const FreshWriter& write,
+                               ThreadPool* pool) {
   if (store.pending.active)
     fail("update_point_store: the previous compaction was never recorded (no vms-compact pass)");
   if (wanted.size() != store.pointlets)
@@ -188,12 +303,10 @@ StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
   gpu::staging_submitted(store.staging);
   StoreUpdate out;
   CompactionPlan& plan = store.plan;
-  plan_compaction(store.layout, wanted, store.fresh_capacity, plan);
+  plan_compaction(store.layout, wanted, store.fresh_capacity, plan, pool);
   if (plan.next.total > store.capacity)
     fail("point store: {} points asked for, room for {}", plan.next.total, store.capacity);
-  const bool same = plan.fresh_points == 0 && plan.next.count == store.layout.count &&
-                    !store.layout.count.empty();
-  if (same) {
+  if (!plan.changed && !store.layout.count.empty()) {
     out.kept = plan.kept;
     return out;
   }
@@ -209,34 +322,61 @@ StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
   if (plan.jobs.size() > store.jobs_capacity || plan.fresh_points > store.fresh_capacity)
     fail("point store: the compaction info does not fit its buffers");
   {
-    // Each workgroup's first job: the job holding its first destination.
+    // Each workgroup's first job: the job holding its first destination (the jobs are sorted
+    // by destination and cover every one), looked up per workgroup on every core.
     auto* first = reinterpret_cast<uint32_t*>(w.data);
     const uint64_t blocks = block_entries(plan.next.total);
-    uint32_t j = 0;
-    for (uint64_t b = 0; b < blocks; ++b) {
-      const uint64_t d =
-          std::min<uint64_t>(b * kCompactWorkgroup, plan.next.total ? plan.next.total - 1 : 0);
-      while (j + 1 < plan.jobs.size() && plan.jobs[j + 1].dst <= d) ++j;
-      first[b] = j;
-    }
-    if (!plan.jobs.empty())  // (an empty vector's data() may be null: no memcpy from it)
-      std::memcpy(w.data + jobs_at(plan.next.total) * 4, plan.jobs.data(),
-                  plan.jobs.size() * sizeof(CompactionJob));
+    const std::vector<CompactionJob>& jobs = plan.jobs;
+    const uint64_t last = plan.next.total ? plan.next.total - 1 : 0;
+    for_each_range(pool, blocks, kBlockPiece, [&](size_t begin, size_t end) {
+      for (size_t b = begin; b < end; ++b) {
+        const uint64_t d = std::min<uint64_t>(b * kCompactWorkgroup, last);
+        const auto after =
+            std::upper_bound(jobs.begin(), jobs.end(), d,
+                             [](uint64_t dst, const CompactionJob& job) { return dst < job.dst; });
+        first[b] = uint32_t(after == jobs.begin() ? 0 : after - jobs.begin() - 1);
+      }
+    });
+    auto* job_words = w.data + jobs_at(plan.next.total) * 4;
+    for_each_range(pool, jobs.size(), kJobPiece, [&](size_t begin, size_t end) {
+      std::memcpy(job_words + begin * sizeof(CompactionJob), jobs.data() + begin,
+                  (end - begin) * sizeof(CompactionJob));
+    });
   }
   if (plan.fresh_points > 0) write(plan.fresh, reinterpret_cast<uint32_t*>(w.data + fresh_offset));
 
   out.write_ms = ms_since(t);
   const uint32_t next = 1 - store.current;
   GpuBatchedCloud& slab = store.slabs[next];
-  slab.batches.clear();
-  for (uint32_t i = 0; i < store.pointlets; ++i) {
-    const uint32_t count = plan.next.count[i];
-    if (count == 0) continue;
-    const Aabb& box = store.boxes[i];
-    for (uint32_t b = 0; b < count; b += kBatchPoints)
-      slab.batches.push_back({box.min, box.max - box.min, uint64_t(plan.next.first[i]) + b,
-                              std::min<uint32_t>(kBatchPoints, count - b)});
-  }
+  // A batch per kBatchPoints of each drawn pointlet, in pointlet order: counted per piece of
+  // pointlets, then written from each piece's start in parallel.
+  const size_t pieces = (size_t(store.pointlets) + kPlanPiece - 1) / kPlanPiece;
+  thread_local std::vector<uint64_t> batch_at_storage;
+  std::vector<uint64_t>& batch_at = batch_at_storage;  // (the workers see this thread's)
+  batch_at.assign(pieces + 1, 0);
+  auto piece_end = [&store](size_t k) {
+    return std::min<size_t>(store.pointlets, (k + 1) * kPlanPiece);
+  };
+  for_each_piece(pool, pieces, [&](size_t k) {
+    uint64_t batches = 0;
+    for (size_t i = k * kPlanPiece; i < piece_end(k); ++i)
+      batches += (plan.next.count[i] + kBatchPoints - 1) / kBatchPoints;
+    batch_at[k + 1] = batches;
+  });
+  for (size_t k = 0; k < pieces; ++k) batch_at[k + 1] += batch_at[k];
+  slab.batches.resize(batch_at[pieces]);
+  for_each_piece(pool, pieces, [&](size_t k) {
+    Batch* batch = slab.batches.data() + batch_at[k];
+    for (size_t i = k * kPlanPiece; i < piece_end(k); ++i) {
+      const uint32_t count = plan.next.count[i];
+      if (count == 0) continue;
+      const Aabb& box = store.boxes[i];
+      const glm::dvec3 size = box.max - box.min;
+      for (uint32_t b = 0; b < count; b += kBatchPoints)
+        *batch++ = {box.min, size, uint64_t(plan.next.first[i]) + b,
+                    std::min<uint32_t>(kBatchPoints, count - b)};
+    }
+  });
   GpuBatchedCloud::Segment& seg = slab.segments.front();
   seg.first_batch = 0;
   seg.batch_count = uint32_t(slab.batches.size());

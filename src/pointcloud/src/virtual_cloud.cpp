@@ -184,10 +184,11 @@ struct VirtualCloudRender {
   std::vector<uint32_t> seen_want, seen_lack;
   std::vector<uint8_t> marked;
   std::vector<uint32_t> touched, waiting, finished;
-  uint64_t lacking = 0, wanted = 0;  // points: sum of seen_lack, of seen_want
-  uint32_t visible = 0;              // pointlets with seen_want > 0
-  std::vector<uint32_t> incoming;    // a LoD result as it arrives
-  uint64_t selected_after = 0;       // residency.completed when the drawn selection was built
+  std::vector<std::vector<uint32_t>> lacking_pieces;  // per piece of touched: what to load
+  uint64_t lacking = 0, wanted = 0;                   // points: sum of seen_lack, of seen_want
+  uint32_t visible = 0;                               // pointlets with seen_want > 0
+  std::vector<uint32_t> incoming;                     // a LoD result as it arrives
+  uint64_t selected_after = 0;  // residency.completed when the drawn selection was built
   VirtualCloudOptions options;
   CloudAttributes attributes;  // the cache's: which colour modes it can show, default ramps
   std::unique_ptr<GpuPointlets> pointlets;
@@ -213,6 +214,9 @@ struct VirtualCloudRender {
   std::unique_ptr<ThreadPool> pool;     // load tasks (disk reads)
   std::unique_ptr<ThreadPool> workers;  // the frame's own parallel work: new points for the GPU
 };
+
+// Touched pointlets a piece of the selection's visits on the frame's workers.
+constexpr size_t kVisitPiece = 4096;
 
 bool same_view(const ExtractedCamera& a, const ExtractedCamera& b) {
   return a.position == b.position && a.rotation == b.rotation && a.fov_y == b.fov_y &&
@@ -510,17 +514,38 @@ void select_points(Registry& render) {
     for (uint32_t i : v.waiting) touch(i);
     v.waiting.clear();
   }
-  // What a visit learns of a pointlet: the sums move by the difference to its last visit.
-  auto visit = [&](uint32_t i) {
+  // What a visit learns of a pointlet: the sums move by the difference to its last visit. The
+  // touched pointlets are visited in pieces on the frame's workers (tens of thousands a frame
+  // when the view zooms), each piece summing its own moves (modulo 2^64, so in any order).
+  struct Moves {
+    uint64_t lacking = 0, wanted = 0;
+    uint32_t visible = 0;
+  };
+  auto visit = [&](uint32_t i, Moves& m) {
     const uint32_t want = v.desired[i], have = r.loaded[i].load();
     const uint32_t lack = want > have ? want - have : 0;
-    v.lacking += uint64_t(lack) - v.seen_lack[i];
-    v.wanted += uint64_t(want) - v.seen_want[i];
-    v.visible += uint32_t(want > 0) - uint32_t(v.seen_want[i] > 0);
+    m.lacking += uint64_t(lack) - v.seen_lack[i];
+    m.wanted += uint64_t(want) - v.seen_want[i];
+    m.visible += uint32_t(want > 0) - uint32_t(v.seen_want[i] > 0);
     v.seen_lack[i] = lack;
     v.seen_want[i] = want;
   };
-  for (uint32_t i : touched) visit(i);
+  std::vector<Moves> moves;
+  auto visit_pieces = [&](auto&& each) {
+    const size_t pieces = (touched.size() + kVisitPiece - 1) / kVisitPiece;
+    moves.assign(pieces, {});
+    v.workers->parallel_for(pieces, 1, [&](size_t begin, size_t end) {
+      for (size_t k = begin; k < end; ++k)
+        for (size_t t = k * kVisitPiece; t < std::min(touched.size(), (k + 1) * kVisitPiece); ++t)
+          each(k, touched[t]);
+    });
+    for (const Moves& m : moves) {
+      v.lacking += m.lacking;
+      v.wanted += m.wanted;
+      v.visible += m.visible;
+    }
+  };
+  visit_pieces([&](size_t k, uint32_t i) { visit(i, moves[k]); });
   // Unload first: what the view no longer needs goes when what it needs would not fit.
   const uint64_t needed = v.lacking * sizeof(PointletRecord);
   for (uint32_t i = 0; i < r.count && r.bytes.load() + needed > r.budget; ++i)
@@ -571,28 +596,39 @@ void select_points(Registry& render) {
     for (uint32_t i = 0; i < r.count; ++i)
       if (v.marked[i]) touched.push_back(i);
   }
-  for (uint32_t i : touched) {
+  // Visited and drawn in pieces on the workers; those that lack points and are not in flight
+  // (in flight: visited when done) are then taken in index order on this thread, where the
+  // budget is planned. Only this thread starts loads and unloads, so what such a pointlet holds
+  // does not change in between.
+  const size_t load_pieces = (touched.size() + kVisitPiece - 1) / kVisitPiece;
+  v.lacking_pieces.resize(std::max(v.lacking_pieces.size(), load_pieces));
+  for (size_t k = 0; k < load_pieces; ++k) v.lacking_pieces[k].clear();
+  visit_pieces([&](size_t k, uint32_t i) {
     v.marked[i] = 0;
-    visit(i);
+    visit(i, moves[k]);
     const uint32_t want = v.desired[i], have = r.loaded[i].load();
     draw[i] = std::min(want, have);
-    if (want <= have || r.in_flight[i].load()) continue;  // in flight: visited when done
-    if (v.loads_held) {  // the first selection loads nothing: visited again at the next
-      v.waiting.push_back(i);
-      continue;
+    if (want > have && !r.in_flight[i].load()) v.lacking_pieces[k].push_back(i);
+  });
+  for (size_t k = 0; k < load_pieces; ++k)
+    for (uint32_t i : v.lacking_pieces[k]) {
+      const uint32_t want = v.desired[i], have = r.loaded[i].load();
+      if (v.loads_held) {  // the first selection loads nothing: visited again at the next
+        v.waiting.push_back(i);
+        continue;
+      }
+      const uint32_t extra = std::min<uint32_t>(table[i].count, want + want / 4);
+      uint32_t goal =
+          planned + uint64_t(extra - have) * sizeof(PointletRecord) <= r.budget ? extra : want;
+      if (planned + uint64_t(goal - have) * sizeof(PointletRecord) > r.budget) {
+        v.waiting.push_back(i);  // full: tried again at the next selection
+        continue;
+      }
+      planned += uint64_t(goal - have) * sizeof(PointletRecord);
+      r.in_flight[i].store(true);
+      ++r.pending;
+      loads.push_back({i, goal, want - have});
     }
-    const uint32_t extra = std::min<uint32_t>(table[i].count, want + want / 4);
-    uint32_t goal =
-        planned + uint64_t(extra - have) * sizeof(PointletRecord) <= r.budget ? extra : want;
-    if (planned + uint64_t(goal - have) * sizeof(PointletRecord) > r.budget) {
-      v.waiting.push_back(i);  // full: tried again at the next selection
-      continue;
-    }
-    planned += uint64_t(goal - have) * sizeof(PointletRecord);
-    r.in_flight[i].store(true);
-    ++r.pending;
-    loads.push_back({i, goal, want - have});
-  }
   const bool requested = !loads.empty();
   if (requested) {
     std::stable_sort(loads.begin(), loads.end(),
@@ -609,7 +645,8 @@ void select_points(Registry& render) {
   }
   stats.residency_ms = ms_since(residency_start);
   t = Clock::now();
-  StoreUpdate update = update_point_store(ctx, *v.store, draw, fresh_writer(r, *v.workers));
+  StoreUpdate update =
+      update_point_store(ctx, *v.store, draw, fresh_writer(r, *v.workers), v.workers.get());
   stats.upload_ms = ms_since(t);
   v.transfer_pending = update.limited;
   stats.staging_wait_ms = update.wait_ms;

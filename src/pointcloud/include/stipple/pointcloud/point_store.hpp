@@ -50,14 +50,17 @@ struct CompactionPlan {
   std::vector<FreshRange> fresh;
   uint64_t kept = 0, fresh_points = 0;
   bool limited = false;  // fewer new points than asked for: the rest follow later
+  bool changed = false;  // some pointlet draws another count than before (or none was before)
 };
 // `wanted`: the points each pointlet should draw now (already capped by what the host holds);
 // at most `max_fresh` new points, shared among the pointlets in proportion to what they lack.
+// With a pool, pieces of pointlets are counted and then placed on its threads; the plan is the
+// same either way (jobs merge within a piece of 8,192 pointlets, not across).
 CompactionPlan plan_compaction(const StoreLayout& previous, const std::vector<uint32_t>& wanted,
-                               uint64_t max_fresh);
+                               uint64_t max_fresh, ThreadPool* pool = nullptr);
 // The same into `plan`, reusing its vectors.
 void plan_compaction(const StoreLayout& previous, const std::vector<uint32_t>& wanted,
-                     uint64_t max_fresh, CompactionPlan& plan);
+                     uint64_t max_fresh, CompactionPlan& plan, ThreadPool* pool = nullptr);
 
 struct GpuPointStore {
   uint64_t capacity = 0;  // points per frame's buffers (>= B)
@@ -115,9 +118,11 @@ struct StoreUpdate {
 // Plans the next frame's buffers for `wanted` (<= capacity in total; what each pointlet then
 // draws is store.layout.count) and writes the new points
 // into staging; the compaction runs in the vms-compact pass. Call it at most once per frame,
-// after the previous frame's graph was submitted.
+// after the previous frame's graph was submitted. The plan, its info in staging and the batches
+// are made on `pool`'s threads too when one is given (the same result).
 StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
-                               const std::vector<uint32_t>& wanted, const FreshWriter& write);
+                               const std::vector<uint32_t>& wanted, const FreshWriter& write,
+                               ThreadPool* pool = nullptr);
 // The vms-compact pass (a side effect: the rasterizer reads the store's buffers directly). Add
 // it before the rasterizer's passes; the store must outlive the graph's run.
 void add_point_store_pass(gpu::RenderGraph& graph, GpuPointStore& store);
