@@ -154,23 +154,33 @@ TEST(SplatStream, PointsAndASplatTilesetInOneFrame) {
 TEST(SplatStream, BenchStreamFliesASplatTileset) {
   const Fixture& f = fixture();
   ASSERT_TRUE(fs::exists(f.tileset));
-  const fs::path json = f.dir / "bench.json";
-  const auto r = test::run_stipple(fmt::format(
-      "bench stream {} --renderer billboard --width 64 --height 48 --frames 8 --splat-budget 5000 "
-      "--json {}",
-      f.tileset.string(), json.string()));
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_NE(r.output.find("M splats a frame"), std::string::npos) << r.output;
-  std::ifstream in(json);
-  const auto j = nlohmann::json::parse(in);
-  EXPECT_EQ(j.at("frames").get<uint32_t>(), 8u);
-  // Frames do not wait for loads: some frames draw splats, none more than the budget.
-  EXPECT_GT(j.at("splats_drawn_mean").get<double>(), 0.0);
-  EXPECT_LE(j.at("splats_drawn_mean").get<double>(), 5000.0);
-  EXPECT_GT(j.at("loads").get<uint64_t>(), 0u);
-  // The frame's CPU by stage: the render world's Queue records the splat passes every frame.
-  const auto& cpu = j.at("cpu_ms_mean");
-  EXPECT_GT(cpu.at("render_queue").get<double>(), 0.0);
-  EXPECT_GT(cpu.at("main_stages").get<double>(), 0.0);
-  EXPECT_NE(r.output.find("CPU ms a frame by stage"), std::string::npos) << r.output;
+  // Sequential (each frame waits for the GPU), and pipelined (the render world on its own
+  // thread, frames not waiting), as a viewer draws.
+  for (const std::string mode : {"", "--pipelined"}) {
+    SCOPED_TRACE(mode);
+    const fs::path json = f.dir / "bench.json";
+    const auto r = test::run_stipple(
+        fmt::format("bench stream {} --renderer billboard --width 64 --height 48 --frames 8 "
+                    "--splat-budget 5000 --json {} {}",
+                    f.tileset.string(), json.string(), mode));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("M splats a frame"), std::string::npos) << r.output;
+    std::ifstream in(json);
+    const auto j = nlohmann::json::parse(in);
+    EXPECT_EQ(j.at("frames").get<uint32_t>(), 8u);
+    EXPECT_EQ(j.at("pipelined").get<bool>(), !mode.empty());
+    EXPECT_EQ(j.at("frame_wall_ms").size(), 8u);
+    // Every frame's GPU time comes back, also where no frame waited for it.
+    EXPECT_EQ(j.at("frame_gpu_ms").size(), 8u);
+    EXPECT_GT(j.at("gpu_ms_median").get<double>(), 0.0);
+    // Frames do not wait for loads: some frames draw splats, none more than the budget.
+    EXPECT_GT(j.at("splats_drawn_mean").get<double>(), 0.0);
+    EXPECT_LE(j.at("splats_drawn_mean").get<double>(), 5000.0);
+    EXPECT_GT(j.at("loads").get<uint64_t>(), 0u);
+    // The frame's CPU by stage: the render world's Queue records the splat passes every frame.
+    const auto& cpu = j.at("cpu_ms_mean");
+    EXPECT_GT(cpu.at("render_queue").get<double>(), 0.0);
+    EXPECT_GT(cpu.at("main_stages").get<double>(), 0.0);
+    EXPECT_NE(r.output.find("CPU ms a frame by stage"), std::string::npos) << r.output;
+  }
 }

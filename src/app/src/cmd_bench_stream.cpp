@@ -52,6 +52,7 @@ struct StreamBenchArgs {
   std::string samples;
   double sample_seconds = 1.0;
   double duration = 0;  // seconds; 0: every frame of --frames
+  bool pipelined = false, no_gpu_wait = false;
 };
 
 // The per-interval samples, written and flushed row by row so that a long run can be watched
@@ -115,7 +116,13 @@ tiles3d::TilesetStats splat_stream_stats(Registry& main) {
 
 void run_stream_bench(const StreamBenchArgs& a) {
   Engine engine;
-  add_engine_core(engine, {a.backend, false, true, ""});
+  EngineCore core;
+  core.backend = a.backend;
+  core.pipelined = a.pipelined;
+  core.keep_history = true;
+  core.wait_for_gpu = !a.pipelined && !a.no_gpu_wait;
+  core.max_frames_in_flight = 2;
+  add_engine_core(engine, core);
   SceneOptions scene;
   scene.inputs = {a.input};
   scene.renderer = a.renderer == "compute" ? Renderer::Compute : Renderer::Billboard;
@@ -135,6 +142,10 @@ void run_stream_bench(const StreamBenchArgs& a) {
   auto tileset_stats = [splat](Registry& main) {
     return splat ? splat_stream_stats(main) : main.resource<tiles3d::TilesetStats>();
   };
+  if (a.pipelined && !a.samples.empty())
+    fail(
+        "bench stream: --samples reads the render world every frame, which --pipelined runs on "
+        "its own thread");
   add_scene_plugin(engine, plan);
   engine.add_plugin(HeadlessTargetPlugin{a.width, a.height, "", 0});
 
@@ -172,8 +183,6 @@ void run_stream_bench(const StreamBenchArgs& a) {
     engine.update();
     wall_ms.push_back(
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-    const auto& rs = render.resource<RenderStats>();
-    gpu_ms.push_back(rs.gpu_ms.empty() ? 0.0 : rs.gpu_ms.back());
     drawn.push_back(tileset_stats(main).drawn_points);
     if (samples) {
       const double now =
@@ -192,6 +201,10 @@ void run_stream_bench(const StreamBenchArgs& a) {
     samples.write(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
                   frames, main.resource<tiles3d::TilesetStats>(),
                   render.try_resource<tiles3d::TilesetGpuStats>());
+  // Every timed frame's GPU ms (RenderStats' history), once the render world is idle and the
+  // timestamps still on their way (frames that do not wait for the GPU) are in.
+  drain_pass_times(engine);
+  gpu_ms = render.resource<RenderStats>().gpu_ms;
   const auto stats = tileset_stats(main);
   // The frame's CPU by stage (where a frame's wall beyond its GPU time goes), read while the
   // render world is idle.
@@ -209,8 +222,10 @@ void run_stream_bench(const StreamBenchArgs& a) {
   const double drawn_mean =
       double(std::accumulate(drawn.begin(), drawn.end(), uint64_t(0))) / double(drawn.size());
   const uint64_t rss = peak_resident_bytes();
-  std::printf("%s (%s, %ux%u, %u frames)\n", a.input.c_str(), a.renderer.c_str(), a.width, a.height,
-              frames);
+  const char* mode =
+      a.pipelined ? "pipelined" : (a.no_gpu_wait ? "sequential, no GPU wait" : "sequential");
+  std::printf("%s (%s, %ux%u, %u frames, %s)\n", a.input.c_str(), a.renderer.c_str(), a.width,
+              a.height, frames, mode);
   std::printf(
       "  FPS avg %.1f, min %.1f, max %.1f, 1%% low %.1f, 0.1%% low %.1f; GPU %.3f ms (median)\n",
       avg, 1000.0 / slowest, 1000.0 / fastest, low_fps(wall_ms, 0.01), low_fps(wall_ms, 0.001),
@@ -234,6 +249,8 @@ void run_stream_bench(const StreamBenchArgs& a) {
     j["width"] = a.width;
     j["height"] = a.height;
     j["frames"] = frames;
+    j["pipelined"] = a.pipelined;
+    j["gpu_wait"] = !a.pipelined && !a.no_gpu_wait;
     j["fps"] = {{"average", avg},
                 {"min", 1000.0 / slowest},
                 {"max", 1000.0 / fastest},
@@ -299,6 +316,11 @@ void add_bench_stream_command(CLI::App& bench) {
                   "Seconds between --samples rows (0: every frame)")
       ->check(CLI::Range(0.0, 3600.0))
       ->capture_default_str();
+  cmd->add_flag("--pipelined", a->pipelined,
+                "Render world on its own thread (drawing frame N while the main world builds "
+                "N+1); frames do not wait for the GPU");
+  cmd->add_flag("--no-gpu-wait", a->no_gpu_wait,
+                "Frames do not wait for the GPU (timestamps read back later), on one thread");
   cmd->callback([a] {
     check_camera_path(a->path);
     run_stream_bench(*a);
