@@ -12,7 +12,8 @@ as JSON (and written to --out).
                    [--flight N] [--page stipple|potree] [--modules DIR] [--bench K] [--screenshot F]
 
 --moves N: N camera turns once drawn, the page's CPU and GPU ms per frame (timestamp queries in the
-page); --flight N: N steps of a flight down over a streamed set (tiles stream in meanwhile).
+page); --flight N: N steps of a flight down over a streamed set (tiles stream in meanwhile);
+with --flight-seconds S the flight takes S seconds of wall time, a step per animation frame.
 --screenshot F: the view once done (viewer.screenshot(), a PNG) written to F, before any moves, to
 compare with `stipple render` of the same scene and size.
 --bench K (bench/web_vs_potree.mjs's measurement, for bench/web_vs_potree_device.sh): once the
@@ -38,6 +39,10 @@ p.add_argument('--swiftshader', action='store_true', help="the tests' flags: Web
 p.add_argument('--flags', default='', help='more Chromium flags')
 p.add_argument('--moves', type=int, default=0, help='camera turns after the view is done (frames to time)')
 p.add_argument('--flight', type=int, default=0, help='steps of a flight down over the data (streamed sets)')
+p.add_argument('--flight-seconds', type=float, default=0,
+               help='the flight over this many seconds of wall time instead (needs --flight > 0)')
+p.add_argument('--flight-to', type=float, default=0.4,
+               help="where the flight ends, as a fraction of the first framing's distance")
 p.add_argument('--retry-adapter', action='store_true', help='ask again where requestAdapter gives null')
 p.add_argument('--page', choices=['stipple', 'potree'], default='stipple')
 p.add_argument('--modules', default=None, help='a folder with three/ and potree-core/ (--page potree)')
@@ -52,6 +57,8 @@ bench_dir = os.path.dirname(os.path.abspath(__file__))
 REPORTER = b"""<script>
 const stippleMoves = MOVES;
 const stippleFlight = FLIGHT;
+const stippleFlightSeconds = FLIGHTSECONDS;
+const stippleFlightTo = FLIGHTTO;
 const stippleStats = () => JSON.parse(window.stipple.stats || '{}');
 const stippleFrame = () => new Promise((r) => requestAnimationFrame(() => r()));
 const stippleMedian = (v) => { const s = [...v].sort((a, b) => a - b); return s.length ? s[s.length >> 1] : null; };
@@ -94,33 +101,44 @@ async function stippleMeasureMoves() {
            pageFrameMsMedian: stippleMedian(ms), pageFrameMsSamples: ms, ...sampler.result(),
            camera: window.stippleViewer && window.stippleViewer.camera };
 }
-// A flight over a streamed set: the camera dollies from the first framing down towards the
-// data's centre (to a twentieth of the distance, where the finest tiles are wanted), one step an
-// animation frame, `stippleFlight` steps; per frame the page's CPU and GPU time, the tiles
-// loading; the last camera (to draw natively).
+// A flight over a streamed set: the camera dollies from the first framing down its view axis to
+// `stippleFlightTo` of the first distance (the framing's target is the point of the axis nearest
+// the data's centre, under the surface of a flat survey seen from above: flown to a twentieth of
+// the distance the camera ends underground, where nothing below the root is drawn), one step an
+// animation frame, `stippleFlight` steps, or over `stippleFlightSeconds` of wall time (the step
+// from the time elapsed, so tiles stream in as a user's flight would see them: a flight of a few
+// hundred frames at hundreds a second ends before any tile below the root arrives); per frame the
+// page's CPU and GPU time, the points drawn, the tiles loading; the last camera (to draw
+// natively).
 async function stippleFly() {
   const v = window.stippleViewer;
   const c0 = v.camera, t0c = c0.target;
   const d = c0.position.map((x, i) => x - t0c[i]);
   const sampler = stippleSampler();
-  const loading = [];
+  const loading = [], points = [];
   const start = performance.now(), f0 = stippleStats().frames;
-  for (let i = 1; i <= stippleFlight; ++i) {
-    const k = i / stippleFlight;
+  const duration = stippleFlightSeconds * 1000;
+  for (let i = 1; ; ++i) {
+    const k = duration > 0 ? Math.min(1, (performance.now() - start) / duration) : i / stippleFlight;
     const target = t0c;
-    const scale = 1 - 0.95 * k;
+    const scale = 1 - (1 - stippleFlightTo) * k;
     const position = [target[0] + d[0] * scale, target[1] + d[1] * scale, target[2] + d[2] * scale];
     v.camera = { position, target };
     await stippleFrame();
     sampler.sample();
-    loading.push(stippleStats().tilesLoading || 0);
+    const s = stippleStats();
+    loading.push(s.tilesLoading || 0);
+    points.push(s.pointsDrawn || 0);
+    if (duration > 0 ? k >= 1 : i >= stippleFlight) break;
   }
   const seconds = (performance.now() - start) / 1000;
-  for (let i = 0; i < 10; ++i) { await stippleFrame(); sampler.sample(); }
   const frames = stippleStats().frames - f0;
-  return { steps: stippleFlight, framesDrawn: frames, seconds, fps: frames / seconds,
-           ...sampler.result(), tilesLoadingMax: Math.max(...loading), last: v.camera,
-           stats: stippleStats() };
+  const fps = frames / seconds;
+  for (let i = 0; i < 10; ++i) { await stippleFrame(); sampler.sample(); }
+  return { steps: points.length, framesDrawn: frames, seconds, fps, ...sampler.result(),
+           pointsDrawnMean: points.reduce((x, y) => x + y, 0) / Math.max(1, points.length),
+           pointsDrawnMax: Math.max(...points), tilesLoadingMax: Math.max(...loading),
+           last: v.camera, stats: stippleStats() };
 }
 (function poll() {
   const s = window.stipple;
@@ -233,7 +251,7 @@ class Handler(http.server.SimpleHTTPRequestHandler):
                 script = (BENCH.replace(b'FRAMES', str(a.bench).encode()).replace(b'WARMUP', str(a.bench_warmup).encode())
                           .replace(b'DX', str(a.bench_dx).encode()))
             else:
-                script = (REPORTER.replace(b'MOVES', str(a.moves).encode()).replace(b'FLIGHT', str(a.flight).encode())
+                script = (REPORTER.replace(b'MOVES', str(a.moves).encode()).replace(b'FLIGHTSECONDS', str(a.flight_seconds).encode()).replace(b'FLIGHTTO', str(a.flight_to).encode()).replace(b'FLIGHT', str(a.flight).encode())
                           .replace(b'SHOT', b'true' if a.screenshot else b'false'))
             body = body.replace(b'</body>', script + b'</body>')
             if a.retry_adapter:

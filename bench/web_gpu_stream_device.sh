@@ -7,9 +7,11 @@
 #   bench/web_gpu_stream_device.sh POINTS...        e.g. 136000000 1000000000
 # For each POINTS: `stipple generate` (LAS, point format 2: positions, classes, colours) and
 # `stipple tile` into /tmp/data/tPOINTS (kept for later calls while the machine stays warm; the
-# LAS is removed once tiled), then the page opens /data/tPOINTS/tileset.json at 1280x720, streams
-# it, flies FLIGHT steps (default 150) down over it (bench/web_gpu.py --flight) and reports its
-# CPU and GPU ms per frame; native Dawn and wgpu-native render the same tileset from the flight's
+# LAS is removed once tiled; with LAS_DIR, LAS_DIR/gPOINTS.las is tiled instead and kept), then
+# the page opens /data/tPOINTS/tileset.json at 1280x720, streams it, flies FLIGHT steps (default
+# 150; over FLIGHT_SECONDS of wall time where given, so that tiles stream in during the flight)
+# down over it (bench/web_gpu.py --flight) and reports its CPU and GPU ms per frame and the
+# points drawn; native Dawn and wgpu-native render the same tileset from the flight's
 # last camera, 20 frames (--stats). Writes $OUT (or /tmp/web-gpu-out)/stream-POINTS*.
 set -uo pipefail
 out=${OUT:-/tmp/web-gpu-out}
@@ -33,17 +35,23 @@ for n in "$@"; do
     echo "== generating and tiling $n points"
     start=$(date +%s)
     # LAZ above 700M points: the LAS, the tiler's chunks and the tiles do not fit the 64 GB disk.
-    gen=/tmp/gen.las
-    [ "$n" -gt 700000000 ] && gen=/tmp/gen.laz
-    $stipple generate -n "$n" --point-format 2 -o $gen 2>&1 | tail -1
-    $stipple tile $gen -o "$set_dir" 2>&1 | tail -2
-    rm -f $gen
+    # A LAS of these points already made (LAS_DIR/gN.las: bench/virtual_frame_device.sh's
+    # /dev/shm input) is tiled as it is, and kept.
+    if [ -f "${LAS_DIR:-/nonexistent}/g$n.las" ]; then
+      $stipple tile "$LAS_DIR/g$n.las" -o "$set_dir" 2>&1 | tail -2
+    else
+      gen=/tmp/gen.las
+      [ "$n" -gt 700000000 ] && gen=/tmp/gen.laz
+      $stipple generate -n "$n" --point-format 2 -o $gen 2>&1 | tail -1
+      $stipple tile $gen -o "$set_dir" 2>&1 | tail -2
+      rm -f $gen
+    fi
     echo "   $(( $(date +%s) - start )) s; $(du -sh "$set_dir" | cut -f1) of tiles; $(df -h /tmp | tail -1)"
   fi
   for web in ${WEB_DIRS:-.devpkg/web}; do
     echo "== page $(basename "$web"): $n points streamed"
     python3 bench/web_gpu.py --chromium /tmp/chromium-pkg/run --web "$web" --data /tmp/data \
-      --flags "$flags" --flight "${FLIGHT:-150}" --timeout-s 400 \
+      --flags "$flags" --flight "${FLIGHT:-150}" --flight-seconds "${FLIGHT_SECONDS:-0}" --timeout-s 400 \
       --query "url=/data/t$n/tileset.json&width=1280&height=720" --out "$out/stream-$n.json" >/dev/null
     python3 - "$out/stream-$n.json" <<'PY'
 import json, sys
@@ -52,7 +60,8 @@ s = r.get('stipple', {})
 print(json.dumps({k: s.get(k) for k in ('renderer', 'adapter', 'tiles', 'points', 'ms', 'frameMs', 'error')}))
 f = r.get('flight')
 print(json.dumps({k: f.get(k) for k in ('steps', 'framesDrawn', 'seconds', 'fps', 'cpuMsMedian', 'cpuMsP90',
-                                          'gpuMsMedian', 'gpuMsP90', 'gpuSamples', 'tilesLoadingMax')}
+                                          'gpuMsMedian', 'gpuMsP90', 'gpuSamples', 'tilesLoadingMax',
+                                          'pointsDrawnMean', 'pointsDrawnMax')}
                  if isinstance(f, dict) else f))
 if isinstance(f, dict):
     last = f['last']
