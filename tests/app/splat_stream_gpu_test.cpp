@@ -173,6 +173,12 @@ TEST(SplatStream, BenchStreamFliesASplatTileset) {
     // Every frame's GPU time comes back, also where no frame waited for it.
     EXPECT_EQ(j.at("frame_gpu_ms").size(), 8u);
     EXPECT_GT(j.at("gpu_ms_median").get<double>(), 0.0);
+    // And by pass, each within the frame's.
+    const auto& passes = j.at("gpu_pass_ms_median");
+    EXPECT_FALSE(passes.empty());
+    double sum = 0;
+    for (const auto& [pass, ms] : passes.items()) sum += ms.get<double>();
+    EXPECT_GT(sum, 0.0);
     // Frames do not wait for loads: some frames draw splats, none more than the budget.
     EXPECT_GT(j.at("splats_drawn_mean").get<double>(), 0.0);
     EXPECT_LE(j.at("splats_drawn_mean").get<double>(), 5000.0);

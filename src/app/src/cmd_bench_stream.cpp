@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <memory>
 #include <numeric>
 #include <string>
@@ -205,6 +206,10 @@ void run_stream_bench(const StreamBenchArgs& a) {
   // timestamps still on their way (frames that do not wait for the GPU) are in.
   drain_pass_times(engine);
   gpu_ms = render.resource<RenderStats>().gpu_ms;
+  // Each pass's median over the frames that ran it (where the GPU's frame goes).
+  std::map<std::string, double> pass_median;
+  for (const auto& [pass, times] : render.resource<RenderStats>().history)
+    if (!times.empty()) pass_median[pass] = median(times);
   const auto stats = tileset_stats(main);
   // The frame's CPU by stage (where a frame's wall beyond its GPU time goes), read while the
   // render world is idle.
@@ -242,6 +247,10 @@ void run_stream_bench(const StreamBenchArgs& a) {
       "  CPU ms a frame by stage: main %.3f | render Prepare %.3f, Queue %.3f, PreDraw %.3f, Draw "
       "%.3f, PostDraw %.3f\n",
       main_cpu, render_cpu[0], render_cpu[1], render_cpu[2], render_cpu[3], render_cpu[4]);
+  std::string passes;
+  for (const auto& [pass, ms] : pass_median)
+    passes += fmt::format("{}{} {:.3f}", passes.empty() ? "" : ", ", pass, ms);
+  std::printf("  GPU ms by pass (median): %s\n", passes.c_str());
   if (!a.json.empty()) {
     nlohmann::json j;
     j["input"] = a.input;
@@ -257,6 +266,7 @@ void run_stream_bench(const StreamBenchArgs& a) {
                 {"low_1pct", low_fps(wall_ms, 0.01)},
                 {"low_0_1pct", low_fps(wall_ms, 0.001)}};
     j["gpu_ms_median"] = gpu_median;
+    j["gpu_pass_ms_median"] = pass_median;
     j["frame_wall_ms"] = wall_ms;
     j["frame_gpu_ms"] = gpu_ms;
     j[splat ? "splats_drawn_mean" : "points_drawn_mean"] = drawn_mean;
