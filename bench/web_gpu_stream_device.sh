@@ -12,7 +12,9 @@
 # 150; over FLIGHT_SECONDS of wall time where given, so that tiles stream in during the flight)
 # down over it (bench/web_gpu.py --flight) and reports its CPU and GPU ms per frame and the
 # points drawn; native Dawn and wgpu-native render the same tileset from the flight's
-# last camera, 20 frames (--stats). Writes $OUT (or /tmp/web-gpu-out)/stream-POINTS*.
+# last camera, 20 frames (--stats). QUERY_EXTRA adds to the page's query (e.g. '&max-sse=2'),
+# NATIVE_EXTRA to native render's options (e.g. '--max-sse 2'), so both draw the same tiles.
+# Writes $OUT (or /tmp/web-gpu-out)/stream-POINTS*.
 set -uo pipefail
 out=${OUT:-/tmp/web-gpu-out}
 mkdir -p "$out" /tmp/data
@@ -52,7 +54,7 @@ for n in "$@"; do
     echo "== page $(basename "$web"): $n points streamed"
     python3 bench/web_gpu.py --chromium /tmp/chromium-pkg/run --web "$web" --data /tmp/data \
       --flags "$flags" --flight "${FLIGHT:-150}" --flight-seconds "${FLIGHT_SECONDS:-0}" --timeout-s 400 \
-      --query "url=/data/t$n/tileset.json&width=1280&height=720" --out "$out/stream-$n.json" >/dev/null
+      --query "url=/data/t$n/tileset.json&width=1280&height=720${QUERY_EXTRA:-}" --out "$out/stream-$n.json" >/dev/null
     python3 - "$out/stream-$n.json" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))
@@ -72,7 +74,7 @@ PY
   cam=$(cat /tmp/last-camera 2>/dev/null)
   for backend in dawn wgpu; do
     echo "== native $backend: $n points streamed, the flight's last view"
-    $stipple render "$set_dir/tileset.json" --width 1280 --height 720 --backend $backend --frames 20 \
+    $stipple render "$set_dir/tileset.json" --width 1280 --height 720 --backend $backend --frames 20 ${NATIVE_EXTRA:-} \
       ${cam:+--camera "$cam"} --stats "$out/stream-$n-$backend.json" -o "$out/stream-$n-$backend.png" 2>&1 | tail -2
     python3 -c "import json,sys;d=json.load(open(sys.argv[1]));print({k:d[k] for k in ('renderer','points','frame_gpu_ms_median','frame_wall_ms_median')})" \
       "$out/stream-$n-$backend.json"
