@@ -244,8 +244,7 @@ void ensure_tile_buffers(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& 
   t->height = height;
   t->tiles_x = (width + kTile - 1) / kTile;
   t->tiles_y = (height + kTile - 1) / kTile;
-  // 16-bit tile keys, 0xffff kept for slots without a pair (splat_tiles.wgsl's NO_TILE).
-  if (uint64_t(t->tiles_x) * t->tiles_y > 65535)
+  if (uint64_t(t->tiles_x) * t->tiles_y > 65536)
     fail("splats: the tile rasterizer sorts tiles by 16 bits: {}x{} has too many tiles", width,
          height);
   t->pair_capacity = wanted_pair_capacity(ctx, s);
