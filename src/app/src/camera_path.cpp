@@ -40,6 +40,24 @@ void add_camera_path_options(CLI::App* cmd, CameraPath& a) {
   cmd->add_option("--elevation", a.elevation, "Camera elevation (degrees)")->capture_default_str();
 }
 
+void add_frame_mode_options(CLI::App* cmd, FrameMode& mode) {
+  cmd->add_flag("--pipelined", mode.pipelined,
+                "Render world on its own thread (drawing frame N while the main world builds "
+                "N+1); frames do not wait for the GPU");
+  cmd->add_flag("--no-gpu-wait", mode.no_gpu_wait,
+                "Frames do not wait for the GPU (timestamps read back later), on one thread");
+}
+
+scene::EngineCore bench_engine_core(const std::string& backend, const FrameMode& mode) {
+  scene::EngineCore core;
+  core.backend = backend;
+  core.pipelined = mode.pipelined;
+  core.keep_history = true;  // per-frame GPU times
+  core.wait_for_gpu = mode.waits_for_gpu();
+  core.max_frames_in_flight = 2;
+  return core;
+}
+
 void check_camera_path(const CameraPath& a) {
   if (a.fov_min > a.fov_max) fail("--fov-min {} exceeds --fov-max {}", a.fov_min, a.fov_max);
 }

@@ -53,7 +53,7 @@ struct StreamBenchArgs {
   std::string samples;
   double sample_seconds = 1.0;
   double duration = 0;  // seconds; 0: every frame of --frames
-  bool pipelined = false, no_gpu_wait = false;
+  FrameMode mode;
 };
 
 // The per-interval samples, written and flushed row by row so that a long run can be watched
@@ -117,13 +117,7 @@ tiles3d::TilesetStats splat_stream_stats(Registry& main) {
 
 void run_stream_bench(const StreamBenchArgs& a) {
   Engine engine;
-  EngineCore core;
-  core.backend = a.backend;
-  core.pipelined = a.pipelined;
-  core.keep_history = true;
-  core.wait_for_gpu = !a.pipelined && !a.no_gpu_wait;
-  core.max_frames_in_flight = 2;
-  add_engine_core(engine, core);
+  add_engine_core(engine, bench_engine_core(a.backend, a.mode));
   SceneOptions scene;
   scene.inputs = {a.input};
   scene.renderer = a.renderer == "compute" ? Renderer::Compute : Renderer::Billboard;
@@ -143,7 +137,7 @@ void run_stream_bench(const StreamBenchArgs& a) {
   auto tileset_stats = [splat](Registry& main) {
     return splat ? splat_stream_stats(main) : main.resource<tiles3d::TilesetStats>();
   };
-  if (a.pipelined && !a.samples.empty())
+  if (a.mode.pipelined && !a.samples.empty())
     fail(
         "bench stream: --samples reads the render world every frame, which --pipelined runs on "
         "its own thread");
@@ -227,8 +221,7 @@ void run_stream_bench(const StreamBenchArgs& a) {
   const double drawn_mean =
       double(std::accumulate(drawn.begin(), drawn.end(), uint64_t(0))) / double(drawn.size());
   const uint64_t rss = peak_resident_bytes();
-  const char* mode =
-      a.pipelined ? "pipelined" : (a.no_gpu_wait ? "sequential, no GPU wait" : "sequential");
+  const char* mode = a.mode.name();
   std::printf("%s (%s, %ux%u, %u frames, %s)\n", a.input.c_str(), a.renderer.c_str(), a.width,
               a.height, frames, mode);
   std::printf(
@@ -258,8 +251,8 @@ void run_stream_bench(const StreamBenchArgs& a) {
     j["width"] = a.width;
     j["height"] = a.height;
     j["frames"] = frames;
-    j["pipelined"] = a.pipelined;
-    j["gpu_wait"] = !a.pipelined && !a.no_gpu_wait;
+    j["pipelined"] = a.mode.pipelined;
+    j["gpu_wait"] = a.mode.waits_for_gpu();
     j["fps"] = {{"average", avg},
                 {"min", 1000.0 / slowest},
                 {"max", 1000.0 / fastest},
@@ -326,11 +319,7 @@ void add_bench_stream_command(CLI::App& bench) {
                   "Seconds between --samples rows (0: every frame)")
       ->check(CLI::Range(0.0, 3600.0))
       ->capture_default_str();
-  cmd->add_flag("--pipelined", a->pipelined,
-                "Render world on its own thread (drawing frame N while the main world builds "
-                "N+1); frames do not wait for the GPU");
-  cmd->add_flag("--no-gpu-wait", a->no_gpu_wait,
-                "Frames do not wait for the GPU (timestamps read back later), on one thread");
+  add_frame_mode_options(cmd, a->mode);
   cmd->callback([a] {
     check_camera_path(a->path);
     run_stream_bench(*a);

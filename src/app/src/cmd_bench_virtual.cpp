@@ -56,19 +56,12 @@ struct VirtualBenchArgs {
   uint32_t psnr_views = 0;
   std::string cache_dir, host_memory, gpu_memory, backend, json;
   uint64_t pointlets = pc::kDefaultPointlets;
-  bool pipelined = false;
-  bool no_gpu_wait = false;
+  FrameMode mode;
 };
 
 std::unique_ptr<Engine> make_engine(const VirtualBenchArgs& a, uint64_t bucket, uint32_t fill) {
   auto engine = std::make_unique<Engine>();
-  EngineCore core;
-  core.backend = a.backend;
-  core.pipelined = a.pipelined;
-  core.keep_history = true;  // per-frame GPU times
-  core.wait_for_gpu = !a.pipelined && !a.no_gpu_wait;
-  core.max_frames_in_flight = 2;
-  add_engine_core(*engine, core);
+  add_engine_core(*engine, bench_engine_core(a.backend, a.mode));
   SceneOptions scene;
   scene.inputs = a.inputs;
   scene.force_virtual = true;
@@ -216,8 +209,8 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
   j["fov_deg"] = {a.path.fov_min, a.path.fov_max};
   j["fill_radius"] = a.fill_radius;
   j["occlusion_beta"] = a.occlusion_beta;
-  j["pipelined"] = a.pipelined;
-  j["gpu_wait"] = !a.pipelined && !a.no_gpu_wait;
+  j["pipelined"] = a.mode.pipelined;
+  j["gpu_wait"] = a.mode.waits_for_gpu();
   j["runs"] = nlohmann::json::array();
   std::printf("%10s %8s %8s %8s %8s %8s %8s %9s %9s %9s %9s\n", "B", "FPS avg", "min", "max",
               "1% low", "0.1% low", "GPU FPS", "drawn M", "host MiB", "GPU MiB", "RSS MiB");
@@ -297,8 +290,7 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
         "           %s, CPU ms a frame by stage: main %.3f | render Prepare %.3f, Queue %.3f, "
         "PreDraw %.3f, Draw %.3f, PostDraw %.3f; new points %.0f, pointlets touched %.0f a "
         "frame; selection as thread CPU time %.3f ms\n",
-        a.pipelined ? "pipelined" : (a.no_gpu_wait ? "sequential, no GPU wait" : "sequential"),
-        r.main_ms / frames_n, r.render_ms[0] / frames_n, r.render_ms[1] / frames_n,
+        a.mode.name(), r.main_ms / frames_n, r.render_ms[0] / frames_n, r.render_ms[1] / frames_n,
         r.render_ms[2] / frames_n, r.render_ms[3] / frames_n, r.render_ms[4] / frames_n,
         double(r.new_points) / frames_n, double(r.touched) / frames_n, r.select_cpu_ms / frames_n);
   }
@@ -369,11 +361,7 @@ void add_bench_virtual_command(CLI::App& bench) {
   cmd->add_option("--gpu-memory", a->gpu_memory, "Device memory budget for the points, e.g. 4G");
   cmd->add_option("--backend", a->backend, "WebGPU implementation: dawn or wgpu")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
-  cmd->add_flag("--pipelined", a->pipelined,
-                "Render world on its own thread (drawing frame N while the main world builds "
-                "N+1); frames do not wait for the GPU");
-  cmd->add_flag("--no-gpu-wait", a->no_gpu_wait,
-                "Frames do not wait for the GPU (timestamps read back later), on one thread");
+  add_frame_mode_options(cmd, a->mode);
   cmd->add_option("--json", a->json, "Write the results (and every frame's times) as JSON");
   cmd->callback([a] {
     check_camera_path(a->path);

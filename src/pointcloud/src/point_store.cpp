@@ -108,19 +108,8 @@ void place_piece(const StoreLayout& previous, bool had, const std::vector<uint32
   }
 }
 
-// body(k) for k in [0, pieces): on the pool's threads and the caller's when there is a pool.
-template <typename Body>
-void for_each_piece(ThreadPool* pool, size_t pieces, Body&& body) {
-  if (!pool || pieces <= 1) {
-    for (size_t k = 0; k < pieces; ++k) body(k);
-    return;
-  }
-  pool->parallel_for(pieces, 1, [&body](size_t begin, size_t end) {
-    for (size_t k = begin; k < end; ++k) body(k);
-  });
-}
-
-// body(begin, end) over [0, count) in pieces of `grain`, on the pool when there is one.
+// body(begin, end) over [0, count) in pieces of `grain`, on the pool's threads and the
+// caller's when there is a pool.
 template <typename Body>
 void for_each_range(ThreadPool* pool, size_t count, size_t grain, Body&& body) {
   if (!pool || count <= grain) {
@@ -128,6 +117,18 @@ void for_each_range(ThreadPool* pool, size_t count, size_t grain, Body&& body) {
     return;
   }
   pool->parallel_for(count, grain, [&body](size_t begin, size_t end) { body(begin, end); });
+}
+
+// The pieces of kPlanPiece pointlets of `n`.
+size_t plan_pieces(size_t n) {
+  return (n + kPlanPiece - 1) / kPlanPiece;
+}
+// body(k, first, end) for each piece k of `n` pointlets: [first, end) its pointlets.
+template <typename Body>
+void for_each_piece(ThreadPool* pool, size_t n, Body&& body) {
+  for_each_range(pool, plan_pieces(n), 1, [&](size_t begin, size_t end) {
+    for (size_t k = begin; k < end; ++k) body(k, k * kPlanPiece, std::min(n, (k + 1) * kPlanPiece));
+  });
 }
 constexpr size_t kBlockPiece = 16384;  // workgroups' first jobs looked up a piece
 constexpr size_t kJobPiece = 32768;    // jobs copied into staging a piece
@@ -165,19 +166,18 @@ void plan_compaction(const StoreLayout& previous, const std::vector<uint32_t>& w
     fail("plan_compaction: {} pointlets before, {} now", previous.count.size(), n);
   // Every frame plans anew: the vectors keep their capacity (a frame allocates nothing here).
   plan.limited = false;
-  const size_t pieces = (n + kPlanPiece - 1) / kPlanPiece;
+  const size_t pieces = plan_pieces(n);
   // (Named through references: a thread_local named in a lambda is the running thread's.)
   thread_local std::vector<PieceCounts> counts_storage, at_storage;
   std::vector<PieceCounts>& counts = counts_storage;
   std::vector<PieceCounts>& at = at_storage;
   counts.assign(pieces, {});
   at.resize(pieces);
-  auto piece_end = [n](size_t k) { return std::min(n, (k + 1) * kPlanPiece); };
   const uint32_t* share = nullptr;
   auto count_all = [&] {
-    for_each_piece(pool, pieces, [&](size_t k) {
+    for_each_piece(pool, n, [&](size_t k, size_t first, size_t end) {
       counts[k] = {};
-      count_piece(previous, had, wanted, share, k * kPlanPiece, piece_end(k), counts[k]);
+      count_piece(previous, had, wanted, share, first, end, counts[k]);
     });
   };
   count_all();
@@ -221,8 +221,8 @@ void plan_compaction(const StoreLayout& previous, const std::vector<uint32_t>& w
   plan.next.count.resize(n);
   plan.jobs.resize(total.jobs);
   plan.fresh.resize(total.ranges);
-  for_each_piece(pool, pieces, [&](size_t k) {
-    place_piece(previous, had, wanted, share, k * kPlanPiece, piece_end(k), at[k], plan);
+  for_each_piece(pool, n, [&](size_t k, size_t first, size_t end) {
+    place_piece(previous, had, wanted, share, first, end, at[k], plan);
   });
   plan.next.total = total.points;
   plan.fresh_points = total.fresh;
@@ -350,24 +350,21 @@ StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
   GpuBatchedCloud& slab = store.slabs[next];
   // A batch per kBatchPoints of each drawn pointlet, in pointlet order: counted per piece of
   // pointlets, then written from each piece's start in parallel.
-  const size_t pieces = (size_t(store.pointlets) + kPlanPiece - 1) / kPlanPiece;
+  const size_t pieces = plan_pieces(store.pointlets);
   thread_local std::vector<uint64_t> batch_at_storage;
   std::vector<uint64_t>& batch_at = batch_at_storage;  // (the workers see this thread's)
   batch_at.assign(pieces + 1, 0);
-  auto piece_end = [&store](size_t k) {
-    return std::min<size_t>(store.pointlets, (k + 1) * kPlanPiece);
-  };
-  for_each_piece(pool, pieces, [&](size_t k) {
+  for_each_piece(pool, store.pointlets, [&](size_t k, size_t first, size_t end) {
     uint64_t batches = 0;
-    for (size_t i = k * kPlanPiece; i < piece_end(k); ++i)
+    for (size_t i = first; i < end; ++i)
       batches += (plan.next.count[i] + kBatchPoints - 1) / kBatchPoints;
     batch_at[k + 1] = batches;
   });
   for (size_t k = 0; k < pieces; ++k) batch_at[k + 1] += batch_at[k];
   slab.batches.resize(batch_at[pieces]);
-  for_each_piece(pool, pieces, [&](size_t k) {
+  for_each_piece(pool, store.pointlets, [&](size_t k, size_t first, size_t end) {
     Batch* batch = slab.batches.data() + batch_at[k];
-    for (size_t i = k * kPlanPiece; i < piece_end(k); ++i) {
+    for (size_t i = first; i < end; ++i) {
       const uint32_t count = plan.next.count[i];
       if (count == 0) continue;
       const Aabb& box = store.boxes[i];

@@ -1,11 +1,15 @@
 #pragma once
 // The camera path of seed 002's measurements (section IV-B): an orbit around the data's centre
 // while the vertical field of view zooms in and out, shared by the benches that fly it
-// (`bench virtual`, `bench stream`), and the path's command-line options.
+// (`bench virtual`, `bench stream`), and the path's command-line options; the frame modes those
+// benches run in.
+#include <string>
+
 #include <CLI/CLI.hpp>
 
 #include "stipple/math/aabb.hpp"
 #include "stipple/math/camera.hpp"
+#include "stipple/scene/scene.hpp"
 
 namespace stipple::app {
 
@@ -24,6 +28,23 @@ Camera path_camera(const CameraPath& path, const Aabb& world, double t, double a
 void add_camera_path_options(CLI::App* cmd, CameraPath& path);
 // Throws stipple::Error for a path the options cannot mean (a zoom range upside down).
 void check_camera_path(const CameraPath& path);
+
+// How a bench's frames run: one after the other, each waiting for the GPU (the default); not
+// waiting for it, on one thread (--no-gpu-wait); or with the render world on its own thread
+// (--pipelined: seed 000's pipelined mode, frames not waiting for the GPU either).
+struct FrameMode {
+  bool pipelined = false, no_gpu_wait = false;
+  bool waits_for_gpu() const { return !pipelined && !no_gpu_wait; }
+  // "sequential", "sequential, no GPU wait" or "pipelined".
+  const char* name() const {
+    return pipelined ? "pipelined" : (no_gpu_wait ? "sequential, no GPU wait" : "sequential");
+  }
+};
+// --pipelined, --no-gpu-wait.
+void add_frame_mode_options(CLI::App* cmd, FrameMode& mode);
+// The engine core of a bench in `mode` on `backend`: every frame's GPU times kept, at most two
+// frames in flight where frames do not wait for the GPU.
+scene::EngineCore bench_engine_core(const std::string& backend, const FrameMode& mode);
 
 // FPS of the slowest `fraction` of frames (the "1% low") from frame times in ms.
 double low_fps(std::vector<double> ms, double fraction);
