@@ -66,9 +66,11 @@ fs::path VirtualCloud::dir_;
 
 // A headless engine drawing the generated scan from its cache (m = 2000, B = 40,000) at
 // 320x200 with the given budgets. process_over: a process budget of this much over what the
-// process holds once the device is up (0: none), with 8 MiB staging slots.
+// process holds once the device is up (0: none), with 8 MiB staging slots. async: the selection
+// on its own thread (the viewer's way).
 void add_virtual_cloud(Engine& engine, const std::string& backend, const fs::path& dir,
-                       uint64_t host_budget, uint64_t gpu_budget, uint64_t process_over) {
+                       uint64_t host_budget, uint64_t gpu_budget, uint64_t process_over,
+                       bool async = false) {
   engine.add_plugins(TimePlugin{}, TransformPlugin{}, CameraPlugin{});
   GpuPlugin gpu;
   gpu.options.backend = backend;
@@ -85,6 +87,7 @@ void add_virtual_cloud(Engine& engine, const std::string& backend, const fs::pat
   v.options.gpu_budget = gpu_budget;
   v.options.process_budget = process_budget;
   if (process_over > 0) v.options.staging_bytes = uint64_t(8) << 20;
+  v.options.async_selection = async;
   engine.add_plugin(std::move(v));
   engine.add_plugin(HeadlessTargetPlugin{320, 200, "", 0});
 }
@@ -94,10 +97,14 @@ void add_virtual_cloud(Engine& engine, const std::string& backend, const fs::pat
 // The cache (200,000 points, 4 MB) is 13 times the smaller host budget.
 TEST_P(VirtualCloud, FlightStaysInBudgetAndReusesLoadedPoints) {
   constexpr uint64_t kGpuBudget = uint64_t(8) << 20;
-  for (const uint64_t host_budget : {uint64_t(64) << 20, uint64_t(300000)}) {
+  // The small budget also with the selection on its own thread: the budgets hold every frame.
+  for (const auto& [host_budget, async] :
+       {std::pair{uint64_t(64) << 20, false}, std::pair{uint64_t(300000), false},
+        std::pair{uint64_t(300000), true}}) {
     SCOPED_TRACE(host_budget);
+    SCOPED_TRACE(async ? "async selection" : "selection in the frame");
     Engine engine;
-    add_virtual_cloud(engine, GetParam(), dir_, host_budget, kGpuBudget, 0);
+    add_virtual_cloud(engine, GetParam(), dir_, host_budget, kGpuBudget, 0, async);
     Registry& main = engine.main();
     const Aabb box = main.resource<pc::SceneInfo>().world_bounds;
     const Entity camera_entity = main.create();
@@ -191,15 +198,18 @@ TEST_P(VirtualCloud, AProcessBudgetLowersThePointsBudget) {
 }
 
 // Seed 000's pipelined mode (the render world draws frame N on its own thread while the main
-// world builds N+1) changes when a frame is drawn, not what: at each of three views, once the
-// selection settled, pipelined and sequential engines draw byte-equal images.
+// world builds N+1) changes when a frame is drawn, not what, and so does a selection on its own
+// thread (the frames draw the last one until it is done): at each of three views, once the
+// selection settled, sequential, pipelined and pipelined engines with the async selection draw
+// byte-equal images.
 TEST_P(VirtualCloud, PipelinedAndSequentialDrawTheSameImages) {
-  std::vector<gpu::Image> images[2];
-  for (const bool pipelined : {false, true}) {
-    SCOPED_TRACE(pipelined ? "pipelined" : "sequential");
+  std::vector<gpu::Image> images[3];
+  for (const int mode : {0, 1, 2}) {
+    const bool pipelined = mode > 0;
+    SCOPED_TRACE(mode == 0 ? "sequential" : mode == 1 ? "pipelined" : "pipelined, async selection");
     Engine engine;
     if (pipelined) engine.add_plugin(PipelinedRenderingPlugin{});
-    add_virtual_cloud(engine, GetParam(), dir_, uint64_t(64) << 20, 0, 0);
+    add_virtual_cloud(engine, GetParam(), dir_, uint64_t(64) << 20, 0, 0, mode == 2);
     Registry& main = engine.main();
     Registry& render = engine.render();
     const Aabb box = main.resource<pc::SceneInfo>().world_bounds;
@@ -217,6 +227,8 @@ TEST_P(VirtualCloud, PipelinedAndSequentialDrawTheSameImages) {
         if (!settled) pc::wait_for_virtual_loads(main.resource<pc::VirtualCloudHandle>(), 0.05);
       }
       EXPECT_TRUE(settled) << "view " << view;
+      // The selections ran where the mode says.
+      EXPECT_EQ(render.resource<pc::VirtualCloudStats>().async_select_ms > 0, mode == 2);
       auto image = std::make_shared<gpu::Image>();
       render.insert_resource(
           FrameCapture{[image](uint64_t, const gpu::Image& frame) { *image = frame; }});
@@ -224,21 +236,23 @@ TEST_P(VirtualCloud, PipelinedAndSequentialDrawTheSameImages) {
       engine.wait_for_render();
       render.insert_resource(FrameCapture{});
       ASSERT_EQ(image->width, 320u);
-      images[pipelined].push_back(*image);
+      images[mode].push_back(*image);
     }
     engine.shutdown();
   }
-  for (size_t view = 0; view < images[0].size(); ++view) {
-    const gpu::Image &a = images[0][view], &b = images[1][view];
-    ASSERT_EQ(a.rgba.size(), b.rgba.size());
-    size_t differing = 0, drawn = 0;
-    for (size_t p = 0; p < a.rgba.size(); p += 4) {
-      differing += !std::equal(&a.rgba[p], &a.rgba[p] + 4, &b.rgba[p]);
-      drawn += !std::equal(&a.rgba[p], &a.rgba[p] + 3, &a.rgba[0]);  // not the corner's colour
+  for (const int mode : {1, 2})
+    for (size_t view = 0; view < images[0].size(); ++view) {
+      SCOPED_TRACE(mode);
+      const gpu::Image &a = images[0][view], &b = images[mode][view];
+      ASSERT_EQ(a.rgba.size(), b.rgba.size());
+      size_t differing = 0, drawn = 0;
+      for (size_t p = 0; p < a.rgba.size(); p += 4) {
+        differing += !std::equal(&a.rgba[p], &a.rgba[p] + 4, &b.rgba[p]);
+        drawn += !std::equal(&a.rgba[p], &a.rgba[p] + 3, &a.rgba[0]);  // not the corner's colour
+      }
+      EXPECT_EQ(differing, 0u) << "view " << view;
+      EXPECT_GT(drawn, a.rgba.size() / 4 / 20) << "view " << view << ": hardly any points drawn";
     }
-    EXPECT_EQ(differing, 0u) << "view " << view;
-    EXPECT_GT(drawn, a.rgba.size() / 4 / 20) << "view " << view << ": hardly any points drawn";
-  }
   // The views differ, so equal images are not an image that ignores the view.
   EXPECT_NE(images[0][0].rgba, images[0][1].rgba);
 }

@@ -13,6 +13,8 @@
 // timestamps are read back a few frames later, and at most two frames are unfinished on the GPU
 // (as a swapchain would allow); --no-gpu-wait does the latter without the render thread. Loads
 // run on the worker pool meanwhile, as in an interactive session: frames do not wait for them.
+// The selection (what to draw, load and transfer) runs on its own thread as in the viewer, the
+// frames drawing the last one until the next is done; --sync-selection makes it in the frame.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -57,6 +59,7 @@ struct VirtualBenchArgs {
   std::string cache_dir, host_memory, gpu_memory, backend, json;
   uint64_t pointlets = pc::kDefaultPointlets;
   FrameMode mode;
+  bool sync_selection = false;
 };
 
 std::unique_ptr<Engine> make_engine(const VirtualBenchArgs& a, uint64_t bucket, uint32_t fill) {
@@ -72,6 +75,7 @@ std::unique_ptr<Engine> make_engine(const VirtualBenchArgs& a, uint64_t bucket, 
   scene.bucket = bucket;
   scene.fill_radius = int(fill);
   scene.occlusion_beta = a.occlusion_beta;
+  scene.async_selection = !a.sync_selection;
   add_scene_plugin(*engine, plan_scene(scene, *engine->render().resource<GpuContext>()));
   engine->add_plugin(HeadlessTargetPlugin{a.width, a.height, "", 0});
   return engine;
@@ -88,6 +92,8 @@ struct FlightResult {
   double main_ms = 0;                    // CPU of the main world's stages, summed
   std::array<double, 5> render_ms{};     // CPU of each render stage, summed
   uint64_t new_points = 0, touched = 0;  // summed over selections
+  uint64_t selections = 0;
+  double async_select_ms = 0;  // summed over selections made on their own thread
   uint64_t peak_host = 0, peak_gpu = 0, staging = 0, points = 0;
   uint64_t peak_process = 0, peak_heap_free = 0, host_budget = 0;
   double load_s = 0, trim_ms = 0;
@@ -124,6 +130,8 @@ FlightResult fly(const VirtualBenchArgs& a, uint64_t bucket) {
       out.write_ms += vs.fresh_write_ms;
       out.new_points += vs.new_points;
       out.touched += vs.touched_pointlets;
+      out.async_select_ms += vs.async_select_ms;
+      out.selections += vs.selections - selections;
       selections = vs.selections;
     }
     out.peak_host = std::max(out.peak_host, vs.host_bytes);
@@ -211,6 +219,7 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
   j["occlusion_beta"] = a.occlusion_beta;
   j["pipelined"] = a.mode.pipelined;
   j["gpu_wait"] = a.mode.waits_for_gpu();
+  j["async_selection"] = !a.sync_selection;
   j["runs"] = nlohmann::json::array();
   std::printf("%10s %8s %8s %8s %8s %8s %8s %9s %9s %9s %9s\n", "B", "FPS avg", "min", "max",
               "1% low", "0.1% low", "GPU FPS", "drawn M", "host MiB", "GPU MiB", "RSS MiB");
@@ -264,6 +273,9 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
                           {"render_draw", r.render_ms[3] / frames},
                           {"render_postdraw", r.render_ms[4] / frames}};
     run["new_points_mean"] = double(r.new_points) / frames;
+    run["selections"] = r.selections;
+    run["async_selection_ms_mean"] =
+        r.async_select_ms / double(std::max<uint64_t>(1, r.selections));
     run["touched_pointlets_mean"] = double(r.touched) / frames;
     run["peak_host_points_bytes"] = r.peak_host;
     run["peak_gpu_bytes"] = r.peak_gpu;
@@ -293,6 +305,12 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
         a.mode.name(), r.main_ms / frames_n, r.render_ms[0] / frames_n, r.render_ms[1] / frames_n,
         r.render_ms[2] / frames_n, r.render_ms[3] / frames_n, r.render_ms[4] / frames_n,
         double(r.new_points) / frames_n, double(r.touched) / frames_n, r.select_cpu_ms / frames_n);
+    if (!a.sync_selection)
+      std::printf(
+          "           selections on their own thread: %llu in %zu frames, %.3f ms each (wall); "
+          "the frames drew the last one meanwhile\n",
+          static_cast<unsigned long long>(r.selections), r.wall_ms.size(),
+          r.async_select_ms / double(std::max<uint64_t>(1, r.selections)));
   }
   if (a.psnr_views > 0) {
     // Views spread over the path; the reference draws every point (B = n).
@@ -362,6 +380,9 @@ void add_bench_virtual_command(CLI::App& bench) {
   cmd->add_option("--backend", a->backend, "WebGPU implementation: dawn or wgpu")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
   add_frame_mode_options(cmd, a->mode);
+  cmd->add_flag("--sync-selection", a->sync_selection,
+                "Make each selection in the frame that needs it (frames wait for it), instead "
+                "of on its own thread while frames draw the last one (the viewer's way)");
   cmd->add_option("--json", a->json, "Write the results (and every frame's times) as JSON");
   cmd->callback([a] {
     check_camera_path(a->path);

@@ -58,6 +58,7 @@ void run_view(const ViewArgs& args) {
   add_engine_core(engine, {args.backend, !args.single_thread, false, ""});
   SceneOptions options = args.scene;
   options.progressive_points = args.progressive_points;
+  options.async_selection = true;  // a frame never waits for the selection of a large cloud
   options.keep_extras = true;      // the panel can turn GPS-time and point-source filters on
   options.chunk_points = 1 << 16;  // a finer point budget
   ScenePlan plan = plan_scene(options, *engine.render().resource<GpuContext>());

@@ -231,7 +231,7 @@ void plan_compaction(const StoreLayout& previous, const std::vector<uint32_t>& w
 }
 
 GpuPointStore create_point_store(gpu::Context& ctx, uint64_t capacity, std::vector<Aabb> boxes,
-                                 uint64_t staging_bytes) {
+                                 uint64_t staging_bytes, uint32_t staging_slots) {
   GpuPointStore store;
   store.capacity = capacity;
   store.pointlets = uint32_t(boxes.size());
@@ -247,7 +247,7 @@ GpuPointStore create_point_store(gpu::Context& ctx, uint64_t capacity, std::vect
   store.fresh_capacity = std::max<uint64_t>(store.fresh_capacity, 1);
   store.jobs_capacity = uint64_t(std::max<uint32_t>(store.pointlets, 1)) * 2;
   store.staging = gpu::create_staging_ring(ctx, fresh_offset + store.fresh_capacity * kPointBytes,
-                                           2, "vms-staging");
+                                           std::max(staging_slots, 2u), "vms-staging");
   store.fresh = gpu::create_buffer(ctx, store.fresh_capacity * kPointBytes,
                                    WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst, "vms-fresh");
   store.jobs = gpu::create_buffer(ctx, info_bytes_for(capacity, store.pointlets),
@@ -292,32 +292,37 @@ uint64_t max_fresh_points(const GpuPointStore& store) {
   return store.fresh_capacity;
 }
 
-StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
-                               const std::vector<uint32_t>& wanted, const FreshWriter& write,
-                               ThreadPool* pool) {
-  if (store.pending.active)
-    fail("update_point_store: the previous compaction was never recorded (no vms-compact pass)");
+namespace {
+
+double ms_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+      .count();
+}
+
+// Plans the update into store.plan; false when the layout stays as it is (`out` then says
+// what is kept).
+bool plan_update(GpuPointStore& store, const std::vector<uint32_t>& wanted, ThreadPool* pool,
+                 StoreUpdate& out) {
   if (wanted.size() != store.pointlets)
     fail("update_point_store: {} counts for {} pointlets", wanted.size(), store.pointlets);
-  // The previous frame's graph has been submitted: its staging slot may be mapped again.
-  gpu::staging_submitted(store.staging);
-  StoreUpdate out;
   CompactionPlan& plan = store.plan;
   plan_compaction(store.layout, wanted, store.fresh_capacity, plan, pool);
   if (plan.next.total > store.capacity)
     fail("point store: {} points asked for, room for {}", plan.next.total, store.capacity);
   if (!plan.changed && !store.layout.count.empty()) {
     out.kept = plan.kept;
-    return out;
+    return false;
   }
+  return true;
+}
+
+// Writes store.plan into the mapped slot `w` (the compaction info, the new points) and the
+// batches of the slab the frames do not draw, and makes the plan the store's layout; the update
+// the next graph records is out.pending. Touches nothing a frame reads while it draws.
+void write_planned_update(GpuPointStore& store, const gpu::StagingWrite& w,
+                          const FreshWriter& write, ThreadPool* pool, StoreUpdate& out) {
+  CompactionPlan& plan = store.plan;
   auto t = std::chrono::steady_clock::now();
-  auto ms_since = [](auto start) {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-        .count();
-  };
-  gpu::StagingWrite w = gpu::begin_staging_write(ctx, store.staging);
-  out.wait_ms = ms_since(t);
-  t = std::chrono::steady_clock::now();
   const uint64_t fresh_offset = fresh_offset_for(store.capacity, store.pointlets);
   if (plan.jobs.size() > store.jobs_capacity || plan.fresh_points > store.fresh_capacity)
     fail("point store: the compaction info does not fit its buffers");
@@ -381,20 +386,54 @@ StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
   seg.point_count = uint32_t(plan.next.total);
   slab.point_count = plan.next.total;
 
-  store.pending = {true,
-                   w,
-                   plan.jobs.size(),
-                   plan.fresh_points,
-                   fresh_offset,
-                   store.current,
-                   jobs_at(plan.next.total)};
-  store.current = next;
+  out.pending = {true,
+                 w,
+                 plan.jobs.size(),
+                 plan.fresh_points,
+                 fresh_offset,
+                 store.current,
+                 jobs_at(plan.next.total),
+                 plan.next.total};
   out.changed = true;
   out.kept = plan.kept;
   out.fresh = plan.fresh_points;
   out.limited = plan.limited;
   std::swap(store.layout, plan.next);  // the old layout's vectors serve the next plan
+}
+
+}  // namespace
+
+StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
+                               const std::vector<uint32_t>& wanted, const FreshWriter& write,
+                               ThreadPool* pool) {
+  if (store.pending.active)
+    fail("update_point_store: the previous compaction was never recorded (no vms-compact pass)");
+  // The previous frame's graph has been submitted: its staging slot may be mapped again.
+  gpu::staging_submitted(store.staging);
+  StoreUpdate out;
+  if (!plan_update(store, wanted, pool, out)) return out;
+  const auto t = std::chrono::steady_clock::now();
+  const gpu::StagingWrite w = gpu::begin_staging_write(ctx, store.staging);
+  out.wait_ms = ms_since(t);
+  write_planned_update(store, w, write, pool, out);
+  commit_point_store_update(store, out);
   return out;
+}
+
+StoreUpdate prepare_point_store_update(GpuPointStore& store, const std::vector<uint32_t>& wanted,
+                                       const FreshWriter& write, const gpu::StagingWrite& w,
+                                       ThreadPool* pool) {
+  StoreUpdate out;
+  if (plan_update(store, wanted, pool, out)) write_planned_update(store, w, write, pool, out);
+  return out;
+}
+
+void commit_point_store_update(GpuPointStore& store, const StoreUpdate& update) {
+  if (!update.changed) return;
+  if (store.pending.active)
+    fail("point store: the previous compaction was never recorded (no vms-compact pass)");
+  store.pending = update.pending;
+  store.current = 1 - store.current;
 }
 
 void add_point_store_pass(gpu::RenderGraph& graph, GpuPointStore& store) {
@@ -419,7 +458,7 @@ void add_point_store_pass(gpu::RenderGraph& graph, GpuPointStore& store) {
             gpu::end_staging_write(store.staging, p.write);
             gpu::Context& ctx = pc.gpu();
             WGPUCommandEncoder encoder = pc.encoder();
-            const uint64_t total = store.layout.total;
+            const uint64_t total = p.total;  // the layout may be planned again meanwhile
             if (total == 0) return;
             wgpuCommandEncoderCopyBufferToBuffer(
                 encoder, p.write.buffer, 0, store.jobs.get(), 0,

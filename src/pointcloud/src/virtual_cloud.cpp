@@ -9,9 +9,12 @@
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
+#include <functional>
+#include <future>
 #include <memory>
 #include <mutex>
 #include <numeric>
+#include <optional>
 #include <string_view>
 #include <thread>
 #include <vector>
@@ -211,8 +214,17 @@ struct VirtualCloudRender {
   uint64_t lod_tag = 0;
   std::array<LodView, 8> lod_views;  // by tag: what each LoD in flight was computed for
   LodView desired_for, lod_requested_for;
-  std::unique_ptr<ThreadPool> pool;     // load tasks (disk reads)
-  std::unique_ptr<ThreadPool> workers;  // the frame's own parallel work: new points for the GPU
+  std::unique_ptr<ThreadPool> pool;      // load tasks (disk reads)
+  std::unique_ptr<ThreadPool> workers;   // the frame's own parallel work: new points for the GPU
+  std::optional<uint64_t> incoming_tag;  // a LoD result in `incoming` that no selection took yet
+  // async_selection: the selection in flight on `selector`'s thread, with its own copy of the
+  // stats and the store update it prepared; the frame that finds it done commits both.
+  std::future<void> job;
+  VirtualCloudStats job_stats;
+  StoreUpdate job_update;
+  double job_wait_ms = 0;  // mapping its staging slot, on the frame's thread
+  // Last, so destroyed first: a selection in flight ends before what it uses goes.
+  std::unique_ptr<ThreadPool> selector;
 };
 
 // Touched pointlets a piece of the selection's visits on the frame's workers.
@@ -301,7 +313,14 @@ constexpr uint64_t kFrameGrowth = uint64_t(64) << 20;
 constexpr uint64_t kHostPointBytes = sizeof(PointletRecord) * 5 / 4;
 
 uint64_t store_host_bytes(uint64_t bucket, uint64_t pointlets, uint64_t staging_bytes,
-                          bool device_in_host);
+                          bool device_in_host, uint32_t slots);
+
+// Staging slots of the point store: a selection on its own thread maps its slot as it starts,
+// one commit after the last used it, whose frame may still be on the GPU (two frames in flight):
+// a third slot keeps that start from waiting for the GPU.
+uint32_t staging_slots(const VirtualCloudOptions& options) {
+  return options.async_selection ? 3 : 2;
+}
 
 // Fails when the process budget leaves no room for even the smallest selection (its point
 // store and points), naming the least that works.
@@ -309,10 +328,11 @@ void check_process_budget(const VirtualCloudOptions& options, uint64_t baseline,
                           uint64_t point_count, uint64_t pointlets, std::string_view holding) {
   const uint64_t points =
       std::min<uint64_t>(kMinimumBudgetPoints, std::max<uint64_t>(point_count, 1));
-  const uint64_t minimum = minimum_process_budget(
-      baseline + kFrameGrowth +
-      store_host_bytes(points, pointlets, options.staging_bytes, options.device_in_host) +
-      points * kHostPointBytes);
+  const uint64_t minimum =
+      minimum_process_budget(baseline + kFrameGrowth +
+                             store_host_bytes(points, pointlets, options.staging_bytes,
+                                              options.device_in_host, staging_slots(options)) +
+                             points * kHostPointBytes);
   if (options.process_budget < minimum)
     fail(
         "--host-memory {} MiB is below what this process needs: {} MiB are resident before any "
@@ -323,17 +343,17 @@ void check_process_budget(const VirtualCloudOptions& options, uint64_t baseline,
 }
 
 // What the point store of a bucket takes of the host (a sizing estimate that follows
-// create_point_store): its two mapped staging slots, each the compaction info and new points,
+// create_point_store): its mapped staging slots, each the compaction info and new points,
 // and on a CPU adapter also its device buffers (both frames' point words and batches, the new
 // points and the info).
 uint64_t store_host_bytes(uint64_t bucket, uint64_t pointlets, uint64_t staging_bytes,
-                          bool device_in_host) {
+                          bool device_in_host, uint32_t slots) {
   const uint64_t info = (bucket / 256 + 8) * 4 + (pointlets + 1) * 32;
   const uint64_t slot = std::max(staging_bytes, info + 256 + kStoreWords * 4 * 1024);
   const uint64_t fresh = std::min<uint64_t>(slot - info, bucket * kStoreWords * 4);
   const uint64_t device =
       2 * (bucket * kStoreWords * 4 + (bucket / kBatchPoints + pointlets + 1) * 32) + fresh + info;
-  return 2 * (info + 256 + fresh) + (device_in_host ? device : 0);
+  return slots * (info + 256 + fresh) + (device_in_host ? device : 0);
 }
 
 // Turns the process budget into the parts it pays for, once the baseline (what the process
@@ -350,7 +370,7 @@ void plan_process_budget(VirtualCloudOptions& options, const VirtualResidency& r
   const uint64_t growth = kFrameGrowth + options.process_budget / 16;
   const uint64_t left = points_budget(options.process_budget, baseline + growth, 0, ~uint64_t(0));
   auto fits = [&](uint64_t bucket) {
-    return store_host_bytes(bucket, r.count, options.staging_bytes, true) +
+    return store_host_bytes(bucket, r.count, options.staging_bytes, true, staging_slots(options)) +
                bucket * kHostPointBytes <=
            left;
   };
@@ -371,79 +391,15 @@ bool same_lod_view(const LodView& a, const ExtractedCamera& camera, uint32_t w, 
   return same_view(a.camera, camera) && a.width == w && a.height == h;
 }
 
-void select_points(Registry& render) {
-  auto& v = render.resource<VirtualCloudRender>();
-  const auto& target = render.resource<RenderTarget>();
-  const ExtractedCamera* extracted = first_extracted_camera(render);
-  if (!extracted || !target.valid()) return;
+// A selection's work once the LoD is in `v.desired`: the process budget, the pointlets to visit,
+// unloads, loads, and the point store's update for what is loaded (`update_store`, given what
+// each pointlet draws). Only this work starts loads and unloads. It reads and writes `v`'s
+// selection state, the residency and `stats`, never the GPU context, so it may run on a thread of
+// its own (async_selection). Returns whether loads were requested.
+bool run_selection(VirtualCloudRender& v, VirtualCloudStats& stats, bool lod_new,
+                   const std::function<StoreUpdate(const std::vector<uint32_t>&)>& update_store) {
   VirtualResidency& r = *v.residency;
-  auto& stats = render.resource<VirtualCloudStats>();
-  {
-    std::lock_guard lock(r.progress_mutex);
-    if (!r.error.empty()) fail("{}", r.error);
-  }
-  gpu::Context& ctx = *render.resource<GpuContext>();
-  if (!v.pointlets) {
-    v.pointlets = std::make_unique<GpuPointlets>(upload_pointlets(ctx, *v.residency->cache));
-    v.lod = std::make_unique<PointletLodPipeline>(create_pointlet_lod_pipeline(ctx));
-    v.lod_ring = std::make_unique<gpu::ReadbackRing>(
-        gpu::create_readback_ring(ctx, uint64_t(std::max<size_t>(r.count, 1)) * 4, 3));
-    // The baseline: what the process holds with the device, the cache's tables and the
-    // pointlets' buffers up, before any point loads.
-    const uint64_t baseline = v.options.process_budget > 0 ? trimmed_resident_bytes() : 0;
-    if (v.options.process_budget > 0 && baseline > 0) plan_process_budget(v.options, r, baseline);
-    v.options.bucket = fit_bucket(ctx, v.options, uint32_t(r.count), v.pointlets->bytes);
-    v.store = std::make_unique<GpuPointStore>(
-        create_point_store(ctx, v.options.bucket, r.boxes, v.options.staging_bytes));
-    if (v.options.process_budget > 0 && baseline > 0) {
-      // What the store takes of the process budget: its mapped staging, and on a CPU adapter
-      // its buffers (host memory that is not resident until first written, so not measured
-      // yet). The points get the rest.
-      const uint64_t store = gpu::staging_bytes(v.store->staging) +
-                             (v.options.device_in_host ? v.store->gpu_bytes : 0);
-      v.held_before_points = baseline + store;
-      r.budget = points_budget(v.options.process_budget, v.held_before_points, 0, r.budget);
-      STIPPLE_INFO(
-          "host budget: {} MiB resident before points, {} MiB for the point store (B = "
-          "{}), {} MiB for the points",
-          baseline >> 20, store >> 20, v.options.bucket, r.budget >> 20);
-    }
-    if (v.options.gpu_budget > 0 && v.store->gpu_bytes + v.pointlets->bytes > v.options.gpu_budget)
-      fail("--gpu-memory {} MiB is too small for the point store ({} MiB at B = {})",
-           v.options.gpu_budget >> 20, (v.store->gpu_bytes + v.pointlets->bytes) >> 20,
-           v.options.bucket);
-  }
-  // The LoD runs in the frame's graph and comes back without a wait: a frame uses the newest
-  // result that arrived (usually the previous frame's view). The first has nothing to use yet
-  // and runs one at once.
   auto t = Clock::now();
-  gpu::readback_submitted(*v.lod_ring);  // the previous frame's graph has been submitted
-  bool lod_new = false;
-  v.incoming.resize(r.count);
-  if (auto tag = gpu::take_readback(ctx, *v.lod_ring, v.incoming.data(), false)) {
-    v.desired.swap(v.incoming);
-    v.desired_for = v.lod_views[*tag % v.lod_views.size()];
-    lod_new = true;
-  } else if (!v.have_lod) {
-    v.desired = compute_pointlet_lod(ctx, *v.lod, *v.pointlets, to_camera(*extracted), target.width,
-                                     target.height, v.options.bucket, &v.lod_gpu_ms);
-    v.desired_for = {*extracted, target.width, target.height};
-    v.lod_requested_for = v.desired_for;
-    lod_new = true;
-  }
-  v.have_lod = true;
-  stats.lod_ms = ms_since(t);
-  // A LoD for this view goes into this frame's graph (queue_virtual_cloud adds it).
-  v.lod_due = !same_lod_view(v.lod_requested_for, *extracted, target.width, target.height);
-  const bool loads_done = r.completed.load() != v.selected_after;
-  const bool current = same_lod_view(v.desired_for, *extracted, target.width, target.height);
-  const bool first_held = v.loads_held;
-  v.loads_held = v.options.process_budget > 0 && stats.selections == 0;
-  if (!lod_new && !loads_done && !v.transfer_pending && !first_held) {
-    stats.settled =
-        r.pending.load() == 0 && current && !v.lod_due && !gpu::readback_busy(*v.lod_ring);
-    return;
-  }
   // The process budget: measured from the second selection on (the first runs before the
   // first frame made the GPU buffers), and again at every selection, since the rest of the
   // process grows as the flight goes on (driver, tables). It only ever lowers the points'
@@ -645,8 +601,7 @@ void select_points(Registry& render) {
   }
   stats.residency_ms = ms_since(residency_start);
   t = Clock::now();
-  StoreUpdate update =
-      update_point_store(ctx, *v.store, draw, fresh_writer(r, *v.workers), v.workers.get());
+  const StoreUpdate update = update_store(draw);
   stats.upload_ms = ms_since(t);
   v.transfer_pending = update.limited;
   stats.staging_wait_ms = update.wait_ms;
@@ -664,11 +619,137 @@ void select_points(Registry& render) {
   stats.loads = r.loads.load();
   stats.points_read = r.points_read.load();
   stats.touched_pointlets = uint32_t(touched.size());
-  stats.settled = !requested && !v.loads_held && stats.pending_loads == 0 && !v.transfer_pending &&
-                  current && !v.lod_due && !gpu::readback_busy(*v.lod_ring);
   ++stats.selections;
   stats.bucket = v.options.bucket;
   v.selected_after = completed;
+  return requested;
+}
+
+// async_selection: starts run_selection on the selector's thread, with a staging slot mapped
+// here (mapping needs the device, which only this thread drives). The frames go on drawing the
+// current buffers; the first frame that finds it done commits its update and stats.
+void launch_selection(gpu::Context& ctx, VirtualCloudRender& v, VirtualCloudStats& stats,
+                      bool lod_new) {
+  gpu::staging_submitted(v.store->staging);
+  const auto t = Clock::now();
+  const gpu::StagingWrite w = gpu::begin_staging_write(ctx, v.store->staging);
+  v.job_wait_ms = ms_since(t);
+  if (!v.selector) v.selector = std::make_unique<ThreadPool>(1);
+  v.job_stats = stats;
+  v.job_update = {};
+  v.job = v.selector->submit([&v, w, lod_new] {
+    const auto start = Clock::now();
+    VirtualResidency& r = *v.residency;
+    run_selection(v, v.job_stats, lod_new, [&](const std::vector<uint32_t>& draw) {
+      v.job_update = prepare_point_store_update(*v.store, draw, fresh_writer(r, *v.workers), w,
+                                                v.workers.get());
+      return v.job_update;
+    });
+    v.job_stats.async_select_ms = ms_since(start);
+  });
+  stats.settled = false;
+}
+
+void select_points(Registry& render) {
+  auto& v = render.resource<VirtualCloudRender>();
+  const auto& target = render.resource<RenderTarget>();
+  const ExtractedCamera* extracted = first_extracted_camera(render);
+  if (!extracted || !target.valid()) return;
+  VirtualResidency& r = *v.residency;
+  auto& stats = render.resource<VirtualCloudStats>();
+  {
+    std::lock_guard lock(r.progress_mutex);
+    if (!r.error.empty()) fail("{}", r.error);
+  }
+  gpu::Context& ctx = *render.resource<GpuContext>();
+  if (!v.pointlets) {
+    v.pointlets = std::make_unique<GpuPointlets>(upload_pointlets(ctx, *v.residency->cache));
+    v.lod = std::make_unique<PointletLodPipeline>(create_pointlet_lod_pipeline(ctx));
+    v.lod_ring = std::make_unique<gpu::ReadbackRing>(
+        gpu::create_readback_ring(ctx, uint64_t(std::max<size_t>(r.count, 1)) * 4, 3));
+    // The baseline: what the process holds with the device, the cache's tables and the
+    // pointlets' buffers up, before any point loads.
+    const uint64_t baseline = v.options.process_budget > 0 ? trimmed_resident_bytes() : 0;
+    if (v.options.process_budget > 0 && baseline > 0) plan_process_budget(v.options, r, baseline);
+    v.options.bucket = fit_bucket(ctx, v.options, uint32_t(r.count), v.pointlets->bytes);
+    v.store = std::make_unique<GpuPointStore>(create_point_store(
+        ctx, v.options.bucket, r.boxes, v.options.staging_bytes, staging_slots(v.options)));
+    if (v.options.process_budget > 0 && baseline > 0) {
+      // What the store takes of the process budget: its mapped staging, and on a CPU adapter
+      // its buffers (host memory that is not resident until first written, so not measured
+      // yet). The points get the rest.
+      const uint64_t store = gpu::staging_bytes(v.store->staging) +
+                             (v.options.device_in_host ? v.store->gpu_bytes : 0);
+      v.held_before_points = baseline + store;
+      r.budget = points_budget(v.options.process_budget, v.held_before_points, 0, r.budget);
+      STIPPLE_INFO(
+          "host budget: {} MiB resident before points, {} MiB for the point store (B = "
+          "{}), {} MiB for the points",
+          baseline >> 20, store >> 20, v.options.bucket, r.budget >> 20);
+    }
+    if (v.options.gpu_budget > 0 && v.store->gpu_bytes + v.pointlets->bytes > v.options.gpu_budget)
+      fail("--gpu-memory {} MiB is too small for the point store ({} MiB at B = {})",
+           v.options.gpu_budget >> 20, (v.store->gpu_bytes + v.pointlets->bytes) >> 20,
+           v.options.bucket);
+  }
+  // The LoD runs in the frame's graph and comes back without a wait: a frame uses the newest
+  // result that arrived (usually the previous frame's view). The first has nothing to use yet
+  // and runs one at once. Results are taken every frame, also while a selection runs on its
+  // own thread (which reads `desired`), so that the ring stays free for the newest view.
+  auto t = Clock::now();
+  gpu::readback_submitted(*v.lod_ring);  // the previous frame's graph has been submitted
+  v.incoming.resize(r.count);
+  if (auto tag = gpu::take_readback(ctx, *v.lod_ring, v.incoming.data(), false))
+    v.incoming_tag = tag;
+  if (v.job.valid()) {
+    // async_selection: the frame draws what the last selection made until the next is done.
+    v.lod_due = !same_lod_view(v.lod_requested_for, *extracted, target.width, target.height);
+    stats.lod_ms = ms_since(t);
+    if (v.job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+      stats.settled = false;
+      return;
+    }
+    v.job.get();  // the selection's error, if it failed
+    stats = v.job_stats;
+    stats.staging_wait_ms = v.job_wait_ms;
+    commit_point_store_update(*v.store, v.job_update);
+    v.job_update = {};
+  }
+  bool lod_new = false;
+  if (v.incoming_tag) {
+    v.desired.swap(v.incoming);
+    v.desired_for = v.lod_views[*v.incoming_tag % v.lod_views.size()];
+    v.incoming_tag.reset();
+    lod_new = true;
+  } else if (!v.have_lod) {
+    v.desired = compute_pointlet_lod(ctx, *v.lod, *v.pointlets, to_camera(*extracted), target.width,
+                                     target.height, v.options.bucket, &v.lod_gpu_ms);
+    v.desired_for = {*extracted, target.width, target.height};
+    v.lod_requested_for = v.desired_for;
+    lod_new = true;
+  }
+  v.have_lod = true;
+  stats.lod_ms = ms_since(t);
+  // A LoD for this view goes into this frame's graph (queue_virtual_cloud adds it).
+  v.lod_due = !same_lod_view(v.lod_requested_for, *extracted, target.width, target.height);
+  const bool loads_done = r.completed.load() != v.selected_after;
+  const bool current = same_lod_view(v.desired_for, *extracted, target.width, target.height);
+  const bool first_held = v.loads_held;
+  v.loads_held = v.options.process_budget > 0 && stats.selections == 0;
+  if (!lod_new && !loads_done && !v.transfer_pending && !first_held) {
+    stats.settled =
+        r.pending.load() == 0 && current && !v.lod_due && !gpu::readback_busy(*v.lod_ring);
+    return;
+  }
+  if (v.options.async_selection) {
+    launch_selection(ctx, v, stats, lod_new);
+    return;
+  }
+  const bool requested = run_selection(v, stats, lod_new, [&](const std::vector<uint32_t>& draw) {
+    return update_point_store(ctx, *v.store, draw, fresh_writer(r, *v.workers), v.workers.get());
+  });
+  stats.settled = !requested && !v.loads_held && stats.pending_loads == 0 && !v.transfer_pending &&
+                  current && !v.lod_due && !gpu::readback_busy(*v.lod_ring);
 }
 
 void queue_virtual_cloud(Registry& render) {

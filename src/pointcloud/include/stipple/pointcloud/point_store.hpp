@@ -83,13 +83,15 @@ struct GpuPointStore {
     uint64_t job_count = 0, fresh_points = 0, fresh_offset = 0;
     uint32_t from = 0;
     uint64_t jobs_at = 0;  // u32s of per-workgroup first jobs before the jobs
+    uint64_t total = 0;    // points the compacted buffers hold
   } pending;
 };
 
 // Buffers for `capacity` points per frame over `boxes.size()` pointlets; new points travel
-// through two staging slots of `staging_bytes` each (which must also hold the compaction info).
+// through `staging_slots` (at least two) staging slots of `staging_bytes` each (which must also
+// hold the compaction info).
 GpuPointStore create_point_store(gpu::Context& ctx, uint64_t capacity, std::vector<Aabb> boxes,
-                                 uint64_t staging_bytes);
+                                 uint64_t staging_bytes, uint32_t staging_slots = 2);
 // The most new points one update can bring.
 uint64_t max_fresh_points(const GpuPointStore& store);
 
@@ -114,6 +116,7 @@ struct StoreUpdate {
   bool limited = false;
   std::vector<uint32_t> drawn;       // per pointlet, what the frame draws
   double wait_ms = 0, write_ms = 0;  // CPU: waiting for a staging slot, writing new points
+  GpuPointStore::Pending pending;    // what the vms-compact pass records (when changed)
 };
 // Plans the next frame's buffers for `wanted` (<= capacity in total; what each pointlet then
 // draws is store.layout.count) and writes the new points
@@ -123,6 +126,16 @@ struct StoreUpdate {
 StoreUpdate update_point_store(gpu::Context& ctx, GpuPointStore& store,
                                const std::vector<uint32_t>& wanted, const FreshWriter& write,
                                ThreadPool* pool = nullptr);
+// The same in two steps, so that the CPU work can run on another thread while frames draw the
+// current buffers: prepare plans and writes into `w` (a slot the caller mapped on the device's
+// thread: gpu::staging_submitted, then gpu::begin_staging_write) and into the buffers the
+// frames do not draw; commit, on the frame's thread between frames, makes a changed update the
+// next graph's (its vms-compact pass) and the buffers it fills the drawn ones. One update at a
+// time: the next is prepared after the last was committed.
+StoreUpdate prepare_point_store_update(GpuPointStore& store, const std::vector<uint32_t>& wanted,
+                                       const FreshWriter& write, const gpu::StagingWrite& w,
+                                       ThreadPool* pool = nullptr);
+void commit_point_store_update(GpuPointStore& store, const StoreUpdate& update);
 // The vms-compact pass (a side effect: the rasterizer reads the store's buffers directly). Add
 // it before the rasterizer's passes; the store must outlive the graph's run.
 void add_point_store_pass(gpu::RenderGraph& graph, GpuPointStore& store);

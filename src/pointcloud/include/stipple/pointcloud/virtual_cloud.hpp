@@ -58,6 +58,11 @@ struct VirtualCloudOptions {
   // takes the sample's place, with the camera and the style as they are then
   // (VirtualCacheProgress tells the front end). A current cache opens in build() as without it.
   bool build_in_background = false;
+  // The selection (visits, loads, the store's plan and new points: milliseconds a frame while
+  // the view moves over a large cloud) runs on a thread of its own, and frames go on drawing
+  // the last selection until the next is done, so the frame rate does not wait for it (the
+  // viewer, bench virtual). Off, each selection is made in the frame that needs it.
+  bool async_selection = false;
 };
 
 // Main-world resource (build_in_background): the background build of the cache, for the
@@ -109,6 +114,7 @@ struct VirtualCloudStats {
   std::array<double, 5> stage_ms{};
   uint32_t touched_pointlets = 0;  // the last selection: pointlets whose wanted prefix it revisited
   double select_cpu_ms = 0;        // select_ms as the thread's CPU time (0 where unavailable)
+  double async_select_ms = 0;      // async_selection: wall ms of the last selection on its thread
 };
 inline constexpr std::array<std::string_view, 5> kStageNames{"lod", "compaction", "projection",
                                                              "resolve", "fill"};

@@ -78,6 +78,10 @@ struct SceneOptions {
   // the cache builds in the background, then from the cache (VirtualCloudOptions::
   // build_in_background). 0: the cache is built first. A current cache is opened as without it.
   uint64_t progressive_points = 0;
+  // Virtualized: the selection runs on its own thread and frames draw the last one meanwhile
+  // (VirtualCloudOptions::async_selection): the viewer and bench virtual; render makes each
+  // selection in its frame.
+  bool async_selection = false;
 };
 
 // What the scene's inputs are, found once.
