@@ -7,7 +7,9 @@
 #   bash bench/device-pack.sh /path/to/old/stipple stipple-old && bash bench/device-pack.sh
 #   bench/virtual_frame_device.sh [POINTS] [FRAMES]          (default 1000000000 600)
 # Runs, each in a fresh process with the cache reused: old (sequential, as the issue measured),
-# new sequential, new with --no-gpu-wait, new --pipelined. Writes $OUT (or
+# new with the selection in the frame and --no-gpu-wait (--sync-selection: the old way's best
+# mode), then new with the selection on its own thread (bench virtual's default since 4df96704):
+# sequential, --no-gpu-wait, --pipelined. RUNS=... picks runs by name. Writes $OUT (or
 # /tmp/virtual-frame-out)/NAME.json and prints each run's table and CPU phases. The input
 # (/dev/shm, 26 GB at 1B) and the cache (/tmp/vf-cache, 20 GB) are kept for later calls on the
 # same machine, so a call cut short repeats without redoing them; STEP=prepare stops once they
@@ -38,10 +40,11 @@ done
 [ "${STEP:-}" = prepare ] && exit 0
 common=(bench virtual "$in" --bucket 25000000 --frames "$frames" --host-memory 4G --gpu-memory 4G
         --cache "$cache")
-for run in "old stipple-old" "new stipple" "new-no-gpu-wait stipple --no-gpu-wait" \
-           "new-pipelined stipple --pipelined"; do
+for run in "old stipple-old" "new-sync-no-gpu-wait stipple --sync-selection --no-gpu-wait" \
+           "new stipple" "new-no-gpu-wait stipple --no-gpu-wait" "new-pipelined stipple --pipelined"; do
   set -- $run
   name=$1 pkg=$2
+  [ -n "${RUNS:-}" ] && [[ " $RUNS " != *" $name "* ]] && continue
   shift 2
   echo "== $name ($pkg $*)"
   $pkgs/$pkg-pkg/run "${common[@]}" "$@" --json "$out/$name.json" 2>&1 |
@@ -50,7 +53,7 @@ done
 python3 - "$out" <<'PY'
 import json, sys, pathlib
 rows = []
-for name in ["old", "new", "new-no-gpu-wait", "new-pipelined"]:
+for name in ["old", "new-sync-no-gpu-wait", "new", "new-no-gpu-wait", "new-pipelined"]:
     p = pathlib.Path(sys.argv[1]) / f"{name}.json"
     if not p.exists():
         continue
@@ -58,8 +61,11 @@ for name in ["old", "new", "new-no-gpu-wait", "new-pipelined"]:
     f, c = r["fps"], r["cpu_ms_mean"]
     rows.append(f"| {name} | {f['average']:.1f} | {f['low_1pct']:.1f} | {f['gpu_average']:.1f} | "
                 f"{c['selection']:.2f} | {c['store_update']:.2f} | {c['residency']:.2f} | "
-                f"{c.get('render_queue', float('nan')):.2f} | {c.get('render_draw', float('nan')):.2f} |")
-print("| build | FPS avg | 1% low | GPU FPS | selection ms | store update | residency | Queue | Draw |")
-print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+                f"{c.get('render_queue', float('nan')):.2f} | {c.get('render_draw', float('nan')):.2f} | "
+                f"{r['points_drawn_mean'] / 1e6:.2f} | {r.get('selections', float('nan'))} | "
+                f"{r.get('async_selection_ms_mean', float('nan')):.2f} |")
+print("| build | FPS avg | 1% low | GPU FPS | selection ms | store update | residency | Queue | Draw | "
+      "drawn M | selections | async selection ms |")
+print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
 print("\n".join(rows))
 PY

@@ -220,6 +220,7 @@ struct VirtualCloudRender {
   // async_selection: the selection in flight on `selector`'s thread, with its own copy of the
   // stats and the store update it prepared; the frame that finds it done commits both.
   std::future<void> job;
+  bool launch_due = false, due_lod_new = false;  // a selection waits for its staging slot
   VirtualCloudStats job_stats;
   StoreUpdate job_update;
   double job_wait_ms = 0;  // mapping its staging slot, on the frame's thread
@@ -736,13 +737,23 @@ void select_points(Registry& render) {
   const bool current = same_lod_view(v.desired_for, *extracted, target.width, target.height);
   const bool first_held = v.loads_held;
   v.loads_held = v.options.process_budget > 0 && stats.selections == 0;
-  if (!lod_new && !loads_done && !v.transfer_pending && !first_held) {
+  if (!lod_new && !loads_done && !v.transfer_pending && !first_held && !v.launch_due) {
     stats.settled =
         r.pending.load() == 0 && current && !v.lod_due && !gpu::readback_busy(*v.lod_ring);
     return;
   }
   if (v.options.async_selection) {
-    launch_selection(ctx, v, stats, lod_new);
+    // The selection starts once its staging slot is mapped (its last copy done on the GPU), so
+    // that this thread never waits for the GPU; until then the frames draw the last one.
+    gpu::staging_submitted(v.store->staging);
+    v.due_lod_new = v.due_lod_new || lod_new;
+    if (!gpu::staging_write_ready(v.store->staging)) {
+      v.launch_due = true;
+      stats.settled = false;
+      return;
+    }
+    launch_selection(ctx, v, stats, v.due_lod_new);
+    v.launch_due = v.due_lod_new = false;
     return;
   }
   const bool requested = run_selection(v, stats, lod_new, [&](const std::vector<uint32_t>& draw) {

@@ -86,6 +86,13 @@ StagingWrite begin_staging_write(Context& ctx, StagingRing& ring) {
   return {static_cast<uint8_t*>(data), slot.buffer.get(), ring.slot_bytes, index};
 }
 
+bool staging_write_ready(StagingRing& ring) {
+  if (ring.slots.empty()) return false;
+  StagingRing::Slot& slot = ring.slots[ring.next];
+  if (slot.state->phase == Phase::Submitted) request_map(slot, ring.slot_bytes);
+  return slot.state->phase == Phase::Mapped;
+}
+
 void end_staging_write(StagingRing& ring, const StagingWrite& write) {
   StagingRing::Slot& slot = ring.slots.at(write.slot);
   wgpuBufferUnmap(slot.buffer.get());

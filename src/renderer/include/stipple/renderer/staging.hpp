@@ -77,6 +77,9 @@ struct StagingWrite {
   uint32_t slot = 0;
 };
 StagingWrite begin_staging_write(Context& ctx, StagingRing& ring);
+// Whether begin_staging_write would take its slot without waiting (it is mapped); asks for the
+// slot's map when it is due and not yet asked for. Events are processed elsewhere (a poll).
+bool staging_write_ready(StagingRing& ring);
 // Unmaps the slot: copies out of it may be recorded now. Call staging_submitted once the
 // command buffer holding them has been submitted; the slot is then mapped again for reuse.
 void end_staging_write(StagingRing& ring, const StagingWrite& write);
