@@ -9,7 +9,12 @@
 # Runs, each in a fresh process with the cache reused: old (sequential, as the issue measured),
 # new with the selection in the frame and --no-gpu-wait (--sync-selection: the old way's best
 # mode), then new with the selection on its own thread (bench virtual's default since 4df96704):
-# sequential, --no-gpu-wait, --pipelined. RUNS=... picks runs by name. Writes $OUT (or
+# sequential, --no-gpu-wait, --pipelined. These fly the path by frame, so a build whose frames
+# come faster flies it faster in wall time, and an async selection then lags the camera (fewer
+# points drawn). The "paced" runs fly it by the clock (--duration) in the time the old build's
+# run took, so every build sees the camera move at the same speed: new with the selection in the
+# frame, then on its own thread in each frame mode. RUNS=... picks runs by name; the paced runs
+# need the old run's JSON (DURATION=seconds overrides). Writes $OUT (or
 # /tmp/virtual-frame-out)/NAME.json and prints each run's table and CPU phases. The input
 # (/dev/shm, 26 GB at 1B) and the cache (/tmp/vf-cache, 20 GB) are kept for later calls on the
 # same machine, so a call cut short repeats without redoing them; STEP=prepare stops once they
@@ -38,22 +43,32 @@ for p in stipple-old stipple; do
   (time $pkgs/$p-pkg/run pointlets "$in" --cache "$cache" --host-memory 40G) 2>&1 | tail -6
 done
 [ "${STEP:-}" = prepare ] && exit 0
-common=(bench virtual "$in" --bucket 25000000 --frames "$frames" --host-memory 4G --gpu-memory 4G
-        --cache "$cache")
+common=(bench virtual "$in" --bucket 25000000 --host-memory 4G --gpu-memory 4G --cache "$cache")
+names=(old new-sync-no-gpu-wait new new-no-gpu-wait new-pipelined paced-sync-no-gpu-wait paced
+       paced-no-gpu-wait paced-pipelined)
 for run in "old stipple-old" "new-sync-no-gpu-wait stipple --sync-selection --no-gpu-wait" \
-           "new stipple" "new-no-gpu-wait stipple --no-gpu-wait" "new-pipelined stipple --pipelined"; do
+           "new stipple" "new-no-gpu-wait stipple --no-gpu-wait" "new-pipelined stipple --pipelined" \
+           "paced-sync-no-gpu-wait stipple --sync-selection --no-gpu-wait" "paced stipple" \
+           "paced-no-gpu-wait stipple --no-gpu-wait" "paced-pipelined stipple --pipelined"; do
   set -- $run
   name=$1 pkg=$2
   [ -n "${RUNS:-}" ] && [[ " $RUNS " != *" $name "* ]] && continue
   shift 2
+  if [[ $name == paced* ]]; then
+    dur=${DURATION:-$(python3 -c 'import json,sys; print("%.3f" % (sum(json.load(open(sys.argv[1]))["runs"][0]["frame_wall_ms"]) / 1e3))' "$out/old.json" 2>/dev/null)}
+    [ -n "$dur" ] || { echo "$name: no old.json to take the duration from (set DURATION)"; continue; }
+    set -- "$@" --duration "$dur" --frames 1000000
+  else
+    set -- "$@" --frames "$frames"
+  fi
   echo "== $name ($pkg $*)"
   $pkgs/$pkg-pkg/run "${common[@]}" "$@" --json "$out/$name.json" 2>&1 |
     grep -vE '^\s*$|frames \[|%\|' | tail -8
 done
-python3 - "$out" <<'PY'
+python3 - "$out" "${names[@]}" <<'PY'
 import json, sys, pathlib
 rows = []
-for name in ["old", "new-sync-no-gpu-wait", "new", "new-no-gpu-wait", "new-pipelined"]:
+for name in sys.argv[2:]:
     p = pathlib.Path(sys.argv[1]) / f"{name}.json"
     if not p.exists():
         continue
@@ -63,9 +78,10 @@ for name in ["old", "new-sync-no-gpu-wait", "new", "new-no-gpu-wait", "new-pipel
                 f"{c['selection']:.2f} | {c['store_update']:.2f} | {c['residency']:.2f} | "
                 f"{c.get('render_queue', float('nan')):.2f} | {c.get('render_draw', float('nan')):.2f} | "
                 f"{r['points_drawn_mean'] / 1e6:.2f} | {r.get('selections', float('nan'))} | "
-                f"{r.get('async_selection_ms_mean', float('nan')):.2f} |")
+                f"{r.get('async_selection_ms_mean', float('nan')):.2f} | {len(r['frame_wall_ms'])} | "
+                f"{sum(r['frame_wall_ms']) / 1e3:.2f} |")
 print("| build | FPS avg | 1% low | GPU FPS | selection ms | store update | residency | Queue | Draw | "
-      "drawn M | selections | async selection ms |")
-print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+      "drawn M | selections | async selection ms | frames | seconds |")
+print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
 print("\n".join(rows))
 PY

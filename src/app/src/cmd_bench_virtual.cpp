@@ -15,6 +15,9 @@
 // run on the worker pool meanwhile, as in an interactive session: frames do not wait for them.
 // The selection (what to draw, load and transfer) runs on its own thread as in the viewer, the
 // frames drawing the last one until the next is done; --sync-selection makes it in the frame.
+// The path runs by frame (frame f of N at f / N), so faster frames fly it faster in wall time;
+// with --duration it runs by the clock, and frames that outrun the selection draw less of what
+// the view wants (the drawn points a frame say how much).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -60,6 +63,7 @@ struct VirtualBenchArgs {
   uint64_t pointlets = pc::kDefaultPointlets;
   FrameMode mode;
   bool sync_selection = false;
+  double duration = 0;  // seconds: the path by the clock; 0: by frame
 };
 
 std::unique_ptr<Engine> make_engine(const VirtualBenchArgs& a, uint64_t bucket, uint32_t fill) {
@@ -143,8 +147,18 @@ FlightResult fly(const VirtualBenchArgs& a, uint64_t bucket) {
     out.staging = vs.staging_bytes;
     if (vs.bucket) out.bucket = vs.bucket;  // lowered when it does not fit --gpu-memory
   };
+  const auto flight_start = std::chrono::steady_clock::now();
+  auto flown = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - flight_start).count();
+  };
   for (uint32_t f = 0; f < a.frames; ++f) {
-    main.get<Camera>(camera) = path_camera(a.path, world, double(f) / a.frames, aspect);
+    // With --duration the camera moves by the clock, at the same speed however fast the
+    // frames come, so that builds and modes whose frames take different times fly the same
+    // views in the same time (and the frames that draw a selection still being made count).
+    if (a.duration > 0 && f > 0 && flown() >= a.duration) break;
+    const double along =
+        a.duration > 0 ? std::min(1.0, flown() / a.duration) : double(f) / a.frames;
+    main.get<Camera>(camera) = path_camera(a.path, world, along, aspect);
     const auto t0 = std::chrono::steady_clock::now();
     engine->update();
     out.wall_ms.push_back(
@@ -220,6 +234,7 @@ void run_virtual_bench(const VirtualBenchArgs& a) {
   j["pipelined"] = a.mode.pipelined;
   j["gpu_wait"] = a.mode.waits_for_gpu();
   j["async_selection"] = !a.sync_selection;
+  j["duration_s"] = a.duration;
   j["runs"] = nlohmann::json::array();
   std::printf("%10s %8s %8s %8s %8s %8s %8s %9s %9s %9s %9s\n", "B", "FPS avg", "min", "max",
               "1% low", "0.1% low", "GPU FPS", "drawn M", "host MiB", "GPU MiB", "RSS MiB");
@@ -380,6 +395,11 @@ void add_bench_virtual_command(CLI::App& bench) {
   cmd->add_option("--backend", a->backend, "WebGPU implementation: dawn or wgpu")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
   add_frame_mode_options(cmd, a->mode);
+  cmd->add_option("--duration", a->duration,
+                  "Fly the path by the clock over this many seconds (at most --frames frames): "
+                  "the camera's speed is then the same whatever the frame rate (0: by frame)")
+      ->check(CLI::Range(0.0, 1e6))
+      ->capture_default_str();
   cmd->add_flag("--sync-selection", a->sync_selection,
                 "Make each selection in the frame that needs it (frames wait for it), instead "
                 "of on its own thread while frames draw the last one (the viewer's way)");
