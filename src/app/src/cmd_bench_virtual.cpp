@@ -192,6 +192,7 @@ std::vector<gpu::Image> settled_images(const VirtualBenchArgs& a, uint64_t bucke
     main.get<Camera>(camera) = view;
     for (int i = 0; i < 5000; ++i) {
       engine->update();
+      engine->wait_for_render();  // pipelined: the render world's stats are read when it idles
       const auto& s = render.resource<pc::VirtualCloudStats>();
       if (s.settled && s.selections > 0) break;
       pc::wait_for_virtual_loads(main.resource<pc::VirtualCloudHandle>(), 0.05);

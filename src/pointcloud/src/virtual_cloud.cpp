@@ -74,7 +74,8 @@ double thread_cpu_ms() {
 // state it was made for, so a stale task does nothing.
 //
 // No lock per pointlet: a pointlet has one load in flight at most, and only that task writes its
-// prefix meanwhile (the selection unloads only pointlets not in flight, on the frame's thread). A
+// prefix meanwhile (the selection unloads only pointlets not in flight, on its own thread: the
+// frame's, or the selector's with async_selection; one selection at a time). A
 // load reads and converts outside any lock, into a new buffer of exactly the new size (a vector
 // grown by doubling would hold up to twice what is counted), and swaps it in under
 // `buffers_mutex`, which the frame's new-point copy holds while it reads the buffers (once a
@@ -93,7 +94,7 @@ struct VirtualResidency {
   std::mutex buffers_mutex;  // held to replace a pointlet's buffer, and while a frame copies
   uint64_t budget = 0;       // bytes of records
   std::atomic<uint64_t> bytes{0}, loads{0}, points_read{0};
-  uint64_t unloaded_since_trim = 0;  // main thread: record bytes freed since the last trim
+  uint64_t unloaded_since_trim = 0;  // the selection's: record bytes freed since the last trim
   std::atomic<uint32_t> pending{0};
   std::mutex progress_mutex;
   std::condition_variable progress;
@@ -153,7 +154,7 @@ struct VirtualResidency {
     ++completed;
     progress.notify_all();
   }
-  // On the frame's thread, for a pointlet not in flight.
+  // By the selection, for a pointlet not in flight.
   void unload(uint32_t index, uint32_t keep) {
     const uint32_t have = loaded[index].load();
     if (keep >= have) return;
@@ -631,7 +632,6 @@ bool run_selection(VirtualCloudRender& v, VirtualCloudStats& stats, bool lod_new
 // current buffers; the first frame that finds it done commits its update and stats.
 void launch_selection(gpu::Context& ctx, VirtualCloudRender& v, VirtualCloudStats& stats,
                       bool lod_new) {
-  gpu::staging_submitted(v.store->staging);
   const auto t = Clock::now();
   const gpu::StagingWrite w = gpu::begin_staging_write(ctx, v.store->staging);
   v.job_wait_ms = ms_since(t);
@@ -702,6 +702,9 @@ void select_points(Registry& render) {
   v.incoming.resize(r.count);
   if (auto tag = gpu::take_readback(ctx, *v.lod_ring, v.incoming.data(), false))
     v.incoming_tag = tag;
+  // The slot the last commit used can be mapped again once its frame is submitted; asked for
+  // now, not at the next start, so that the next selection need not wait for it.
+  if (v.options.async_selection && v.store) gpu::staging_submitted(v.store->staging);
   if (v.job.valid()) {
     // async_selection: the frame draws what the last selection made until the next is done.
     v.lod_due = !same_lod_view(v.lod_requested_for, *extracted, target.width, target.height);
@@ -745,7 +748,6 @@ void select_points(Registry& render) {
   if (v.options.async_selection) {
     // The selection starts once its staging slot is mapped (its last copy done on the GPU), so
     // that this thread never waits for the GPU; until then the frames draw the last one.
-    gpu::staging_submitted(v.store->staging);
     v.due_lod_new = v.due_lod_new || lod_new;
     if (!gpu::staging_write_ready(v.store->staging)) {
       v.launch_due = true;

@@ -90,7 +90,8 @@ bool staging_write_ready(StagingRing& ring) {
   if (ring.slots.empty()) return false;
   StagingRing::Slot& slot = ring.slots[ring.next];
   if (slot.state->phase == Phase::Submitted) request_map(slot, ring.slot_bytes);
-  return slot.state->phase == Phase::Mapped;
+  // A failed map is "ready" too: begin_staging_write then reports it.
+  return slot.state->phase == Phase::Mapped || slot.state->phase == Phase::Failed;
 }
 
 void end_staging_write(StagingRing& ring, const StagingWrite& write) {
