@@ -48,6 +48,15 @@ void add_frame_mode_options(CLI::App* cmd, FrameMode& mode) {
                 "Frames do not wait for the GPU (timestamps read back later), on one thread");
 }
 
+void add_flight_duration_option(CLI::App* cmd, double& seconds) {
+  cmd->add_option("--duration", seconds,
+                  "Fly the camera path by the clock over this many seconds (the camera at the same "
+                  "speed whatever the frame rate) and stop then, even if frames of --frames "
+                  "remain (0: the path runs by frame)")
+      ->check(CLI::Range(0.0, 1e6))
+      ->capture_default_str();
+}
+
 scene::EngineCore bench_engine_core(const std::string& backend, const FrameMode& mode) {
   scene::EngineCore core;
   core.backend = backend;

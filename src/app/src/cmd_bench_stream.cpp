@@ -306,12 +306,7 @@ void add_bench_stream_command(CLI::App& bench) {
   cmd->add_option("--backend", a->backend, "WebGPU implementation: dawn or wgpu")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
   cmd->add_option("--json", a->json, "Write the results (and every frame's times) as JSON");
-  cmd->add_option(
-         "--duration", a->duration,
-         "Stop after this many seconds even if frames of --frames remain; the camera path then "
-         "runs by the clock over these seconds (0: none, the path runs by frame)")
-      ->check(CLI::Range(0.0, 1e6))
-      ->capture_default_str();
+  add_flight_duration_option(cmd, a->duration);
   cmd->add_option("--samples", a->samples,
                   "Write a CSV row every --sample-seconds: RSS, resident tile bytes, GPU bytes, "
                   "loads, evictions, errors");

@@ -396,11 +396,7 @@ void add_bench_virtual_command(CLI::App& bench) {
   cmd->add_option("--backend", a->backend, "WebGPU implementation: dawn or wgpu")
       ->check(CLI::IsMember({"dawn", "wgpu", "wgpu-native"}));
   add_frame_mode_options(cmd, a->mode);
-  cmd->add_option("--duration", a->duration,
-                  "Fly the path by the clock over this many seconds (at most --frames frames): "
-                  "the camera's speed is then the same whatever the frame rate (0: by frame)")
-      ->check(CLI::Range(0.0, 1e6))
-      ->capture_default_str();
+  add_flight_duration_option(cmd, a->duration);
   cmd->add_flag("--sync-selection", a->sync_selection,
                 "Make each selection in the frame that needs it (frames wait for it), instead "
                 "of on its own thread while frames draw the last one (the viewer's way)");

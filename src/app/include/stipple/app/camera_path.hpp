@@ -42,6 +42,8 @@ struct FrameMode {
 };
 // --pipelined, --no-gpu-wait.
 void add_frame_mode_options(CLI::App* cmd, FrameMode& mode);
+// --duration: the path flown by the clock over this many seconds (0: by frame).
+void add_flight_duration_option(CLI::App* cmd, double& seconds);
 // The engine core of a bench in `mode` on `backend`: every frame's GPU times kept, at most two
 // frames in flight where frames do not wait for the GPU.
 scene::EngineCore bench_engine_core(const std::string& backend, const FrameMode& mode);
