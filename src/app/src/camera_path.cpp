@@ -57,6 +57,12 @@ void add_flight_duration_option(CLI::App* cmd, double& seconds) {
       ->capture_default_str();
 }
 
+std::optional<double> flight_along(double duration_s, double flown_s, uint32_t f, uint32_t frames) {
+  if (duration_s <= 0) return double(f) / frames;
+  if (f > 0 && flown_s >= duration_s) return std::nullopt;
+  return std::min(1.0, flown_s / duration_s);
+}
+
 scene::EngineCore bench_engine_core(const std::string& backend, const FrameMode& mode) {
   scene::EngineCore core;
   core.backend = backend;

@@ -158,22 +158,16 @@ void run_stream_bench(const StreamBenchArgs& a) {
   Progress progress("streaming", a.frames, "frames");
   uint32_t frames = a.frames, sampled = 0;
   for (uint32_t f = 0; f < a.frames; ++f) {
-    if (a.duration > 0 && f > 0 &&
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() >=
-            a.duration) {
+    // With --duration the path runs by the clock, so that the whole flight fits the time
+    // however fast the frames come (a soak on a loaded machine); else by frame.
+    const std::optional<double> along = flight_along(
+        a.duration, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+        f, a.frames);
+    if (!along) {
       frames = f;  // the time is up: the path stops here
       break;
     }
-    // With --duration the path runs by the clock, so that the whole flight fits the time
-    // however fast the frames come (a soak on a loaded machine); else by frame.
-    const double along =
-        a.duration > 0
-            ? std::min(
-                  1.0,
-                  std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() /
-                      a.duration)
-            : double(f) / a.frames;
-    main.get<Camera>(camera) = path_camera(a.path, world, along, aspect);
+    main.get<Camera>(camera) = path_camera(a.path, world, *along, aspect);
     const auto t0 = std::chrono::steady_clock::now();
     engine.update();
     wall_ms.push_back(

@@ -155,10 +155,9 @@ FlightResult fly(const VirtualBenchArgs& a, uint64_t bucket) {
     // With --duration the camera moves by the clock, at the same speed however fast the
     // frames come, so that builds and modes whose frames take different times fly the same
     // views in the same time (and the frames that draw a selection still being made count).
-    if (a.duration > 0 && f > 0 && flown() >= a.duration) break;
-    const double along =
-        a.duration > 0 ? std::min(1.0, flown() / a.duration) : double(f) / a.frames;
-    main.get<Camera>(camera) = path_camera(a.path, world, along, aspect);
+    const std::optional<double> along = flight_along(a.duration, flown(), f, a.frames);
+    if (!along) break;
+    main.get<Camera>(camera) = path_camera(a.path, world, *along, aspect);
     const auto t0 = std::chrono::steady_clock::now();
     engine->update();
     out.wall_ms.push_back(

@@ -221,7 +221,7 @@ struct VirtualCloudRender {
   // async_selection: the selection in flight on `selector`'s thread, with its own copy of the
   // stats and the store update it prepared; the frame that finds it done commits both.
   std::future<void> job;
-  bool launch_due = false, due_lod_new = false;  // a selection waits for its staging slot
+  bool lod_unused = false;  // a LoD taken while the selection waited for its staging slot
   VirtualCloudStats job_stats;
   StoreUpdate job_update;
   double job_wait_ms = 0;  // mapping its staging slot, on the frame's thread
@@ -316,13 +316,6 @@ constexpr uint64_t kHostPointBytes = sizeof(PointletRecord) * 5 / 4;
 
 uint64_t store_host_bytes(uint64_t bucket, uint64_t pointlets, uint64_t staging_bytes,
                           bool device_in_host, uint32_t slots);
-
-// Staging slots of the point store: a selection on its own thread maps its slot as it starts,
-// one commit after the last used it, whose frame may still be on the GPU (two frames in flight):
-// a third slot keeps that start from waiting for the GPU.
-uint32_t staging_slots(const VirtualCloudOptions& options) {
-  return options.async_selection ? 3 : 2;
-}
 
 // Fails when the process budget leaves no room for even the smallest selection (its point
 // store and points), naming the least that works.
@@ -719,7 +712,7 @@ void select_points(Registry& render) {
     commit_point_store_update(*v.store, v.job_update);
     v.job_update = {};
   }
-  bool lod_new = false;
+  bool lod_new = v.lod_unused;
   if (v.incoming_tag) {
     v.desired.swap(v.incoming);
     v.desired_for = v.lod_views[*v.incoming_tag % v.lod_views.size()];
@@ -740,7 +733,7 @@ void select_points(Registry& render) {
   const bool current = same_lod_view(v.desired_for, *extracted, target.width, target.height);
   const bool first_held = v.loads_held;
   v.loads_held = v.options.process_budget > 0 && stats.selections == 0;
-  if (!lod_new && !loads_done && !v.transfer_pending && !first_held && !v.launch_due) {
+  if (!lod_new && !loads_done && !v.transfer_pending && !first_held) {
     stats.settled =
         r.pending.load() == 0 && current && !v.lod_due && !gpu::readback_busy(*v.lod_ring);
     return;
@@ -748,14 +741,14 @@ void select_points(Registry& render) {
   if (v.options.async_selection) {
     // The selection starts once its staging slot is mapped (its last copy done on the GPU), so
     // that this thread never waits for the GPU; until then the frames draw the last one.
-    v.due_lod_new = v.due_lod_new || lod_new;
+    // (A new LoD waits with it; the other reasons to select last until a selection runs.)
     if (!gpu::staging_write_ready(v.store->staging)) {
-      v.launch_due = true;
+      v.lod_unused = lod_new;
       stats.settled = false;
       return;
     }
-    launch_selection(ctx, v, stats, v.due_lod_new);
-    v.launch_due = v.due_lod_new = false;
+    v.lod_unused = false;
+    launch_selection(ctx, v, stats, lod_new);
     return;
   }
   const bool requested = run_selection(v, stats, lod_new, [&](const std::vector<uint32_t>& draw) {

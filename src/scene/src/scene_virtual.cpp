@@ -80,10 +80,11 @@ void add_virtual_scene(Engine& engine, const ScenePlan& plan) {
   // (two, three with the selection on its own thread) leave, and once the first frame has run, at
   // most what the rest of the process (libraries, driver, tables, and the GPU buffers on a software
   // GPU) leaves of it.
+  v.options.async_selection = options.async_selection;
   v.options.staging_bytes =
       std::clamp<uint64_t>(budget / 16, uint64_t(1) << 20, uint64_t(64) << 20);
   v.options.host_budget = budget > 4 * v.options.staging_bytes
-                              ? budget - (options.async_selection ? 3 : 2) * v.options.staging_bytes
+                              ? budget - pc::staging_slots(v.options) * v.options.staging_bytes
                               : budget / 2;
   v.options.process_budget = budget;
   if (!options.gpu_memory.empty()) v.options.gpu_budget = parse_size(options.gpu_memory);
@@ -93,7 +94,6 @@ void add_virtual_scene(Engine& engine, const ScenePlan& plan) {
   v.options.occlusion_beta = options.occlusion_beta;
   v.render = options.render;
   v.options.build_in_background = progressive;
-  v.options.async_selection = options.async_selection;
   engine.add_plugin(std::move(v));
   if (progressive) {
     std::printf("building the pointlet cache in the background; until then the sample is drawn\n");

@@ -3,6 +3,8 @@
 // while the vertical field of view zooms in and out, shared by the benches that fly it
 // (`bench virtual`, `bench stream`), and the path's command-line options; the frame modes those
 // benches run in.
+#include <cstdint>
+#include <optional>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -44,6 +46,10 @@ struct FrameMode {
 void add_frame_mode_options(CLI::App* cmd, FrameMode& mode);
 // --duration: the path flown by the clock over this many seconds (0: by frame).
 void add_flight_duration_option(CLI::App* cmd, double& seconds);
+// Where frame f of a flight of `frames` is along the path, `flown_s` seconds after it began: by
+// frame, or with a --duration (duration_s > 0) by the clock, the camera at the same speed however
+// fast the frames come; nullopt once the duration has passed (never at the first frame).
+std::optional<double> flight_along(double duration_s, double flown_s, uint32_t f, uint32_t frames);
 // The engine core of a bench in `mode` on `backend`: every frame's GPU times kept, at most two
 // frames in flight where frames do not wait for the GPU.
 scene::EngineCore bench_engine_core(const std::string& backend, const FrameMode& mode);

@@ -65,6 +65,13 @@ struct VirtualCloudOptions {
   bool async_selection = false;
 };
 
+// The point store's staging slots (each of staging_bytes): two, and three with async_selection,
+// whose selection maps its slot as it starts, one commit after the last used it, while that
+// frame may still be on the GPU (two frames in flight): the third keeps it from waiting.
+inline uint32_t staging_slots(const VirtualCloudOptions& options) {
+  return options.async_selection ? 3 : 2;
+}
+
 // Main-world resource (build_in_background): the background build of the cache, for the
 // front end's status line and for knowing when the virtualized cloud is in.
 struct VirtualCacheProgress {

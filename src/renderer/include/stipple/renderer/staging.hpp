@@ -78,8 +78,8 @@ struct StagingWrite {
 };
 StagingWrite begin_staging_write(Context& ctx, StagingRing& ring);
 // Whether begin_staging_write would take its slot without waiting (it is mapped, or its map
-// failed, which begin_staging_write reports); asks for the
-// slot's map when it is due and not yet asked for. Events are processed elsewhere (a poll).
+// failed, which begin_staging_write reports); asks for the slot's map when it is due and not yet
+// asked for. Events are processed elsewhere (a poll).
 bool staging_write_ready(StagingRing& ring);
 // Unmaps the slot: copies out of it may be recorded now. Call staging_submitted once the
 // command buffer holding them has been submitted; the slot is then mapped again for reuse.
