@@ -172,6 +172,10 @@ TEST(Pointlets, LasAndLazAndManyRunsGiveTheSamePointlets) {
   auto stats = pc::build_pointlet_cache({las}, dir / "runs.pointlets", o);
   EXPECT_EQ(stats.runs, 3u);
   EXPECT_LE(stats.peak_run_bytes, o.memory_budget);
+  // The runs went to disk compressed (byte planes through zstd), and came back whole (below).
+  EXPECT_EQ(stats.run_bytes, 150000u * 24);
+  EXPECT_GT(stats.run_disk_bytes, 0u);
+  EXPECT_LT(stats.run_disk_bytes, stats.run_bytes / 2);
   auto a = bytes_of(dir / "las.pointlets"), b = bytes_of(dir / "laz.pointlets"),
        c = bytes_of(dir / "runs.pointlets");
   ASSERT_EQ(a.size(), b.size());

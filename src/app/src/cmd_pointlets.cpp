@@ -105,6 +105,8 @@ void add_pointlets_command(CLI::App& cli) {
         j["encode_seconds"] = stats.encode_seconds;
         j["write_seconds"] = stats.write_seconds;
         j["write_wait_seconds"] = stats.write_wait_seconds;
+        j["run_bytes"] = stats.run_bytes;
+        j["run_disk_bytes"] = stats.run_disk_bytes;
         j["runs"] = stats.runs;
         j["peak_run_bytes"] = stats.peak_run_bytes;
       }

@@ -82,7 +82,9 @@ void run_render(const RenderArgs& args) {
                           {"merge_seconds", b.merge_seconds},
                           {"encode_seconds", b.encode_seconds},
                           {"write_seconds", b.write_seconds},
-                          {"write_wait_seconds", b.write_wait_seconds}};
+                          {"write_wait_seconds", b.write_wait_seconds},
+                          {"run_bytes", b.run_bytes},
+                          {"run_disk_bytes", b.run_disk_bytes}};
     }
     j["passes"] = nlohmann::json::object();
     for (const auto& [name, ms] : stats.history) {

@@ -115,6 +115,8 @@ struct PointletBuildStats {
   double read_seconds = 0, sort_seconds = 0, merge_seconds = 0, encode_seconds = 0,
          write_seconds = 0, write_wait_seconds = 0, seconds = 0;
   uint64_t peak_run_bytes = 0;  // the largest run held in memory
+  // The runs on disk: their records' bytes, and what they took compressed (0 without runs).
+  uint64_t run_bytes = 0, run_disk_bytes = 0;
 };
 
 // One line: "cache build: N M points/s; read a s, sort b s, merge c s, encode d s, write e s
