@@ -123,15 +123,34 @@ const HilbertTable& hilbert_table() {
   return table;
 }
 
+// Two levels a step, from hilbert_table: per state and pair of octants (six Morton bits), the
+// two ranks (six Hilbert bits) and the state after them, in one word (rank | state << 6). Half
+// the steps of the dependent chain, one load each: the cache build computes a key per point.
+const std::vector<std::array<uint16_t, 64>>& hilbert_pair_table() {
+  static const std::vector<std::array<uint16_t, 64>> table = [] {
+    const HilbertTable& t = hilbert_table();
+    if (t.rank.size() > 1024) fail("hilbert_table: {} states do not fit 10 bits", t.rank.size());
+    std::vector<std::array<uint16_t, 64>> pairs(t.rank.size());
+    for (size_t s = 0; s < t.rank.size(); ++s)
+      for (uint32_t o = 0; o < 64; ++o) {
+        const uint32_t high = o >> 3, low = o & 7, middle = t.next[s][high];
+        const uint32_t rank = uint32_t(t.rank[s][high]) << 3 | t.rank[middle][low];
+        pairs[s][o] = uint16_t(rank | uint32_t(t.next[middle][low]) << 6);
+      }
+    return pairs;
+  }();
+  return table;
+}
+
 }  // namespace
 
 uint32_t hilbert_from_morton(uint32_t morton30) {
-  const HilbertTable& t = hilbert_table();
+  const std::array<uint16_t, 64>* rows = hilbert_pair_table().data();
   uint32_t h = 0, state = 0;
-  for (int shift = 27; shift >= 0; shift -= 3) {
-    const uint32_t o = morton30 >> shift & 7;
-    h = h << 3 | t.rank[state][o];
-    state = t.next[state][o];
+  for (int shift = 24; shift >= 0; shift -= 6) {
+    const uint32_t step = rows[state][morton30 >> shift & 63];
+    h = h << 6 | (step & 63);
+    state = step >> 6;
   }
   return h;
 }
