@@ -188,6 +188,10 @@ fn cs_scatter(@builtin(workgroup_id) wid: vec3<u32>,
     }
   }
   workgroupBarrier();
+  // Each digit's output place less its run's start in the block, once a digit (wrapping u32
+  // arithmetic; digits the block lacks are never read) rather than two global reads a pair.
+  starts[lid] = digit_offsets[lid] + hist[lid * params.blocks + block] - starts[lid];
+  workgroupBarrier();
   // Neighbouring invocations write neighbouring places of a digit's run; the block's real pairs
   // are its first `valid` sorted ones (the padding sorts last).
   for (var e = 0u; e < PER; e = e + 1u) {
@@ -196,7 +200,7 @@ fn cs_scatter(@builtin(workgroup_id) wid: vec3<u32>,
     let local = word & 0xffffu;
     if (local < valid) {
       let d = word >> 16u;
-      let dst = digit_offsets[d] + hist[d * params.blocks + block] + (j - starts[d]);
+      let dst = starts[d] + j;
       keys_out[dst] = keys_in[base + local];
       values_out[dst] = values_in[base + local];
     }
