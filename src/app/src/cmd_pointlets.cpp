@@ -107,6 +107,7 @@ void add_pointlets_command(CLI::App& cli) {
         j["write_wait_seconds"] = stats.write_wait_seconds;
         j["run_bytes"] = stats.run_bytes;
         j["run_disk_bytes"] = stats.run_disk_bytes;
+        j["run_read_seconds"] = stats.run_read_seconds;
         j["runs"] = stats.runs;
         j["peak_run_bytes"] = stats.peak_run_bytes;
       }

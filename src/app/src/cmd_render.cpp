@@ -84,7 +84,8 @@ void run_render(const RenderArgs& args) {
                           {"write_seconds", b.write_seconds},
                           {"write_wait_seconds", b.write_wait_seconds},
                           {"run_bytes", b.run_bytes},
-                          {"run_disk_bytes", b.run_disk_bytes}};
+                          {"run_disk_bytes", b.run_disk_bytes},
+                          {"run_read_seconds", b.run_read_seconds}};
     }
     j["passes"] = nlohmann::json::object();
     for (const auto& [name, ms] : stats.history) {

@@ -733,11 +733,12 @@ uint64_t pointlet_size(uint64_t points, uint64_t pointlets) {
 std::string describe_build_phases(const PointletBuildStats& s) {
   return fmt::format(
       "cache build: {} points in {:.2f} s ({:.2f} M points/s); read {:.2f} s, sort {:.2f} s, "
-      "merge {:.2f} s, encode {:.2f} s, write {:.2f} s (beside the reads; {:.2f} s waited "
+      "merge {:.2f} s{}, encode {:.2f} s, write {:.2f} s (beside the reads; {:.2f} s waited "
       "for); {} run{}{}",
       s.points, s.seconds, double(s.points) / std::max(s.seconds, 1e-9) / 1e6, s.read_seconds,
-      s.sort_seconds, s.merge_seconds, s.encode_seconds, s.write_seconds, s.write_wait_seconds,
-      s.runs, s.runs == 1 ? "" : "s",
+      s.sort_seconds, s.merge_seconds,
+      s.run_bytes > 0 ? fmt::format(" (runs read back {:.2f} s)", s.run_read_seconds) : "",
+      s.encode_seconds, s.write_seconds, s.write_wait_seconds, s.runs, s.runs == 1 ? "" : "s",
       s.run_bytes > 0 ? fmt::format(" ({:.2f} GB of records, {:.2f} GB on disk)",
                                     double(s.run_bytes) / 1e9, double(s.run_disk_bytes) / 1e9)
                       : "");
@@ -1081,7 +1082,9 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
                         off_t((done - punched[i]) * kRunBlockBytes));
           punched[i] = std::max(punched[i], done);
         }
-        stats.merge_seconds += since(t);
+        const double read_back = since(t);
+        stats.merge_seconds += read_back;
+        stats.run_read_seconds += read_back;
         writer.wait();  // the other buffer is where the window is merged to
         t = Clock::now();
         std::vector<WindowPart> parts;
