@@ -1026,6 +1026,9 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
     // once written.
     RunRecord* window = run_arena.runs();
     std::vector<uint64_t> punched(runs.files.size(), 0);  // blocks of each run freed so far
+    // Frees the runs' blocks read whole; its destructor waits for the last (the runs' files
+    // stay open until then: `runs` outlives it).
+    ThreadPool puncher(1);
     for (const RunFile& r : runs.files) {
       stats.run_bytes += r.count * sizeof(RunRecord);
       for (const uint32_t b : r.block_bytes) stats.run_disk_bytes += b;
@@ -1068,18 +1071,21 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
             read_run_records(*pieces[i].run, pieces[i].first, pieces[i].count,
                              window + pieces[i].at);
         });
-        // Blocks read whole are not read again: their disk space is freed at once, so that the
-        // runs and the cache need not fit the disk together (1B points: 24 GB of runs before
-        // compression, 20 GB of cache). Where the file system cannot, the runs go when the
-        // build ends.
+        // Blocks read whole are not read again: their disk space is freed, so that the runs
+        // and the cache need not fit the disk together (1B points: 8.7 GB of runs, 20 GB of
+        // cache). Where the file system cannot, the runs go when the build ends. On the
+        // puncher's thread, off the merge's path: on ext4 a punch can wait for the dropped
+        // pages' writeback (1B points on the H100 machine read their runs back in 13 s on its
+        // disk, with no disk reads, against 3 s in /dev/shm).
         for (size_t i = 0; i < runs.files.size(); ++i) {
           const RunFile& r = runs.files[i];
           const uint64_t done =
               r.starts[b1] == r.count ? r.block_bytes.size() : r.starts[b1] / kRunBlock;
           if (done > punched[i])
-            ::fallocate(r.fd.fd, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE,
-                        off_t(punched[i] * kRunBlockBytes),
-                        off_t((done - punched[i]) * kRunBlockBytes));
+            puncher.submit([fd = r.fd.fd, first = punched[i], done] {
+              ::fallocate(fd, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE,
+                          off_t(first * kRunBlockBytes), off_t((done - first) * kRunBlockBytes));
+            });
           punched[i] = std::max(punched[i], done);
         }
         const double read_back = since(t);
