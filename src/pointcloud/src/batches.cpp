@@ -126,10 +126,10 @@ const HilbertTable& hilbert_table() {
 // Two levels a step, from hilbert_table: per state and pair of octants (six Morton bits), the
 // two ranks (six Hilbert bits) and the state after them, in one word (rank | state << 6). Half
 // the steps of the dependent chain, one load each: the cache build computes a key per point.
+// (States are 8-bit, so a word holds both.)
 const std::vector<std::array<uint16_t, 64>>& hilbert_pair_table() {
   static const std::vector<std::array<uint16_t, 64>> table = [] {
     const HilbertTable& t = hilbert_table();
-    if (t.rank.size() > 1024) fail("hilbert_table: {} states do not fit 10 bits", t.rank.size());
     std::vector<std::array<uint16_t, 64>> pairs(t.rank.size());
     for (size_t s = 0; s < t.rank.size(); ++s)
       for (uint32_t o = 0; o < 64; ++o) {

@@ -439,7 +439,7 @@ static_assert(kRunBlockBytes % 4096 == 0);
 // level 1's 2.55x at 0.86 GB/s.
 constexpr int kRunLevel = -1;
 
-// A thread's zstd contexts and buffers, made on first use and kept for its next blocks.
+// A thread's zstd contexts and buffers, made on first use and kept while the thread lives.
 struct RunCodec {
   ZSTD_CCtx* compress = nullptr;
   ZSTD_DCtx* decompress = nullptr;
@@ -557,7 +557,7 @@ void read_run_records(const RunFile& r, uint64_t first, uint64_t n, RunRecord* o
 }
 
 struct RunFiles {
-  std::deque<RunFile> files;  // a run's write holds its RunFile while the next is added
+  std::deque<RunFile> files;  // a run's write holds a reference to its RunFile
   ~RunFiles() {
     std::error_code ec;
     for (auto& f : files) {
@@ -739,7 +739,7 @@ std::string describe_build_phases(const PointletBuildStats& s) {
       s.sort_seconds, s.merge_seconds,
       s.run_bytes > 0 ? fmt::format(" (runs read back {:.2f} s)", s.run_read_seconds) : "",
       s.encode_seconds, s.write_seconds, s.write_wait_seconds, s.runs, s.runs == 1 ? "" : "s",
-      s.run_bytes > 0 ? fmt::format(" ({:.2f} GB of records, {:.2f} GB on disk)",
+      s.run_bytes > 0 ? fmt::format(" ({:.2f} GB of records, {:.2f} GB compressed)",
                                     double(s.run_bytes) / 1e9, double(s.run_disk_bytes) / 1e9)
                       : "");
 }
@@ -1076,7 +1076,7 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
         // cache). Where the file system cannot, the runs go when the build ends. On the
         // puncher's thread, off the merge's path: on ext4 a punch can wait for the dropped
         // pages' writeback (1B points on the H100 machine read their runs back in 13 s on its
-        // disk, with no disk reads, against 3 s in /dev/shm).
+        // disk, with no disk reads, against 3 s in /dev/shm: the likeliest cause).
         for (size_t i = 0; i < runs.files.size(); ++i) {
           const RunFile& r = runs.files[i];
           const uint64_t done =

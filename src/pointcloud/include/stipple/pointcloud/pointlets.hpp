@@ -115,15 +115,16 @@ struct PointletBuildStats {
   double read_seconds = 0, sort_seconds = 0, merge_seconds = 0, encode_seconds = 0,
          write_seconds = 0, write_wait_seconds = 0, seconds = 0;
   uint64_t peak_run_bytes = 0;  // the largest run held in memory
-  // The runs on disk: their records' bytes, and what they took compressed (0 without runs);
-  // of merge_seconds, the windows' reading back and decompressing of the runs.
+  // The runs on disk: their records' bytes, and their compressed bytes (0 without runs; on disk
+  // each block takes whole pages); of merge_seconds, the windows' reading back and
+  // decompressing of the runs (a dense prefix's merge reads its own).
   uint64_t run_bytes = 0, run_disk_bytes = 0;
   double run_read_seconds = 0;
 };
 
 // One line: "cache build: N M points/s; read a s, sort b s, merge c s (runs read back r s),
-// encode d s, write e s (beside the reads; f s waited for); R runs (X GB of records, Y GB on
-// disk)" (the --stats of `stipple pointlets` and of the virtualized render).
+// encode d s, write e s (beside the reads; f s waited for); R runs (X GB of records, Y GB
+// compressed)" (the --stats of `stipple pointlets` and of the virtualized render).
 std::string describe_build_phases(const PointletBuildStats& stats);
 
 // Builds the cache of `sources` (LAS/LAZ/COPC, read whole) at `cache_path`, atomically: the
