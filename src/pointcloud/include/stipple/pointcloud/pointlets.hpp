@@ -110,8 +110,9 @@ struct PointletBuildOptions {
 // the cache).
 struct PointletBuildStats {
   uint64_t points = 0, pointlets = 0, pointlet_points = 0, runs = 0;
-  // write_seconds: the writes' own time, which overlaps the reads (they run in the background);
-  // write_wait_seconds: how long the build waited for them.
+  // write_seconds: the writes' own time, which overlaps the reads (they run in the background;
+  // for the runs it includes their compression, done on the write threads); write_wait_seconds:
+  // how long the build waited for them.
   double read_seconds = 0, sort_seconds = 0, merge_seconds = 0, encode_seconds = 0,
          write_seconds = 0, write_wait_seconds = 0, seconds = 0;
   uint64_t peak_run_bytes = 0;  // the largest run held in memory
