@@ -98,7 +98,9 @@ test('the example page embeds a viewer; a second viewer on the page; camera, opt
   page.on('pageerror', (e) => log.push(`page error: ${e}`));
   page.on('console', (m) => log.push(`console ${m.type()}: ${m.text()}`));
   await page.goto(suite.server.url('viewer/example.html?scene-points=50000&point-size=2'));
-  await page.waitForFunction(() => window.viewer || document.getElementById('error').textContent,
+  // window.viewer is the <div id="viewer"> (the document's named access) until the page sets it
+  // to the viewer: wait for the viewer's own `loaded`.
+  await page.waitForFunction(() => window.viewer?.loaded || document.getElementById('error').textContent,
                              { timeout: 240000 });
   const load = await page.evaluate(() => window.viewer.loaded.then((info) => info, (e) => ({ error: e.message })));
   assert.equal(load.error, undefined, log.join('\n'));
