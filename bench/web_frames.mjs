@@ -11,8 +11,9 @@
 // (--before) copied every frame back into a 2D canvas within it) and the GPU's (gpuMs, from
 // timestamp queries in the page, where the adapter has them), the native wall and GPU per frame
 // (medians), and logs the canvas against the native image
-// (tileset.test.mjs's measure). bench/RESULTS.md ("A tileset by URL", "The page's WebGPU
-// canvas") has the figures.
+// (tileset.test.mjs's measure) and the page's GPU time per pass (gpuPassesMs: medians of the
+// settled frames; the last frame's for builds without it). bench/RESULTS.md ("A tileset by
+// URL", "The page's WebGPU canvas", "The page on SwiftShader") has the figures.
 //
 //   node bench/web_frames.mjs --points 10000000            generate, tile (cached in --work), run
 //   node bench/web_frames.mjs --tileset DIR                an existing tileset folder
@@ -111,7 +112,10 @@ try {
       await page.waitForFunction(() => window.stipple && (window.stipple.done || window.stipple.error),
                                  { timeout: Number(o['timeout-s']) * 1000, polling: 1000 });
       const wallMs = Date.now() - t0;
-      const web = await page.evaluate(() => ({ ...window.stipple }));
+      const web = await page.evaluate(() => ({
+        ...window.stipple,
+        lastPasses: window.stippleViewer?.stats ? window.stippleViewer.stats()?.gpuPasses : undefined,
+      }));
       if (web.error) throw new Error(`the ${name} page failed at ${size}: ${web.error}\n${log.join('\n')}`);
       // The same image as the native render (tests/web/tileset.test.mjs's measure)?
       const d = o['skip-native'] ? {} : await h.compareCanvas(page, fs.readFileSync(ref));
@@ -120,6 +124,8 @@ try {
                   `errors ${web.errors}, done in ${web.ms} ms (page opened to done ${wallMs} ms), ` +
                   `frame ${web.cpuMs ?? web.frameMs} ms (GPU ${web.gpuMs ?? '-'} ms); native ${native.renderer}, ${native.points} points: wall ` +
                   `${native.wall} ms, GPU ${native.gpu} ms; web vs native ${JSON.stringify(d)}; ` +
+                  (web.gpuPassesMs ? `page passes, medians of the settled frames (ms) ${web.gpuPassesMs}; `
+                                   : `page passes, last frame (ms) ${JSON.stringify(web.lastPasses ?? {})}; `) +
                   `load average ${os.loadavg()[0].toFixed(1)}`);
       rows.push(`| ${size} | ${name} | ${web.points} (native ${native.points}) | ` +
                 `${wallMs.toLocaleString('en-US')} | ${web.cpuMs ?? web.frameMs} | ${web.gpuMs ?? '-'} | ` +

@@ -62,6 +62,12 @@ fn batch_index(group: vec3<u32>, groups: vec3<u32>) -> u32 {
   return group.y * groups.x + group.x;
 }
 
+// PROLOGUE_PER_THREAD: every thread classifies the batch itself, and the pass has no barrier
+// and no workgroup memory. For CPU adapters (SwiftShader, lavapipe), where a workgroup with a
+// barrier runs each group of lanes as a coroutine: on SwiftShader the depth pass and HQS 1.5x
+// faster so (bench/RESULTS.md, "The page on SwiftShader"). The same result either way.
+override PROLOGUE_PER_THREAD: bool = false;
+
 // How every batch pass starts: thread 0 classifies the workgroup's batch (frustum, LOD,
 // precision), makes its screen matrix and reports it to count_batch(), which the including
 // shader defines (counters, or nothing); then every thread gets the precision in bits, 0 when
@@ -69,6 +75,18 @@ fn batch_index(group: vec3<u32>, groups: vec3<u32>) -> u32 {
 fn batch_prologue(group: u32, lid: u32) -> u32 {
   if (group >= params.batch_count) {
     return 0u;
+  }
+  if (PROLOGUE_PER_THREAD) {
+    let b = batches[group];
+    var skipped = false;
+    let bits = classify(params, b, &skipped);
+    let m = batch_screen_matrix(params, b, bits);
+    to_screen = m;
+    if (lid == 0u) {
+      count_batch(b, bits, skipped);
+    }
+    batch_inside = LEAN && bits != 0u && box_inside(m);
+    return bits;
   }
   if (lid == 0u) {
     let b = batches[group];

@@ -7,6 +7,8 @@
 @group(0) @binding(2) var<storage, read> depth_buffer: array<u32>;
 
 const NO_DEPTH: u32 = 0xffffffffu;
+// WINNER: the buffer holds the dilation's winners (compute_raster_display_common.wgsl's WINNER).
+override WINNER: bool = false;
 
 @vertex
 fn vs_fullscreen(@builtin(vertex_index) vertex: u32) -> @builtin(position) vec4<f32> {
@@ -17,7 +19,11 @@ fn vs_fullscreen(@builtin(vertex_index) vertex: u32) -> @builtin(position) vec4<
 @fragment
 fn fs_depth(@builtin(position) position: vec4<f32>) -> @builtin(frag_depth) f32 {
   let xy = vec2<u32>(position.xy);
-  let word = depth_buffer[(xy.y * params.width + xy.x) * params.depth_stride + params.depth_word];
+  let pixel = xy.y * params.width + xy.x;
+  var word = depth_buffer[pixel * params.depth_stride + params.depth_word];
+  if (WINNER) {
+    word = ~depth_buffer[2u * pixel];  // none (0) reads as NO_DEPTH
+  }
   if (word == NO_DEPTH) {
     return 0.0;
   }

@@ -879,6 +879,16 @@ std::string run_view(const Options& o) {
       if (first_settled > 0 && !gpu_ms.empty()) {
         std::sort(gpu_ms.begin(), gpu_ms.end());
         report("gpuMs", fmt::format("{:.3f}", gpu_ms[gpu_ms.size() / 2]));
+        // And each pass's median over the same frames (JSON: name to ms), for benches.
+        std::string passes;
+        for (const auto& [pass, times] : render_stats.history) {
+          if (times.size() < gpu_ms.size()) continue;  // not in every settled frame
+          std::vector<double> last(times.end() - std::ptrdiff_t(gpu_ms.size()), times.end());
+          std::sort(last.begin(), last.end());
+          passes += fmt::format(R"({}"{}":{:.3f})", passes.empty() ? "" : ",", pass,
+                                last[last.size() / 2]);
+        }
+        report("gpuPassesMs", "{" + passes + "}");
       }
     }
   }

@@ -500,6 +500,41 @@ TEST_P(ComputeRaster, KernelVariantsDrawTheSameImage) {
   }
 }
 
+// The batch passes shaped for CPU adapters (RasterKernel::cpu_shape: no barrier, each thread
+// classifying its batch; HQS's sums through the lean loop without the workgroup tile; the sums
+// cleared by clearBuffer; with points larger than a pixel on the scatter's devices, the display
+// reading through the dilation's winners) draw what the GPU shape draws: the fallback's colour
+// pass, and HQS with 3.5 px points and EDL on the 64-bit and 32-bit depth passes. Tolerance 0,
+// the same counters.
+TEST_P(ComputeRaster, CpuShapedKernelsDrawTheSameImage) {
+  STIPPLE_REQUIRE_DATA(path, "las/autzen_trim.las");
+  auto ctx = context();
+  const uint32_t w = 320, h = 180;
+  const auto [cloud, camera, batched] = load_framed(path, w, h);
+  pc::RasterKernel gpu_shape, cpu_shape;
+  gpu_shape.cpu_shape = pc::AutoSwitch::Off;
+  cpu_shape.cpu_shape = pc::AutoSwitch::On;
+  pc::ComputeRasterOptions large;  // HQS, dilated (the display through the winners), EDL
+  large.hqs = true;
+  large.point_size = 3.5f;
+  large.edl_strength = 1.0f;
+  const std::tuple<const char*, pc::ComputeRasterOptions, bool> cases[] = {
+      {"plain, 32-bit fallback", {}, true},
+      {"HQS, 3.5 px, EDL", large, false},
+      {"HQS, 3.5 px, EDL, 32-bit fallback", large, true}};
+  for (const auto& [name, options, fallback] : cases) {
+    SCOPED_TRACE(name);
+    const auto a = render_compute(*ctx, batched, camera, options, w, h, fallback, 0,
+                                  pc::DisplayPass::Auto, gpu_shape);
+    const auto b = render_compute(*ctx, batched, camera, options, w, h, fallback, 0,
+                                  pc::DisplayPass::Auto, cpu_shape);
+    ASSERT_GT(test::coverage_stats(a.image, kBlack, 0).coverage, 0.05);
+    EXPECT_EQ(test::differing_fraction(a.image, b.image, 0), 0.0);
+    EXPECT_EQ(a.counters.points_rendered, b.counters.points_rendered);
+    EXPECT_EQ(a.counters.batches_rendered, b.counters.batches_rendered);
+  }
+}
+
 // The workgroup tile of HQS's sums takes batches that cover at most 512 pixels: small batches of
 // a dense scene at overview distance do. At the plain frame's depth tolerance HQS sums what the
 // fallback's colour pass (no tile) sums, the points at each pixel's nearest depth: the images

@@ -142,22 +142,37 @@ gpu::ComputePipeline make_compute(gpu::Context& ctx, const char* file,
 
 // Threads a workgroup: the seed's 128 in the depth passes; 256 in the accumulation, where HQS
 // was 1.35x and the fallback's colours 1.23x faster than with 128 on the H200, and 64 2x slower
-// (bench/RESULTS.md, runs L-N).
+// (bench/RESULTS.md, runs L-N). CPU-shaped kernels (RasterKernel::cpu_shape) take 32 in the
+// accumulation: on SwiftShader HQS 1.4x faster than with 256 (both without barriers).
 constexpr uint32_t kDepthWorkgroup = 128;
 constexpr uint32_t kAccumulateWorkgroup = 256;
+constexpr uint32_t kCpuAccumulateWorkgroup = 32;
+
+bool cpu_shaped(const RasterKernel& kernel) {
+  return kernel.cpu_shape == AutoSwitch::On;
+}
 
 // The pipeline constants of the depth passes.
 std::vector<gpu::PipelineConstant> depth_constants(const RasterKernel& kernel) {
-  return {{"WORKGROUP", double(kDepthWorkgroup)}, {"ABLATE", double(kernel.ablate)}};
+  std::vector<gpu::PipelineConstant> constants = {{"WORKGROUP", double(kDepthWorkgroup)},
+                                                  {"ABLATE", double(kernel.ablate)}};
+  if (cpu_shaped(kernel)) constants.push_back({"PROLOGUE_PER_THREAD", 1.0});
+  return constants;
 }
 
 // The accumulation pass's: HQS's sums go through the workgroup tile and the general loop; the
 // fallback's colours (the nearest points only, few atomics) the screen's sums and the lean loop.
+// CPU-shaped, both take the lean loop and the screen's sums: the tile's barriers cost more than
+// its atomics save there.
 std::vector<gpu::PipelineConstant> accumulate_constants(const RasterKernel& kernel, bool hqs) {
-  return {{"WORKGROUP", double(kAccumulateWorkgroup)},
-          {"ABLATE", double(kernel.ablate)},
-          {"TILE", hqs ? 1.0 : 0.0},
-          {"LEAN", hqs ? 0.0 : 1.0}};
+  const bool cpu = cpu_shaped(kernel);
+  std::vector<gpu::PipelineConstant> constants = {
+      {"WORKGROUP", double(cpu ? kCpuAccumulateWorkgroup : kAccumulateWorkgroup)},
+      {"ABLATE", double(kernel.ablate)},
+      {"TILE", hqs && !cpu ? 1.0 : 0.0},
+      {"LEAN", hqs && !cpu ? 0.0 : 1.0}};
+  if (cpu) constants.push_back({"PROLOGUE_PER_THREAD", 1.0});
+  return constants;
 }
 
 // The depth pass's shader for the pipeline's variant (64-bit, or the fallback's with or without
@@ -406,6 +421,14 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   p.visibility_vec2u = p.visibility64 && !has_u64_atomics(ctx);
   p.color_format = color_format;
   p.kernel = kernel;
+  if (p.kernel.cpu_shape == AutoSwitch::Auto) {
+    const char* env = std::getenv("STIPPLE_RASTER_CPU_SHAPE");
+    const std::string_view forced = env ? env : "";
+    const bool on = forced == "on"    ? true
+                    : forced == "off" ? false
+                                      : gpu::is_cpu_adapter(ctx.description);
+    p.kernel.cpu_shape = on ? AutoSwitch::On : AutoSwitch::Off;
+  }
   p.max_storage_binding = ctx.limits.maxStorageBufferBindingSize;
   p.clear = make_compute(ctx, "compute_raster_clear.wgsl");
   const gpu::PipelineConstant depth_only[] = {{"CLEAR_ACCUM", 0.0}};
@@ -415,7 +438,7 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   // viewport, tile entries bounded). The depth pass 1.06x, HQS 1.19x faster on the H200
   // (bench/RESULTS.md, runs W-Y); STIPPLE_SHADER_CHECKS=on keeps the checks.
   constexpr bool trusted = true;
-  const auto depth = depth_constants(kernel);
+  const auto depth = depth_constants(p.kernel);
   if (p.visibility_vec2u) {
     // A browser's newer feature: should its compiler refuse the pass, the page still draws,
     // with the fallback (said once).
@@ -441,7 +464,7 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
     // The fallback's colours: the nearest points' (the colour pass), where events are off or
     // overflowed.
     p.accumulate_colours = make_compute(ctx, "compute_raster_accumulate.wgsl",
-                                        accumulate_constants(kernel, false), trusted);
+                                        accumulate_constants(p.kernel, false), trusted);
     const bool events_wanted =
         kernel.fallback_events == AutoSwitch::On ||
         (kernel.fallback_events == AutoSwitch::Auto && ctx.description.adapter_type != "CPU");
@@ -470,7 +493,7 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
     }
   }
   p.accumulate = make_compute(ctx, "compute_raster_accumulate.wgsl",
-                              accumulate_constants(kernel, true), trusted);
+                              accumulate_constants(p.kernel, true), trusted);
 
   gpu::ShaderModule display_module =
       gpu::create_shader_from_file(ctx, "compute_raster_display.wgsl");
@@ -489,6 +512,22 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   }
   if (display == DisplayPass::Compute && color_format == WGPUTextureFormat_RGBA8Unorm)
     p.display_compute = make_compute(ctx, "compute_raster_display_cs.wgsl");
+  // The display through the dilation's winners (WINNER): where the scatter dilates and the
+  // kernels are CPU-shaped, as the resolve pass's full-screen copy costs most there.
+  p.dilate_gather = dilate_by_gather(ctx);
+  if (cpu_shaped(p.kernel) && !p.dilate_gather) {
+    for (auto& b : p.dilate_unused)
+      b = gpu::create_buffer(ctx, 16, WGPUBufferUsage_Storage, "raster-dilate-unused");
+    const gpu::PipelineConstant winner[] = {{"WINNER", 1.0}};
+    p.display_winner = gpu::create_fullscreen_pipeline(ctx, {.module = display_module.get(),
+                                                             .vertex_entry = "vs_main",
+                                                             .fragment_entry = "fs_main",
+                                                             .format = color_format,
+                                                             .label = "raster-display-winner",
+                                                             .constants = winner});
+    if (p.display_compute)
+      p.display_compute_winner = make_compute(ctx, "compute_raster_display_cs.wgsl", winner);
+  }
 
   {
     using B = gpu::BufferBinding;
@@ -642,7 +681,12 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
         if (cloud.segments.empty()) return;
         // Without accumulation the resolve pass writes every pixel of the colour sums
         // (empty ones too): only the depth buffer needs clearing, a third of the bytes.
-        const gpu::ComputePipeline& clear = accumulate ? p.clear : p.clear_depth;
+        // CPU-shaped, clearBuffer zeroes the sums (a memset there: on SwiftShader the pass 1.5x
+        // faster than storing them from the shader).
+        const bool sums_by_shader = accumulate && !cpu_shaped(p.kernel);
+        if (accumulate && !sums_by_shader)
+          wgpuCommandEncoderClearBuffer(pc.encoder(), pc.buffer(accum_name), 0, WGPU_WHOLE_SIZE);
+        const gpu::ComputePipeline& clear = sums_by_shader ? p.clear : p.clear_depth;
         auto layout = gpu::bind_group_layout_of(clear);
         auto group = gpu::create_bind_group(ctx, layout.get(),
                                             {gpu::bind_buffer(0, cloud.segments[0].params.get()),
@@ -656,7 +700,7 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   clear_pass
       .create_buffer(depth_name,
                      {pixels * (use64 ? 8 : 4) + (events ? 4 : 0), WGPUBufferUsage_Storage})
-      .create_buffer(accum_name, {pixels * 16, WGPUBufferUsage_Storage});
+      .create_buffer(accum_name, {pixels * 16, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst});
   if (events)
     clear_pass.create_buffer(events_name,
                              {event_bytes, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst});
@@ -860,51 +904,67 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
         .create_buffer(out, {pixels * 16, WGPUBufferUsage_Storage});
     shown = out;
   };
+  // The display reads through the dilation's winners where it is their only reader (no
+  // resolve pass; ComputeRasterPipeline::display_winner).
+  const bool occlusion = options.occlusion_beta > 0.0f && options.occlusion_radius > 0;
+  const bool winner_display =
+      large && p.display_winner && !occlusion && options.fill_radius == 0 && !translucent &&
+      (!options.storage_target || !p.display_compute || p.display_compute_winner);
   if (large) {
-    const float r = options.point_size * 0.5f;
+    // Offset codes hold 8 bits a coordinate (compute_raster_fill.wgsl): points up to 254 px.
+    const float r = std::min(options.point_size * 0.5f, 127.0f);
     const FillParams fp{
         width,     height, uint32_t(std::ceil(r)), use64 ? 2u : 1u, use64 ? 1u : 0u, 0.0f,
         pixel_tan, r * r};
     const uint64_t depth_bytes = pixels * (use64 ? 8 : 4);
-    graph
-        .add_pass(
-            "raster-dilate", gpu::PassKind::Compute,
-            [&p, fp, depth_name, in = shown, groups_x, groups_y](gpu::PassContext& pc) {
-              gpu::Context& ctx = pc.gpu();
-              gpu::write_buffer(ctx, p.dilate_params.get(), 0, fp);
-              const WGPUBuffer winner = pc.buffer("raster-dilate-winner");
-              auto group = gpu::create_bind_group(
-                  ctx, p.dilate_layout.get(),
-                  {gpu::bind_buffer(0, p.dilate_params.get()),
-                   gpu::bind_buffer(1, pc.buffer(depth_name)), gpu::bind_buffer(2, pc.buffer(in)),
-                   gpu::bind_buffer(3, pc.buffer("raster-dilated")),
-                   gpu::bind_buffer(4, pc.buffer("raster-dilated-depth")),
-                   gpu::bind_buffer(5, winner)});
-              // By scatter from the drawn pixels on CPU adapters (SwiftShader, lavapipe), where
-              // the window over every pixel cost most of the frame; by that window on GPUs, where
-              // views are dense and it measured 1.6x faster (bench/RESULTS.md, "Dilation").
-              // STIPPLE_DILATE=gather|scatter chooses for the bench. The same image either way.
-              const bool gather = dilate_by_gather(ctx);
-              if (!gather) wgpuCommandEncoderClearBuffer(pc.encoder(), winner, 0, WGPU_WHOLE_SIZE);
-              auto pass = pc.begin_compute_pass();
-              if (gather) {
-                gpu::dispatch(pass.get(), p.dilate.get(), {group.get()}, groups_x, groups_y);
-              } else {
-                for (const auto* pipeline : {&p.dilate_depth, &p.dilate_offset, &p.dilate_resolve})
-                  gpu::dispatch(pass.get(), pipeline->get(), {group.get()}, groups_x, groups_y);
-              }
-              wgpuComputePassEncoderEnd(pass.get());
-            })
-        .read(depth_name)
+    auto dilate = graph.add_pass(
+        "raster-dilate", gpu::PassKind::Compute,
+        [&p, fp, depth_name, in = shown, groups_x, groups_y, winner_display](gpu::PassContext& pc) {
+          gpu::Context& ctx = pc.gpu();
+          gpu::write_buffer(ctx, p.dilate_params.get(), 0, fp);
+          const bool gather = p.dilate_gather;
+          const WGPUBuffer winner = pc.buffer("raster-dilate-winner");
+          // Without the resolve, its outputs' bindings take stand-ins nothing reads.
+          const WGPUBuffer dilated =
+              winner_display ? p.dilate_unused[0].get() : pc.buffer("raster-dilated");
+          const WGPUBuffer dilated_depth =
+              winner_display ? p.dilate_unused[1].get() : pc.buffer("raster-dilated-depth");
+          auto group = gpu::create_bind_group(
+              ctx, p.dilate_layout.get(),
+              {gpu::bind_buffer(0, p.dilate_params.get()),
+               gpu::bind_buffer(1, pc.buffer(depth_name)), gpu::bind_buffer(2, pc.buffer(in)),
+               gpu::bind_buffer(3, dilated), gpu::bind_buffer(4, dilated_depth),
+               gpu::bind_buffer(5, winner)});
+          // By scatter from the drawn pixels on CPU adapters (SwiftShader, lavapipe), where
+          // the window over every pixel cost most of the frame; by that window on GPUs, where
+          // views are dense and it measured 1.6x faster (bench/RESULTS.md, "Dilation").
+          // STIPPLE_DILATE=gather|scatter chooses for the bench. The same image either way.
+          if (!gather) wgpuCommandEncoderClearBuffer(pc.encoder(), winner, 0, WGPU_WHOLE_SIZE);
+          auto pass = pc.begin_compute_pass();
+          if (gather) {
+            gpu::dispatch(pass.get(), p.dilate.get(), {group.get()}, groups_x, groups_y);
+          } else {
+            for (const auto* pipeline : {&p.dilate_depth, &p.dilate_offset})
+              gpu::dispatch(pass.get(), pipeline->get(), {group.get()}, groups_x, groups_y);
+            if (!winner_display)
+              gpu::dispatch(pass.get(), p.dilate_resolve.get(), {group.get()}, groups_x, groups_y);
+          }
+          wgpuComputePassEncoderEnd(pass.get());
+        });
+    dilate.read(depth_name)
         .read(shown)
-        .create_buffer("raster-dilated", {pixels * 16, WGPUBufferUsage_Storage})
-        .create_buffer("raster-dilated-depth", {depth_bytes, WGPUBufferUsage_Storage})
         .create_buffer("raster-dilate-winner",
                        {pixels * 8, WGPUBufferUsage_Storage | WGPUBufferUsage_CopyDst});
-    shown = "raster-dilated";
-    depth_shown = "raster-dilated-depth";
+    if (winner_display) {
+      depth_shown = "raster-dilate-winner";  // `shown` stays the sums before dilation
+    } else {
+      dilate.create_buffer("raster-dilated", {pixels * 16, WGPUBufferUsage_Storage})
+          .create_buffer("raster-dilated-depth", {depth_bytes, WGPUBufferUsage_Storage});
+      shown = "raster-dilated";
+      depth_shown = "raster-dilated-depth";
+    }
   }
-  if (options.occlusion_beta > 0.0f && options.occlusion_radius > 0)
+  if (occlusion)
     add_post_pass("raster-occlusion", p.occlusion, p.occlusion_params, options.occlusion_radius,
                   "raster-visible");
   if (options.fill_radius > 0)
@@ -973,32 +1033,44 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
       desc.multisample.mask = ~0u;
       desc.fragment = &fragment;
       p.depth_export = gpu::RenderPipeline(wgpuDeviceCreateRenderPipeline(ctx.device.get(), &desc));
+      if (p.display_winner) {  // its form reading the dilation's winners
+        WGPUConstantEntry winner = WGPU_CONSTANT_ENTRY_INIT;
+        winner.key = gpu::to_view("WINNER");
+        winner.value = 1.0;
+        fragment.constantCount = 1;
+        fragment.constants = &winner;
+        p.depth_export_winner =
+            gpu::RenderPipeline(wgpuDeviceCreateRenderPipeline(ctx.device.get(), &desc));
+      }
     });
     const std::string target = options.depth_texture;
     graph
-        .add_pass("raster-depth-export", gpu::PassKind::Render,
-                  [&p, &cloud, target, depth_name = depth_shown](gpu::PassContext& pc) {
-                    WGPURenderPassDepthStencilAttachment depth =
-                        WGPU_RENDER_PASS_DEPTH_STENCIL_ATTACHMENT_INIT;
-                    depth.view = pc.view(target);
-                    depth.depthLoadOp = WGPULoadOp_Clear;
-                    depth.depthStoreOp = WGPUStoreOp_Store;
-                    depth.depthClearValue = 0.0f;
-                    WGPURenderPassDescriptor desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
-                    desc.depthStencilAttachment = &depth;
-                    auto pass = pc.begin_render_pass(desc);
-                    if (!cloud.segments.empty()) {
-                      auto layout = gpu::bind_group_layout_of(p.depth_export);
-                      auto group = gpu::create_bind_group(
-                          pc.gpu(), layout.get(),
-                          {gpu::bind_buffer(0, cloud.segments[0].params.get()),
-                           gpu::bind_buffer(2, pc.buffer(depth_name))});
-                      wgpuRenderPassEncoderSetPipeline(pass.get(), p.depth_export.get());
-                      gpu::set_bind_groups(pass.get(), {group.get()});
-                      wgpuRenderPassEncoderDraw(pass.get(), 3, 1, 0, 0);
-                    }
-                    wgpuRenderPassEncoderEnd(pass.get());
-                  })
+        .add_pass(
+            "raster-depth-export", gpu::PassKind::Render,
+            [&p, &cloud, target, depth_name = depth_shown, winner_display](gpu::PassContext& pc) {
+              WGPURenderPassDepthStencilAttachment depth =
+                  WGPU_RENDER_PASS_DEPTH_STENCIL_ATTACHMENT_INIT;
+              depth.view = pc.view(target);
+              depth.depthLoadOp = WGPULoadOp_Clear;
+              depth.depthStoreOp = WGPUStoreOp_Store;
+              depth.depthClearValue = 0.0f;
+              WGPURenderPassDescriptor desc = WGPU_RENDER_PASS_DESCRIPTOR_INIT;
+              desc.depthStencilAttachment = &depth;
+              auto pass = pc.begin_render_pass(desc);
+              if (!cloud.segments.empty()) {
+                const gpu::RenderPipeline& pipeline =
+                    winner_display ? p.depth_export_winner : p.depth_export;
+                auto layout = gpu::bind_group_layout_of(pipeline);
+                auto group =
+                    gpu::create_bind_group(pc.gpu(), layout.get(),
+                                           {gpu::bind_buffer(0, cloud.segments[0].params.get()),
+                                            gpu::bind_buffer(2, pc.buffer(depth_name))});
+                wgpuRenderPassEncoderSetPipeline(pass.get(), pipeline.get());
+                gpu::set_bind_groups(pass.get(), {group.get()});
+                wgpuRenderPassEncoderDraw(pass.get(), 3, 1, 0, 0);
+              }
+              wgpuRenderPassEncoderEnd(pass.get());
+            })
         .read(depth_shown)
         .create_texture(target,
                         {width, height, WGPUTextureFormat_Depth32Float,
@@ -1010,11 +1082,12 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
     auto display = graph.add_pass(
         "raster-display", gpu::PassKind::Compute,
         [&p, &cloud, accum_name = shown, color_target, depth_name = depth_shown, gx, gy,
-         translucent, translucent_name](gpu::PassContext& pc) {
+         translucent, translucent_name, winner_display](gpu::PassContext& pc) {
           gpu::Context& ctx = pc.gpu();
           if (cloud.segments.empty()) return;
-          const gpu::ComputePipeline& pipeline =
-              translucent ? p.split.display_compute : p.display_compute;
+          const gpu::ComputePipeline& pipeline = translucent      ? p.split.display_compute
+                                                 : winner_display ? p.display_compute_winner
+                                                                  : p.display_compute;
           auto layout = gpu::bind_group_layout_of(pipeline);
           std::vector<gpu::Binding> bindings = {gpu::bind_buffer(0, cloud.segments[0].params.get()),
                                                 gpu::bind_buffer(1, pc.buffer(accum_name)),
@@ -1033,9 +1106,11 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
   auto display = graph.add_pass(
       "raster-display", gpu::PassKind::Render,
       [&p, &cloud, accum_name = shown, color_target, depth_name = depth_shown, translucent,
-       translucent_name](gpu::PassContext& pc) {
+       translucent_name, winner_display](gpu::PassContext& pc) {
         gpu::Context& ctx = pc.gpu();
-        const gpu::RenderPipeline& pipeline = translucent ? p.split.display : p.display;
+        const gpu::RenderPipeline& pipeline = translucent      ? p.split.display
+                                              : winner_display ? p.display_winner
+                                                               : p.display;
         auto layout = gpu::bind_group_layout_of(pipeline);
         if (cloud.segments.empty()) return;
         std::vector<gpu::Binding> bindings = {gpu::bind_buffer(0, cloud.segments[0].params.get()),

@@ -554,6 +554,13 @@ RenderPipeline create_fullscreen_pipeline(Context& ctx, const FullscreenPipeline
   fragment.entryPoint = to_view(d.fragment_entry);
   fragment.targetCount = 1;
   fragment.targets = &target;
+  std::vector<WGPUConstantEntry> entries(d.constants.size(), WGPU_CONSTANT_ENTRY_INIT);
+  for (size_t i = 0; i < d.constants.size(); ++i) {
+    entries[i].key = to_view(d.constants[i].name);
+    entries[i].value = d.constants[i].value;
+  }
+  fragment.constantCount = entries.size();
+  fragment.constants = entries.empty() ? nullptr : entries.data();
   WGPURenderPipelineDescriptor desc = WGPU_RENDER_PIPELINE_DESCRIPTOR_INIT;
   desc.label = to_view(d.label);
   desc.layout = d.layout;

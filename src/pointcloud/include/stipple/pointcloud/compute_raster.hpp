@@ -134,6 +134,13 @@ struct RasterKernel {
   // overview); on lavapipe 1.24x slower (a thread there waits long for an atomic's answer).
   AutoSwitch fallback_events = AutoSwitch::Auto;
   uint32_t events_per_pixel = 4;
+  // The batch passes shaped for CPU adapters: no barrier or workgroup memory (each thread
+  // classifies its batch), HQS through the lean loop without the workgroup tile, 32 threads a
+  // workgroup in the accumulation, the colour sums cleared by clearBuffer, and with the scatter
+  // dilation the display reading through its winners (no resolve pass). The same images.
+  // Auto: on CPU adapters (on SwiftShader the depth pass 1.5x, HQS 4-5x faster: RESULTS.md);
+  // STIPPLE_RASTER_CPU_SHAPE=on|off overrides for benches.
+  AutoSwitch cpu_shape = AutoSwitch::Auto;
   // RasterAblation bits: bench only, wrong images. 0 everywhere else.
   uint32_t ablate = 0;
 };
@@ -171,8 +178,9 @@ struct ComputeRasterPipeline {
   bool depth32_plain_early = false;
   uint64_t max_storage_binding = 0;  // the device's maxStorageBufferBindingSize (the event list)
   gpu::RenderPipeline display;
-  // ComputeRasterOptions::depth_texture's pass, made on first use.
-  gpu::RenderPipeline depth_export;
+  // ComputeRasterOptions::depth_texture's pass, made on first use (and its form reading the
+  // dilation's winners, with display_winner).
+  gpu::RenderPipeline depth_export, depth_export_winner;
   // The display as a compute pass (RGBA8Unorm targets with storage usage); null otherwise.
   gpu::ComputePipeline display_compute;
   gpu::Buffer counters;  // RasterCounters as u32s, cleared each frame
@@ -186,6 +194,12 @@ struct ComputeRasterPipeline {
   gpu::PipelineLayout dilate_pipeline_layout;
   gpu::ComputePipeline dilate;  // by the window over every pixel (STIPPLE_DILATE=gather)
   gpu::ComputePipeline dilate_depth, dilate_offset, dilate_resolve;  // by scatter (default)
+  bool dilate_gather = false;  // which of the two this device takes
+  // CPU-shaped kernels with the scatter: the display reading through the dilation's winners
+  // (WINNER in compute_raster_display_common.wgsl), used where the display is their only reader.
+  gpu::RenderPipeline display_winner;
+  gpu::ComputePipeline display_compute_winner;
+  gpu::Buffer dilate_unused[2];  // the resolve's outputs' bindings when it does not run
   gpu::Buffer dilate_params;
   // Filters and clip region (point_filter.wgsl), rewritten each frame.
   gpu::Buffer filter_uniforms, polygon_vertices;

@@ -218,6 +218,7 @@ struct FullscreenPipelineDesc {
   WGPUTextureFormat format = WGPUTextureFormat_RGBA8Unorm;
   const WGPUBlendState* blend = nullptr;  // null: the fragment's colour replaces the target's
   std::string_view label;
+  std::span<const PipelineConstant> constants = {};  // the fragment stage's overrides
 };
 RenderPipeline create_fullscreen_pipeline(Context& ctx, const FullscreenPipelineDesc& desc);
 
