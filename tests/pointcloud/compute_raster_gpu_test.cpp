@@ -504,8 +504,8 @@ TEST_P(ComputeRaster, KernelVariantsDrawTheSameImage) {
 // classifying its batch; HQS's sums through the lean loop without the workgroup tile; the sums
 // cleared by clearBuffer; with points larger than a pixel on the scatter's devices, the display
 // reading through the dilation's winners) draw what the GPU shape draws: the fallback's colour
-// pass, and HQS with 3.5 px points and EDL on the 64-bit and 32-bit depth passes. Tolerance 0,
-// the same counters.
+// pass, and HQS with 3.5 px points and EDL on the 64-bit and 32-bit depth passes, with the
+// display's render and compute forms. Tolerance 0, the same counters.
 TEST_P(ComputeRaster, CpuShapedKernelsDrawTheSameImage) {
   STIPPLE_REQUIRE_DATA(path, "las/autzen_trim.las");
   auto ctx = context();
@@ -518,16 +518,19 @@ TEST_P(ComputeRaster, CpuShapedKernelsDrawTheSameImage) {
   large.hqs = true;
   large.point_size = 3.5f;
   large.edl_strength = 1.0f;
-  const std::tuple<const char*, pc::ComputeRasterOptions, bool> cases[] = {
-      {"plain, 32-bit fallback", {}, true},
-      {"HQS, 3.5 px, EDL", large, false},
-      {"HQS, 3.5 px, EDL, 32-bit fallback", large, true}};
-  for (const auto& [name, options, fallback] : cases) {
+  using Display = pc::DisplayPass;
+  const std::tuple<const char*, pc::ComputeRasterOptions, bool, Display> cases[] = {
+      {"plain, 32-bit fallback", {}, true, Display::Auto},
+      {"HQS, 3.5 px, EDL", large, false, Display::Auto},
+      {"HQS, 3.5 px, EDL, 32-bit fallback", large, true, Display::Auto},
+      {"HQS, 3.5 px, EDL, the display as a compute pass (the page's)", large, false,
+       Display::Compute}};
+  for (const auto& [name, options, fallback, display] : cases) {
     SCOPED_TRACE(name);
-    const auto a = render_compute(*ctx, batched, camera, options, w, h, fallback, 0,
-                                  pc::DisplayPass::Auto, gpu_shape);
-    const auto b = render_compute(*ctx, batched, camera, options, w, h, fallback, 0,
-                                  pc::DisplayPass::Auto, cpu_shape);
+    const auto a =
+        render_compute(*ctx, batched, camera, options, w, h, fallback, 0, display, gpu_shape);
+    const auto b =
+        render_compute(*ctx, batched, camera, options, w, h, fallback, 0, display, cpu_shape);
     ASSERT_GT(test::coverage_stats(a.image, kBlack, 0).coverage, 0.05);
     EXPECT_EQ(test::differing_fraction(a.image, b.image, 0), 0.0);
     EXPECT_EQ(a.counters.points_rendered, b.counters.points_rendered);
