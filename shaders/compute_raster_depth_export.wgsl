@@ -20,9 +20,11 @@ fn vs_fullscreen(@builtin(vertex_index) vertex: u32) -> @builtin(position) vec4<
 fn fs_depth(@builtin(position) position: vec4<f32>) -> @builtin(frag_depth) f32 {
   let xy = vec2<u32>(position.xy);
   let pixel = xy.y * params.width + xy.x;
-  var word = depth_buffer[pixel * params.depth_stride + params.depth_word];
+  var word: u32;
   if (WINNER) {
     word = ~depth_buffer[2u * pixel];  // none (0) reads as NO_DEPTH
+  } else {
+    word = depth_buffer[pixel * params.depth_stride + params.depth_word];
   }
   if (word == NO_DEPTH) {
     return 0.0;

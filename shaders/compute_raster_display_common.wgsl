@@ -7,6 +7,7 @@
 // (compute_raster_display_opaque.wgsl), or the translucent points laid over it
 // (compute_raster_display_oit.wgsl).
 #include "compute_raster_common.wgsl"
+#include "compute_raster_dilate_code.wgsl"
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> accum: array<vec4<u32>>;
@@ -34,9 +35,8 @@ fn sums_of(xy: vec2<i32>, pixel: u32) -> vec4<u32> {
   if (WINNER && depth_buffer[2u * pixel] != 0u) {
     let code = ~depth_buffer[2u * pixel + 1u];
     if (code != 0u) {
-      let dx = i32((code - 1u) % 256u) - 128;
-      let dy = i32((code - 1u) / 256u) - 128;
-      return accum[u32(xy.y + dy) * params.width + u32(xy.x + dx)];
+      let source = xy + dilate_offset_of(code);
+      return accum[u32(source.y) * params.width + u32(source.x)];
     }
   }
   return accum[pixel];

@@ -19,6 +19,9 @@
 //     than a pixel leave most pixels empty before dilation. Where the display is the only
 //     reader, it reads through the winners itself and the resolve does not run (WINNER in
 //     compute_raster_display_common.wgsl).
+
+#include "compute_raster_dilate_code.wgsl"
+
 struct FillParams {
   width: u32,
   height: u32,
@@ -172,16 +175,6 @@ fn dilate_main(@builtin(global_invocation_id) id: vec3<u32>) {
 // atomicMax keeps the least and 0 stands for none.
 @group(0) @binding(5) var<storage, read_write> dilate_winner: array<atomic<u32>>;
 
-// dilate_main's scan order over the window (rows, then columns), the pixel itself first: the
-// offset of the covering pixel from the covered one, 8 bits a coordinate (radius <= 127), so that
-// a reader needs no radius to decode it (dilate_source_offset; the display reads it too:
-// compute_raster_display_common.wgsl).
-fn dilate_offset_code(dx: i32, dy: i32) -> u32 {
-  if (dx == 0 && dy == 0) {
-    return 0u;
-  }
-  return u32((dy + 128) * 256 + dx + 128) + 1u;
-}
 
 // The drawn pixel at `id` (or none), as its depth bits; the caller's work follows from it.
 fn dilate_source_depth(id: vec3<u32>) -> u32 {
@@ -253,9 +246,8 @@ fn dilate_resolve_main(@builtin(global_invocation_id) id: vec3<u32>) {
   if (atomicLoad(&dilate_winner[2u * pixel]) != 0u) {
     let code = ~atomicLoad(&dilate_winner[2u * pixel + 1u]);
     if (code != 0u) {
-      let dx = i32((code - 1u) % 256u) - 128;
-      let dy = i32((code - 1u) / 256u) - 128;
-      source = u32(i32(id.y) + dy) * fp.width + u32(i32(id.x) + dx);
+      let d = dilate_offset_of(code);
+      source = u32(i32(id.y) + d.y) * fp.width + u32(i32(id.x) + d.x);
     }
   }
   accum_out[pixel] = accum_in[source];

@@ -22,13 +22,18 @@
 namespace stipple::pc {
 namespace {
 
+// A bench switch between two forms of a pass: true where the environment variable `name` says
+// `yes`, false where it says `no`, else `otherwise` (the device's choice).
+bool env_choice(const char* name, std::string_view yes, std::string_view no, bool otherwise) {
+  const char* env = std::getenv(name);
+  const std::string_view forced = env ? env : "";
+  return forced == yes ? true : forced == no ? false : otherwise;
+}
+
 // How raster-dilate runs (see its pass): the window over every pixel on GPUs, scatter from the
 // drawn pixels on CPU adapters; STIPPLE_DILATE=gather|scatter overrides.
 bool dilate_by_gather(const gpu::Context& ctx) {
-  static const char* forced = std::getenv("STIPPLE_DILATE");
-  if (forced && std::string_view(forced) == "gather") return true;
-  if (forced && std::string_view(forced) == "scatter") return false;
-  return !gpu::is_cpu_adapter(ctx.description);
+  return env_choice("STIPPLE_DILATE", "gather", "scatter", !gpu::is_cpu_adapter(ctx.description));
 }
 
 // Mirrors Params in compute_raster_common.wgsl.
@@ -421,14 +426,11 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
   p.visibility_vec2u = p.visibility64 && !has_u64_atomics(ctx);
   p.color_format = color_format;
   p.kernel = kernel;
-  if (p.kernel.cpu_shape == AutoSwitch::Auto) {
-    const char* env = std::getenv("STIPPLE_RASTER_CPU_SHAPE");
-    const std::string_view forced = env ? env : "";
-    const bool on = forced == "on"    ? true
-                    : forced == "off" ? false
-                                      : gpu::is_cpu_adapter(ctx.description);
-    p.kernel.cpu_shape = on ? AutoSwitch::On : AutoSwitch::Off;
-  }
+  if (p.kernel.cpu_shape == AutoSwitch::Auto)
+    p.kernel.cpu_shape =
+        env_choice("STIPPLE_RASTER_CPU_SHAPE", "on", "off", gpu::is_cpu_adapter(ctx.description))
+            ? AutoSwitch::On
+            : AutoSwitch::Off;
   p.max_storage_binding = ctx.limits.maxStorageBufferBindingSize;
   p.clear = make_compute(ctx, "compute_raster_clear.wgsl");
   const gpu::PipelineConstant depth_only[] = {{"CLEAR_ACCUM", 0.0}};
@@ -502,14 +504,11 @@ ComputeRasterPipeline create_compute_raster_pipeline(gpu::Context& ctx,
                                                     .fragment_entry = "fs_main",
                                                     .format = color_format,
                                                     .label = "raster-display"});
-  if (display == DisplayPass::Auto) {
-    const char* env = std::getenv("STIPPLE_DISPLAY_PASS");
-    const std::string_view forced = env ? env : "";
-    display = forced == "render"                      ? DisplayPass::Render
-              : forced == "compute"                   ? DisplayPass::Compute
-              : ctx.description.adapter_type == "CPU" ? DisplayPass::Render
-                                                      : DisplayPass::Compute;
-  }
+  if (display == DisplayPass::Auto)
+    display = env_choice("STIPPLE_DISPLAY_PASS", "render", "compute",
+                         ctx.description.adapter_type == "CPU")
+                  ? DisplayPass::Render
+                  : DisplayPass::Compute;
   if (display == DisplayPass::Compute && color_format == WGPUTextureFormat_RGBA8Unorm)
     p.display_compute = make_compute(ctx, "compute_raster_display_cs.wgsl");
   // The display through the dilation's winners (WINNER): where the scatter dilates and the
@@ -683,10 +682,11 @@ void add_compute_raster_passes(gpu::RenderGraph& graph, ComputeRasterPipeline& p
         // (empty ones too): only the depth buffer needs clearing, a third of the bytes.
         // CPU-shaped, clearBuffer zeroes the sums (a memset there: on SwiftShader the pass 1.5x
         // faster than storing them from the shader).
-        const bool sums_by_shader = accumulate && !cpu_shaped(p.kernel);
-        if (accumulate && !sums_by_shader)
+        const bool sums_by_buffer_clear = accumulate && cpu_shaped(p.kernel);
+        if (sums_by_buffer_clear)
           wgpuCommandEncoderClearBuffer(pc.encoder(), pc.buffer(accum_name), 0, WGPU_WHOLE_SIZE);
-        const gpu::ComputePipeline& clear = sums_by_shader ? p.clear : p.clear_depth;
+        const gpu::ComputePipeline& clear =
+            accumulate && !sums_by_buffer_clear ? p.clear : p.clear_depth;
         auto layout = gpu::bind_group_layout_of(clear);
         auto group = gpu::create_bind_group(ctx, layout.get(),
                                             {gpu::bind_buffer(0, cloud.segments[0].params.get()),

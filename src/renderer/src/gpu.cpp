@@ -489,6 +489,19 @@ BindGroup create_bind_group(Context& ctx, WGPUBindGroupLayout layout,
   return BindGroup(wgpuDeviceCreateBindGroup(ctx.device.get(), &desc));
 }
 
+namespace {
+// A stage's pipeline-overridable constants, as the descriptors take them (keys borrow the
+// names).
+std::vector<WGPUConstantEntry> constant_entries(std::span<const PipelineConstant> constants) {
+  std::vector<WGPUConstantEntry> entries(constants.size(), WGPU_CONSTANT_ENTRY_INIT);
+  for (size_t i = 0; i < constants.size(); ++i) {
+    entries[i].key = to_view(constants[i].name);
+    entries[i].value = constants[i].value;
+  }
+  return entries;
+}
+}  // namespace
+
 ComputePipeline create_compute_pipeline(Context& ctx, WGPUShaderModule module,
                                         std::string_view entry, WGPUPipelineLayout layout,
                                         std::string_view label,
@@ -498,11 +511,7 @@ ComputePipeline create_compute_pipeline(Context& ctx, WGPUShaderModule module,
   desc.layout = layout;
   desc.compute.module = module;
   desc.compute.entryPoint = to_view(entry);
-  std::vector<WGPUConstantEntry> entries(constants.size(), WGPU_CONSTANT_ENTRY_INIT);
-  for (size_t i = 0; i < constants.size(); ++i) {
-    entries[i].key = to_view(constants[i].name);
-    entries[i].value = constants[i].value;
-  }
+  const std::vector<WGPUConstantEntry> entries = constant_entries(constants);
   desc.compute.constantCount = entries.size();
   desc.compute.constants = entries.empty() ? nullptr : entries.data();
   return ComputePipeline(wgpuDeviceCreateComputePipeline(ctx.device.get(), &desc));
@@ -554,11 +563,7 @@ RenderPipeline create_fullscreen_pipeline(Context& ctx, const FullscreenPipeline
   fragment.entryPoint = to_view(d.fragment_entry);
   fragment.targetCount = 1;
   fragment.targets = &target;
-  std::vector<WGPUConstantEntry> entries(d.constants.size(), WGPU_CONSTANT_ENTRY_INIT);
-  for (size_t i = 0; i < d.constants.size(); ++i) {
-    entries[i].key = to_view(d.constants[i].name);
-    entries[i].value = d.constants[i].value;
-  }
+  const std::vector<WGPUConstantEntry> entries = constant_entries(d.constants);
   fragment.constantCount = entries.size();
   fragment.constants = entries.empty() ? nullptr : entries.data();
   WGPURenderPipelineDescriptor desc = WGPU_RENDER_PIPELINE_DESCRIPTOR_INIT;
