@@ -8,7 +8,8 @@
 
 @group(0) @binding(0) var<uniform> frame: SplatFrame;
 @group(0) @binding(1) var<storage, read> splats: array<Splat>;
-@group(0) @binding(2) var<storage, read> sh: array<u32>;  // f16 pairs, sh_stride words a splat
+// f16 pairs, sh_stride words (a multiple of four) a splat
+@group(0) @binding(2) var<storage, read> sh: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read_write> projected: array<Projected>;
 @group(0) @binding(4) var<storage, read_write> keys: array<u32>;
 @group(0) @binding(5) var<storage, read_write> values: array<u32>;
@@ -21,48 +22,74 @@ var<workgroup> group_base: u32;
 const SH_C0: f32 = 0.28209479177387814;
 const SH_C1: f32 = 0.4886025119029199;
 
-fn sh_half(base: u32, h: u32) -> f32 {
-  let word = sh[base + h / 2u];
-  let pair = unpack2x16float(word);
-  return select(pair.x, pair.y, (h & 1u) == 1u);
+fn h2(word: u32) -> vec2<f32> {
+  return unpack2x16float(word);
 }
 
-// Coefficient k (1-based over the degrees above 0) as RGB.
-fn sh_coef(base: u32, k: u32) -> vec3<f32> {
-  let h = (k - 1u) * 3u;
-  return vec3<f32>(sh_half(base, h), sh_half(base, h + 1u), sh_half(base, h + 2u));
-}
-
+// The SH above degree 0 come as whole vec4<u32> loads (six a splat at degree 3, where 45 f16
+// read a word at a time took twice as many load instructions): sh_stride is a multiple of four
+// words (splats.cpp). Coefficient k (1-based) is halves 3(k - 1) to 3(k - 1) + 2, half h the
+// h % 2 of word h / 2 (pN below is word N unpacked).
 fn sh_color(index: u32, dc: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
   var c = SH_C0 * dc;
   let deg = frame.sh_degree;
   if (deg > 0u) {
-    let base = index * frame.sh_stride;
+    let base = index * (frame.sh_stride / 4u);
+    let w0 = sh[base];
+    let w1 = sh[base + 1u];
+    let p0 = h2(w0.x);
+    let p1 = h2(w0.y);
+    let p2 = h2(w0.z);
+    let p3 = h2(w0.w);
+    let p4 = h2(w1.x);
     let x = dir.x;
     let y = dir.y;
     let z = dir.z;
-    c = c - SH_C1 * y * sh_coef(base, 1u) + SH_C1 * z * sh_coef(base, 2u) -
-        SH_C1 * x * sh_coef(base, 3u);
+    c = c - SH_C1 * y * vec3<f32>(p0.x, p0.y, p1.x) + SH_C1 * z * vec3<f32>(p1.y, p2.x, p2.y) -
+        SH_C1 * x * vec3<f32>(p3.x, p3.y, p4.x);
     if (deg > 1u) {
+      let w2 = sh[base + 2u];
+      let p5 = h2(w1.y);
+      let p6 = h2(w1.z);
+      let p7 = h2(w1.w);
+      let p8 = h2(w2.x);
+      let p9 = h2(w2.y);
+      let p10 = h2(w2.z);
+      let p11 = h2(w2.w);
       let xx = x * x;
       let yy = y * y;
       let zz = z * z;
       let xy = x * y;
       let yz = y * z;
       let xz = x * z;
-      c = c + 1.0925484305920792 * xy * sh_coef(base, 4u) +
-          (-1.0925484305920792) * yz * sh_coef(base, 5u) +
-          0.31539156525252005 * (2.0 * zz - xx - yy) * sh_coef(base, 6u) +
-          (-1.0925484305920792) * xz * sh_coef(base, 7u) +
-          0.5462742152960396 * (xx - yy) * sh_coef(base, 8u);
+      c = c + 1.0925484305920792 * xy * vec3<f32>(p4.y, p5.x, p5.y) +
+          (-1.0925484305920792) * yz * vec3<f32>(p6.x, p6.y, p7.x) +
+          0.31539156525252005 * (2.0 * zz - xx - yy) * vec3<f32>(p7.y, p8.x, p8.y) +
+          (-1.0925484305920792) * xz * vec3<f32>(p9.x, p9.y, p10.x) +
+          0.5462742152960396 * (xx - yy) * vec3<f32>(p10.y, p11.x, p11.y);
       if (deg > 2u) {
-        c = c + (-0.5900435899266435) * y * (3.0 * xx - yy) * sh_coef(base, 9u) +
-            2.890611442640554 * xy * z * sh_coef(base, 10u) +
-            (-0.4570457994644658) * y * (4.0 * zz - xx - yy) * sh_coef(base, 11u) +
-            0.3731763325901154 * z * (2.0 * zz - 3.0 * xx - 3.0 * yy) * sh_coef(base, 12u) +
-            (-0.4570457994644658) * x * (4.0 * zz - xx - yy) * sh_coef(base, 13u) +
-            1.445305721320277 * z * (xx - yy) * sh_coef(base, 14u) +
-            (-0.5900435899266435) * x * (xx - 3.0 * yy) * sh_coef(base, 15u);
+        let w3 = sh[base + 3u];
+        let w4 = sh[base + 4u];
+        let w5 = sh[base + 5u];
+        let p12 = h2(w3.x);
+        let p13 = h2(w3.y);
+        let p14 = h2(w3.z);
+        let p15 = h2(w3.w);
+        let p16 = h2(w4.x);
+        let p17 = h2(w4.y);
+        let p18 = h2(w4.z);
+        let p19 = h2(w4.w);
+        let p20 = h2(w5.x);
+        let p21 = h2(w5.y);
+        let p22 = h2(w5.z);
+        c = c + (-0.5900435899266435) * y * (3.0 * xx - yy) * vec3<f32>(p12.x, p12.y, p13.x) +
+            2.890611442640554 * xy * z * vec3<f32>(p13.y, p14.x, p14.y) +
+            (-0.4570457994644658) * y * (4.0 * zz - xx - yy) * vec3<f32>(p15.x, p15.y, p16.x) +
+            0.3731763325901154 * z * (2.0 * zz - 3.0 * xx - 3.0 * yy) *
+                vec3<f32>(p16.y, p17.x, p17.y) +
+            (-0.4570457994644658) * x * (4.0 * zz - xx - yy) * vec3<f32>(p18.x, p18.y, p19.x) +
+            1.445305721320277 * z * (xx - yy) * vec3<f32>(p19.y, p20.x, p20.y) +
+            (-0.5900435899266435) * x * (xx - 3.0 * yy) * vec3<f32>(p21.x, p21.y, p22.x);
       }
     }
   }

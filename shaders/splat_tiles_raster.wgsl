@@ -24,10 +24,12 @@ struct TileParams {
 @group(0) @binding(7) var<storage, read_write> out: array<vec4<f32>>;
 @group(0) @binding(8) var point_depth: texture_depth_2d;
 
-var<workgroup> batch_centre: array<vec2<f32>, 256>;
-var<workgroup> batch_shape: array<vec4<f32>, 256>;  // conic a, b, c; radius
-var<workgroup> batch_color: array<vec4<f32>, 256>;  // rgb, opacity
-var<workgroup> batch_depth: array<f32, 256>;
+// A batch's splats in the order the pixel loop reads them: the box test's words first (centre,
+// radius and depth in one 16-byte read, as most of a tile's splats miss a given pixel), then
+// the shape, then the colour.
+var<workgroup> batch_box: array<vec4<f32>, 256>;    // centre x, y; radius; depth (reverse Z)
+var<workgroup> batch_shape: array<vec4<f32>, 256>;  // conic a, b, c; opacity
+var<workgroup> batch_color: array<vec3<f32>, 256>;
 var<workgroup> done_count: atomic<u32>;
 var<workgroup> all_done: u32;
 
@@ -66,30 +68,26 @@ fn cs_raster(@builtin(workgroup_id) wid: vec3<u32>,
     if (lid < n) {
       let rank = pair_values[top - 1u - lid];
       let p = projected[sorted_values[rank]];
-      batch_centre[lid] = p.centre;
-      batch_shape[lid] = vec4<f32>(p.conic_xy, p.conic_z, p.radius);
       let ba = unpack2x16float(p.color_b_opacity);
-      batch_color[lid] = vec4<f32>(unpack2x16float(p.color_rg), ba.x, ba.y);
-      batch_depth[lid] = frame.near / key_depth(sorted_keys[rank]);
+      batch_box[lid] = vec4<f32>(p.centre, p.radius, frame.near / key_depth(sorted_keys[rank]));
+      batch_shape[lid] = vec4<f32>(p.conic_xy, p.conic_z, ba.y);
+      batch_color[lid] = vec3<f32>(unpack2x16float(p.color_rg), ba.x);
     }
     workgroupBarrier();
     if (!done) {
       for (var k = 0u; k < n; k = k + 1u) {
+        let box = batch_box[k];
+        let d = box.xy - pf;
         // Reverse Z: a splat behind the points' depth is hidden.
-        if (batch_depth[k] <= behind) {
+        if (abs(d.x) > box.z || abs(d.y) > box.z || box.w <= behind) {
           continue;
         }
         let s = batch_shape[k];
-        let d = batch_centre[k] - pf;
-        if (abs(d.x) > s.w || abs(d.y) > s.w) {
-          continue;
-        }
         let power = -0.5 * (s.x * d.x * d.x + s.z * d.y * d.y) - s.y * d.x * d.y;
         if (power > 0.0) {
           continue;
         }
-        let col = batch_color[k];
-        let alpha = min(0.99, col.a * exp(power));
+        let alpha = min(0.99, s.w * exp(power));
         if (alpha < MIN_ALPHA) {
           continue;
         }
@@ -98,7 +96,7 @@ fn cs_raster(@builtin(workgroup_id) wid: vec3<u32>,
           done = true;
           break;
         }
-        c = c + col.rgb * alpha * t;
+        c = c + batch_color[k] * alpha * t;
         t = next;
       }
       if (done) {

@@ -317,6 +317,18 @@ TEST_P(Splats, TileRasterizerMatchesTheCpuReference) {
   expect_close(d);
 }
 
+TEST_P(Splats, TileRasterizerMatchesTheCpuReferenceOverSeveralScanBlocks) {
+  // 5000 small splats: the binning's prefix sum spans three blocks of 2048 ranks, so each
+  // block's pairs land at its offset (misplaced pairs put splats in other tiles).
+  io::SplatSet set = random_splats(5000, 41);
+  for (glm::vec3& s : set.scales) s *= 0.3f;
+  uint32_t visible = 0;
+  Difference d =
+      draw_and_compare(*ctx, set, test_camera(), &visible, splats::SplatRasterizer::Tiles);
+  EXPECT_EQ(visible, 5000u);
+  expect_close(d);
+}
+
 // A close-up: a few hundred large, faint splats around the camera's target, each covering much
 // of a 320x240 view (300 tiles): about 250 tiles a splat, 60 times the first guess of 4, and
 // over its floor of 65536 pairs.

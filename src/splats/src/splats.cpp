@@ -32,6 +32,10 @@ struct GpuSplat {
 };
 static_assert(sizeof(GpuSplat) == 48);
 
+// Bits of splat_common.wgsl's depth key: the view depth's float bits above the lowest seven
+// (relative steps of 2^-16, 0.15 mm at 10 m), so that the depth sort takes three rounds, not four.
+constexpr uint32_t kDepthKeyBits = 24;
+
 // splat_common.wgsl's SplatFrame.
 struct FrameUniforms {
   float local_to_view[16];
@@ -151,7 +155,7 @@ void ensure_groups(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& s) {
        gpu::bind_buffer(4, s.sort.keys[0].get()), gpu::bind_buffer(5, s.sort.values[0].get()),
        gpu::bind_buffer(6, s.args.get())},
       "splat-project");
-  const uint32_t r = radix_sort_result(32);
+  const uint32_t r = radix_sort_result(kDepthKeyBits);
   s.draw_group = gpu::create_bind_group(
       ctx, p.draw_layout.get(),
       {gpu::bind_buffer(0, s.frame_uniforms.get()), gpu::bind_buffer(1, s.projected.get()),
@@ -165,7 +169,7 @@ struct TileParams {
 };
 
 constexpr uint32_t kTile = 16;
-constexpr uint32_t kScanBlock = 512;
+constexpr uint32_t kScanBlock = 2048;  // splat_tiles.wgsl's BLOCK
 
 // Workgroups for `items` items of `per_group` each as a 2D grid within the per-dimension limit.
 std::pair<uint32_t, uint32_t> grid(uint64_t items, uint32_t per_group) {
@@ -187,7 +191,6 @@ void ensure_tile_pipelines(gpu::Context& ctx, SplatPipelines& p) {
   auto make = [&](const char* entry) {
     return gpu::create_compute_pipeline(ctx, bin.get(), entry, p.tile_pipeline_layout.get(), entry);
   };
-  p.tile_count = make("cs_count");
   p.tile_block_sums = make("cs_block_sums");
   p.tile_scan_blocks = make("cs_scan_blocks");
   p.tile_block_apply = make("cs_block_apply");
@@ -250,7 +253,8 @@ void ensure_tile_buffers(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& 
   t->pair_capacity = wanted_pair_capacity(ctx, s);
   // Room for the set's capacity: a composed set's count changes within it (compose_splats).
   const uint32_t blocks = (s.capacity + kScanBlock - 1) / kScanBlock;
-  t->scan = gpu::create_buffer(ctx, (uint64_t(s.capacity) + blocks + 1) * 4,
+  // Per splat its count (then offset) and its rectangle of tiles (splat_tiles.wgsl's rect_at).
+  t->scan = gpu::create_buffer(ctx, (uint64_t(s.capacity) * 3 + blocks + 1) * 4,
                                WGPUBufferUsage_Storage, "splat-tile-scan");
   // The pairs kept, each tile's range, the pairs wanted (copied out: TilePairCounts).
   t->tile_data =
@@ -262,7 +266,7 @@ void ensure_tile_buffers(gpu::Context& ctx, const SplatPipelines& p, GpuSplats& 
       gpu::create_buffer(ctx, sizeof(TileParams), WGPUBufferUsage_Uniform | WGPUBufferUsage_CopyDst,
                          "splat-tile-params");
   t->sort = create_radix_sort_buffers(ctx, p.sort, t->pair_capacity, t->tile_data.get(), 0);
-  const uint32_t r = radix_sort_result(32);
+  const uint32_t r = radix_sort_result(kDepthKeyBits);
   t->binning = gpu::create_bind_group(
       ctx, p.tile_layout.get(),
       {gpu::bind_buffer(0, s.frame_uniforms.get()), gpu::bind_buffer(1, t->params.get()),
@@ -327,7 +331,6 @@ void add_tile_passes(gpu::RenderGraph& graph, SplatPipelines* pp, GpuSplats* sp,
                   WGPUBindGroup g = t.binning.get();
                   const auto [sx, sy] = grid(sp->count, 256);
                   const auto [bx, by] = grid(uint64_t(blocks), 1);
-                  gpu::dispatch(pass.get(), pp->tile_count.get(), {g}, sx, sy);
                   gpu::dispatch(pass.get(), pp->tile_block_sums.get(), {g}, bx, by);
                   gpu::dispatch(pass.get(), pp->tile_scan_blocks.get(), {g}, 1);
                   gpu::dispatch(pass.get(), pp->tile_block_apply.get(), {g}, bx, by);
@@ -349,7 +352,7 @@ void add_tile_passes(gpu::RenderGraph& graph, SplatPipelines* pp, GpuSplats* sp,
       [pp, sp, targets, depth_test](gpu::PassContext& pc) {
         gpu::Context& ctx = pc.gpu();
         TileBuffers& t = *sp->tiles;
-        const uint32_t r = radix_sort_result(32);
+        const uint32_t r = radix_sort_result(kDepthKeyBits);
         auto layout = gpu::bind_group_layout_of(pp->tile_raster);
         gpu::BindGroup group = gpu::create_bind_group(
             ctx, layout.get(),
@@ -433,9 +436,11 @@ void check_set(const io::SplatSet& set, std::string_view what) {
     fail("splats: {} has SH degree {} (0 to 3 are drawn)", what, set.sh_degree);
 }
 
-// u32 words of f16 SH a splat for a degree.
+// u32 words of f16 SH a splat for a degree, rounded up to whole vec4<u32>s: the projection
+// loads them 16 bytes at a time (degree 3: 23 words, 24 with the padding).
 uint32_t sh_stride_of(int sh_degree) {
-  return uint32_t(((sh_degree + 1) * (sh_degree + 1) - 1) * 3 + 1) / 2;
+  const uint32_t words = uint32_t(((sh_degree + 1) * (sh_degree + 1) - 1) * 3 + 1) / 2;
+  return (words + 3) / 4 * 4;
 }
 
 // A set's splats in the GPU's layout, positions relative to `origin` (in the set's frame), SH as
@@ -482,7 +487,7 @@ std::unique_ptr<GpuSplats> allocate_splats(gpu::Context& ctx, uint64_t count, ui
       std::min<uint64_t>(ctx.limits.maxStorageBufferBindingSize, ctx.limits.maxBufferSize);
   const uint64_t room = std::max<uint64_t>(1, capacity);
   const uint64_t splat_bytes = room * sizeof(GpuSplat);
-  const uint64_t sh_bytes = std::max<uint64_t>(1, room * g->sh_stride) * 4;
+  const uint64_t sh_bytes = std::max<uint64_t>(4, room * g->sh_stride) * 4;  // one vec4 at least
   if (splat_bytes > limit || sh_bytes > limit || room * kProjectedBytes > limit ||
       room > UINT32_MAX)
     fail(
@@ -654,7 +659,7 @@ void add_splat_passes_to(gpu::RenderGraph& graph, SplatPipelines& p, GpuSplats& 
       .add_pass(targets.name + "-sort", gpu::PassKind::Compute,
                 [pp, sp](gpu::PassContext& pc) {
                   auto pass = pc.begin_compute_pass();
-                  encode_radix_sort(pass.get(), pp->sort, sp->sort, 32);
+                  encode_radix_sort(pass.get(), pp->sort, sp->sort, kDepthKeyBits);
                   wgpuComputePassEncoderEnd(pass.get());
                 })
       .write(projected);

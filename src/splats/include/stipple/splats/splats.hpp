@@ -139,7 +139,7 @@ struct SplatPipelines {
   bool tile_pipelines = false;
   gpu::BindGroupLayout tile_layout;
   gpu::PipelineLayout tile_pipeline_layout;
-  gpu::ComputePipeline tile_count, tile_block_sums, tile_scan_blocks, tile_block_apply, tile_emit,
+  gpu::ComputePipeline tile_block_sums, tile_scan_blocks, tile_block_apply, tile_emit,
       tile_clear_ranges, tile_ranges, tile_raster;
   gpu::RenderPipeline tile_composite;
   gpu::Texture no_depth;  // 1x1, bound when there is no depth to test against
