@@ -45,6 +45,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (got > batch.size() || positions.size() != got) __builtin_trap();
     for (size_t i = 0; i < got; ++i)
       if (!(positions[i] == batch.positions[i]) && positions[i] == positions[i]) __builtin_trap();
+    // The drawn-fields path (the pointlet cache's reader): the same count and fields again.
+    reader.seek(0);
+    std::vector<stipple::io::DrawnPoint> drawn(97);
+    if (reader.read_drawn(drawn) != got) __builtin_trap();
+    for (size_t i = 0; i < got; ++i)
+      if (drawn[i].intensity != batch.intensity[i] ||
+          drawn[i].classification != batch.classification[i])
+        __builtin_trap();
   } catch (const stipple::Error&) {
   }
   return 0;

@@ -33,6 +33,9 @@ void decode_records(const uint8_t* records, size_t n, const RecordLayout& layout
 void decode_positions(const uint8_t* records, size_t n, const RecordLayout& layout,
                       const glm::dvec3& scale, const glm::dvec3& offset,
                       std::vector<glm::dvec3>& positions);
+// Writes the drawn fields of n raw records to out[0..n).
+void decode_drawn(const uint8_t* records, size_t n, const RecordLayout& layout,
+                  const glm::dvec3& scale, const glm::dvec3& offset, DrawnPoint* out);
 // Encodes batch point i into one raw record (record_length bytes). Integer coordinates are
 // returned so the writer can track bounds of what is actually stored.
 void encode_record(const PointBatch& batch, size_t i, const RecordLayout& layout,

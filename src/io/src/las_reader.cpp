@@ -541,6 +541,14 @@ size_t LasReader::read_positions(std::vector<glm::dvec3>& positions, size_t max_
     detail::decode_positions(records, k, r.layout, r.header.scale, r.header.offset, positions);
   });
 }
+size_t LasReader::read_drawn(std::span<DrawnPoint> out) {
+  Impl& r = *impl_;
+  DrawnPoint* at = out.data();
+  return r.read_records(out.size(), [&](const uint8_t* records, size_t k) {
+    detail::decode_drawn(records, k, r.layout, r.header.scale, r.header.offset, at);
+    at += k;
+  });
+}
 void LasReader::seek(uint64_t index) {
   impl_->seek(index);
 }

@@ -77,6 +77,16 @@ glm::dvec3 decode_position(const uint8_t* r, const glm::dvec3& scale, const glm:
                     load<int32_t>(r + 4) * scale.y + offset.y,
                     load<int32_t>(r + 8) * scale.z + offset.z);
 }
+
+// Return number, number of returns and class of one record, shared by decode_records and
+// decode_drawn: the legacy formats pack them in two bytes, formats 6-10 in three.
+struct Returns {
+  uint8_t return_number, number_of_returns, classification;
+};
+Returns decode_returns(const uint8_t* r, bool extended) {
+  if (!extended) return {uint8_t(r[14] & 7), uint8_t((r[14] >> 3) & 7), uint8_t(r[15] & 0x1f)};
+  return {uint8_t(r[14] & 15), uint8_t(r[14] >> 4), r[16]};
+}
 }  // namespace
 
 void decode_records(const uint8_t* records, size_t n, const RecordLayout& l,
@@ -115,24 +125,21 @@ void decode_records(const uint8_t* records, size_t n, const RecordLayout& l,
     pos[i] = decode_position(r, scale, offset);
     intensity[i] = load<uint16_t>(r + 12);
     const uint8_t b14 = r[14], b15 = r[15];
+    const Returns returns = decode_returns(r, extended);
+    ret[i] = returns.return_number;
+    nret[i] = returns.number_of_returns;
+    cls_out[i] = returns.classification;
     if (!extended) {
-      const uint8_t cls = b15 & 0x1f;
-      ret[i] = b14 & 7;
-      nret[i] = (b14 >> 3) & 7;
-      cls_out[i] = cls;
       // Legacy formats have no overlap flag; class 12 ("overlap") is its stand-in.
       uint8_t flags = (b15 >> 5) & 7;
-      if (cls == 12) flags |= 8;
+      if (returns.classification == 12) flags |= 8;
       flags |= (b14 & 0xc0);  // scan direction, edge of flight line
       flags_out[i] = flags;
       angle[i] = static_cast<float>(static_cast<int8_t>(r[16]));
       user[i] = r[17];
       source[i] = load<uint16_t>(r + 18);
     } else {
-      ret[i] = b14 & 15;
-      nret[i] = b14 >> 4;
       flags_out[i] = b15;  // same bit layout as PointBatch::flags
-      cls_out[i] = r[16];
       user[i] = r[17];
       angle[i] = static_cast<float>(load<int16_t>(r + 18) * 0.006);
       source[i] = load<uint16_t>(r + 20);
@@ -155,6 +162,24 @@ void decode_records(const uint8_t* records, size_t n, const RecordLayout& l,
       p.dz = load<float>(w + 25);
     }
     if (eb) std::memcpy(extra + i * eb, r + l.base_size, eb);
+  }
+}
+
+void decode_drawn(const uint8_t* records, size_t n, const RecordLayout& l, const glm::dvec3& scale,
+                  const glm::dvec3& offset, DrawnPoint* out) {
+  const bool extended = l.extended();
+  for (size_t i = 0; i < n; ++i) {
+    const uint8_t* r = records + i * l.record_length;
+    DrawnPoint& p = out[i];
+    p.position = decode_position(r, scale, offset);
+    p.intensity = load<uint16_t>(r + 12);
+    const Returns returns = decode_returns(r, extended);
+    p.return_number = returns.return_number;
+    p.number_of_returns = returns.number_of_returns;
+    p.classification = returns.classification;
+    p.rgb = l.rgb >= 0 ? glm::u16vec3(load<uint16_t>(r + l.rgb), load<uint16_t>(r + l.rgb + 2),
+                                      load<uint16_t>(r + l.rgb + 4))
+                       : glm::u16vec3(0);
   }
 }
 

@@ -94,12 +94,14 @@ ColorMode resolve_color_mode(const CloudAttributes& cloud, ColorMode mode) {
   return mode;
 }
 
-uint32_t batch_rgba(const io::PointBatch& batch, size_t i, int rgb_bits) {
-  if (batch.rgb.empty()) return 0;
-  auto c = batch.rgb[i];
+uint32_t rgba_of(glm::u16vec3 c, int rgb_bits) {
   if (rgb_bits == 16) c /= uint16_t(257);  // 16-bit to 8-bit with rounding of 255*257
   return pack_rgba(uint8_t(std::min<int>(c.r, 255)), uint8_t(std::min<int>(c.g, 255)),
                    uint8_t(std::min<int>(c.b, 255)));
+}
+
+uint32_t batch_rgba(const io::PointBatch& batch, size_t i, int rgb_bits) {
+  return batch.rgb.empty() ? 0 : rgba_of(batch.rgb[i], rgb_bits);
 }
 
 uint32_t batch_attributes(const io::PointBatch& batch, size_t i) {

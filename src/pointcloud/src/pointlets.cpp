@@ -972,7 +972,10 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
           io::LasReader reader(sources[sl.source], true);  // the fields the cache keeps
           reader.seek(sl.first);
           const int rgb_bits = reader.header().rgb_bits;
-          io::PointBatch batch;
+          const bool has_rgb = reader.header().has_rgb;
+          // A few thousand points at a time, so that the records and their drawn fields stay
+          // in the core's cache on their way into the run.
+          std::vector<io::DrawnPoint> drawn(4096);
           uint64_t done = 0;
           // Every sample_stride-th point of the input is sampled for the colour ramps: the
           // next one's index in this slice (no division per point).
@@ -983,17 +986,18 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
             // A reader elsewhere sees the read advance (and may end it) batch by batch.
             if (options.report && options.report->cancel)
               fail("{}: the cache build was cancelled", cache_path.string());
-            batch.clear();
-            const size_t n =
-                reader.read(batch, size_t(std::min<uint64_t>(1 << 16, sl.count - done)));
+            const size_t n = reader.read_drawn(
+                std::span(drawn).first(size_t(std::min<uint64_t>(drawn.size(), sl.count - done))));
             if (n == 0)
               fail("{}: the header says {} points, the file holds {}", sources[sl.source].string(),
                    headers[sl.source].point_count, sl.first + done);
             if (enu)
-              for (auto& p : batch.positions) p = enu->from_geodetic(p);
+              for (size_t i = 0; i < n; ++i)
+                drawn[i].position = enu->from_geodetic(drawn[i].position);
             for (size_t i = 0; i < n; ++i) {
               RunRecord& r = run[sl.at + done + i];
-              const glm::dvec3& p = batch.positions[i];
+              const io::DrawnPoint& d = drawn[i];
+              const glm::dvec3& p = d.position;
               for (int a = 0; a < 3; ++a) {
                 const double steps = std::nearbyint((p[a] - origin[a]) / scale[a]);
                 if (!(steps >= 0 && steps < double(1u << 31)))
@@ -1002,13 +1006,13 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
                 r.q[a] = uint32_t(steps);
               }
               r.key = grid_key(r.q, cell_inverse, info.order);
-              r.rgba = batch_rgba(batch, i, rgb_bits);
-              r.attributes = batch_attributes(batch, i);
+              r.rgba = has_rgb ? rgba_of(d.rgb, rgb_bits) : 0;
+              r.attributes = pack_attributes(d.intensity, d.classification, d.return_number,
+                                             d.number_of_returns);
               if (done + i == next_sample) {
                 next_sample += sample_stride;
                 samples[k].elevation.push_back(p.z);
-                samples[k].intensity.push_back(
-                    batch.intensity.empty() ? 0.0 : double(batch.intensity[i]));
+                samples[k].intensity.push_back(double(d.intensity));
               }
             }
             done += n;

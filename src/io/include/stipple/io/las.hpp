@@ -129,6 +129,16 @@ struct LasHeader {
 // Bytes of a point record of the given format (0-10) without extra bytes; 0 if unknown.
 uint16_t las_format_record_size(uint8_t point_format);
 
+// One point's fields that drawing keeps (LasReader::read_drawn): the position with the header's
+// scale and offset applied (the same doubles read() gives), intensity, classification and returns
+// as PointBatch holds them, and RGB as stored (zeros where the format has none).
+struct DrawnPoint {
+  glm::dvec3 position;
+  glm::u16vec3 rgb;
+  uint16_t intensity;
+  uint8_t classification, return_number, number_of_returns;
+};
+
 class LasReader {
  public:
   // Throws stipple::Error "<path>: <problem>" for anything that is not a valid LAS/LAZ file.
@@ -154,6 +164,10 @@ class LasReader {
   // As read(), but decodes the positions only (appended to `positions`, scale and offset
   // applied): a pass that needs nothing else (the tiler's counting pass) skips the other fields.
   size_t read_positions(std::vector<glm::dvec3>& positions, size_t max_points);
+  // As read(), but only the drawn fields, into `out` (up to out.size() points): a builder that
+  // converts every point at once (the pointlet cache) skips the batch's other arrays and keeps
+  // its working set in cache.
+  size_t read_drawn(std::span<DrawnPoint> out);
   // The next read() starts at point `index` (<= the point count). LAZ decoding restarts at the
   // chunk holding it, so readers seeking to chunk-aligned ranges can decode a file in parallel.
   void seek(uint64_t index);

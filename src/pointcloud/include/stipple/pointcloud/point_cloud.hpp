@@ -71,6 +71,8 @@ uint32_t pack_attributes(uint16_t intensity, uint8_t classification, uint8_t ret
 // holds 8- or 16-bit values; 0 without RGB) and the attribute word (defaults for missing ones:
 // class 1, single return).
 uint32_t batch_rgba(const io::PointBatch& batch, size_t i, int rgb_bits);
+// A stored RGB (8- or 16-bit as rgb_bits says) as batch_rgba packs it.
+uint32_t rgba_of(glm::u16vec3 rgb, int rgb_bits);
 uint32_t batch_attributes(const io::PointBatch& batch, size_t i);
 
 struct CloudAttributes {
