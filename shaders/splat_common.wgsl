@@ -45,17 +45,18 @@ struct Projected {
 
 const MIN_ALPHA: f32 = 1.0 / 255.0;
 
-// The sort key: the view depth's bits above the lowest seven, reversed, so that an ascending
-// sort puts the farthest splat first (positive floats order as their bits; splats.cpp's
-// kDepthKeyBits: 24 bits, three rounds of the radix sort instead of four). Depths within 2^-16
-// of each other (0.15 mm at 10 m) keep the projection's order. The passes read the depth back
-// from it (to the same 2^-16, nearer: for the test against the points' depth).
+// The sort key: the view depth's bits reversed, so that an ascending sort puts the farthest
+// splat first (positive floats order as their bits). All 32 bits (splats.cpp's kDepthKeyBits):
+// splats of equal keys keep the projection's order, which its atomic slots make vary from frame
+// to frame, so a coarser key (24 bits, one radix round fewer, was tried) let nearly coplanar
+// splats swap their blending order between frames of a still view. The draw reads the depth
+// back from it.
 fn depth_key(z: f32) -> u32 {
-  return 0xffffffu - (bitcast<u32>(z) >> 7u);
+  return 0xffffffffu - bitcast<u32>(z);
 }
 
 fn key_depth(key: u32) -> f32 {
-  return bitcast<f32>((0xffffffu - key) << 7u);
+  return bitcast<f32>(0xffffffffu - key);
 }
 
 // Half the width and height, in pixels, of the box a splat's pixels can be drawn in: the square

@@ -128,7 +128,9 @@ fn project(index: u32) -> Projection {
                         frame.view_rotation[2].xyz);
   // View position: the set's offset (world) rotated, plus the local position transformed.
   let t = w2v * frame.offset + l2v * s.position;
-  if (t.z <= frame.near) {
+  // Written so that a NaN fails each test (an overflowed transform or covariance): such a splat
+  // is dropped, not drawn from undefined conversions.
+  if (!(t.z > frame.near)) {
     return out;
   }
   // Covariance in the set's frame: R S S^T R^T.
@@ -152,7 +154,7 @@ fn project(index: u32) -> Projection {
   let b = cov[0][1];
   let c = cov[1][1] + 0.3;
   let det = a * c - b * b;
-  if (det <= 0.0) {
+  if (!(det > 0.0)) {
     return out;
   }
   let mid = 0.5 * (a + c);
@@ -160,8 +162,8 @@ fn project(index: u32) -> Projection {
   let radius = ceil(3.0 * sqrt(lambda));
   let centre = vec2<f32>(fx * t.x / t.z, fy * t.y / t.z) + 0.5 * frame.viewport;
   // Off screen: the quad misses the viewport.
-  if (centre.x + radius <= 0.0 || centre.y + radius <= 0.0 || centre.x - radius >= frame.viewport.x ||
-      centre.y - radius >= frame.viewport.y) {
+  if (!(centre.x + radius > 0.0 && centre.y + radius > 0.0 && centre.x - radius < frame.viewport.x &&
+        centre.y - radius < frame.viewport.y)) {
     return out;
   }
   // The view direction in the set's frame, for the SH.

@@ -75,8 +75,11 @@ fn tile_rect(p: Projected) -> vec4<i32> {
   let lo = ceil(p.centre - half - 0.5);
   let hi = floor(p.centre + half - 0.5);
   let size = vec2<f32>(frame.viewport);
-  let plo = vec2<i32>(clamp(lo, vec2<f32>(0.0), size - 1.0));
-  let phi = vec2<i32>(clamp(hi, vec2<f32>(0.0), size - 1.0));
+  // Clamped again as integers: a NaN footprint (an overflowed covariance) converts to any
+  // integer, and the rectangle's 16-bit packing must stay what its count says.
+  let last = vec2<i32>(size) - 1;
+  let plo = clamp(vec2<i32>(clamp(lo, vec2<f32>(0.0), size - 1.0)), vec2<i32>(0), last);
+  let phi = clamp(vec2<i32>(clamp(hi, vec2<f32>(0.0), size - 1.0)), vec2<i32>(0), last);
   if (hi.x < 0.0 || hi.y < 0.0 || lo.x > size.x - 1.0 || lo.y > size.y - 1.0 || hi.x < lo.x ||
       hi.y < lo.y) {
     return vec4<i32>(0, 0, -1, -1);

@@ -32,9 +32,9 @@ struct GpuSplat {
 };
 static_assert(sizeof(GpuSplat) == 48);
 
-// Bits of splat_common.wgsl's depth key: the view depth's float bits above the lowest seven
-// (relative steps of 2^-16, 0.15 mm at 10 m), so that the depth sort takes three rounds, not four.
-constexpr uint32_t kDepthKeyBits = 24;
+// Bits of splat_common.wgsl's depth key: the view depth's float bits, all of them (a coarser key
+// makes ties, and ties flicker: see there).
+constexpr uint32_t kDepthKeyBits = 32;
 
 // splat_common.wgsl's SplatFrame.
 struct FrameUniforms {
