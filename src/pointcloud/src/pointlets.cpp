@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
+#include <sys/vfs.h>
 #include <unistd.h>
 #include <zlib.h>
 #include <zstd.h>
@@ -375,9 +376,11 @@ void write_parallel(int fd, const void* data, uint64_t n, uint64_t offset, const
 // thread: buffered pwrite()s to one file take its inode lock, so they copy one at a time
 // whatever the threads (this 2-core machine, tmpfs: one thread 2.15 GB/s, two 2.04 GB/s;
 // through a mapping 1.31 and 2.40 GB/s), and the 1B-point build waited 8-9 s for the cache's
-// writes on the 16-core machine. The range is allocated first (fallocate), so a full disk is an
-// error here and never a SIGBUS in a copy. Where the file system has no fallocate or mapping,
-// or STIPPLE_CACHE_WRITE=pwrite (benches), the writes are pwrite()s.
+// writes on the 16-core machine. The range's pages are allocated first (fallocate), so a full
+// disk is an error here and never a SIGBUS in a copy; that holds on ext4, XFS and tmpfs, whose
+// fallocate reserves the blocks a mapped write later dirties. Elsewhere (btrfs and ZFS reserve
+// again at the page's first write, and a full disk would be a SIGBUS), where the file system has
+// no fallocate or mapping, or with STIPPLE_CACHE_WRITE=pwrite (benches), the writes are pwrite()s.
 bool mapped_writes_wanted() {
   const char* v = std::getenv("STIPPLE_CACHE_WRITE");
   return !(v && std::string_view(v) == "pwrite");
@@ -386,14 +389,21 @@ bool mapped_writes_wanted() {
 bool write_mapped(int fd, const void* data, uint64_t n, uint64_t offset, const std::string& name,
                   ThreadPool& pool) {
   if (n == 0) return true;
-  if (::fallocate(fd, 0, off_t(offset), off_t(n)) != 0) {
+  struct statfs fs {};
+  if (::fstatfs(fd, &fs) != 0) return false;
+  constexpr decltype(fs.f_type) kExt4 = 0xEF53, kXfs = 0x58465342, kTmpfs = 0x01021994;
+  if (fs.f_type != kExt4 && fs.f_type != kXfs && fs.f_type != kTmpfs) return false;
+  // From the first mapped page's start: a page is dirtied whole, and its part before `offset`
+  // (the header's place, written last) needs its blocks too.
+  const uint64_t page = uint64_t(::sysconf(_SC_PAGESIZE));
+  const uint64_t first = offset / page * page;
+  if (::fallocate(fd, 0, off_t(first), off_t(offset + n - first)) != 0) {
     if (errno == EOPNOTSUPP || errno == ENOSYS) return false;
     fail("{}: cannot write {} bytes: {}{}", name, n, std::strerror(errno),
          errno == ENOSPC ? " (disk full)" : "");
   }
   // A mapping a piece, unmapped once copied: the mapped pages count in the process's resident
   // set (a window's 1.8 GB mapped at once raised the peak RSS by as much).
-  const uint64_t page = uint64_t(::sysconf(_SC_PAGESIZE));
   const auto* from = static_cast<const uint8_t*>(data);
   pool.parallel_for(size_t((n + kWritePiece - 1) / kWritePiece), 1, [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) {
