@@ -381,18 +381,19 @@ void write_parallel(int fd, const void* data, uint64_t n, uint64_t offset, const
 // fallocate reserves the blocks a mapped write later dirties. Elsewhere (btrfs and ZFS reserve
 // again at the page's first write, and a full disk would be a SIGBUS), where the file system has
 // no fallocate or mapping, or with STIPPLE_CACHE_WRITE=pwrite (benches), the writes are pwrite()s.
-bool mapped_writes_wanted() {
+// Decided once a cache file, by its file system.
+bool mapped_writes_suit(int fd) {
   const char* v = std::getenv("STIPPLE_CACHE_WRITE");
-  return !(v && std::string_view(v) == "pwrite");
+  if (v && std::string_view(v) == "pwrite") return false;
+  struct statfs fs {};
+  if (::fstatfs(fd, &fs) != 0) return false;
+  constexpr decltype(fs.f_type) kExt4 = 0xEF53, kXfs = 0x58465342, kTmpfs = 0x01021994;
+  return fs.f_type == kExt4 || fs.f_type == kXfs || fs.f_type == kTmpfs;
 }
 
 bool write_mapped(int fd, const void* data, uint64_t n, uint64_t offset, const std::string& name,
                   ThreadPool& pool) {
   if (n == 0) return true;
-  struct statfs fs {};
-  if (::fstatfs(fd, &fs) != 0) return false;
-  constexpr decltype(fs.f_type) kExt4 = 0xEF53, kXfs = 0x58465342, kTmpfs = 0x01021994;
-  if (fs.f_type != kExt4 && fs.f_type != kXfs && fs.f_type != kTmpfs) return false;
   // From the first mapped page's start: a page is dirtied whole, and its part before `offset`
   // (the header's place, written last) needs its blocks too.
   const uint64_t page = uint64_t(::sysconf(_SC_PAGESIZE));
@@ -723,7 +724,7 @@ class PointletWriter {
   PointletBuildStats& stats_;
   std::vector<RunRecord> carry_;
   uint64_t written_ = 0;
-  bool mapped_ = mapped_writes_wanted();
+  bool mapped_ = mapped_writes_suit(fd_);
   BackgroundWrite writes_;  // last: joined before the rest goes
 };
 
@@ -1001,13 +1002,10 @@ PointletBuildStats build_pointlet_cache(const std::vector<fs::path>& sources,
             if (n == 0)
               fail("{}: the header says {} points, the file holds {}", sources[sl.source].string(),
                    headers[sl.source].point_count, sl.first + done);
-            if (enu)
-              for (size_t i = 0; i < n; ++i)
-                drawn[i].position = enu->from_geodetic(drawn[i].position);
             for (size_t i = 0; i < n; ++i) {
               RunRecord& r = run[sl.at + done + i];
               const io::DrawnPoint& d = drawn[i];
-              const glm::dvec3& p = d.position;
+              const glm::dvec3 p = enu ? enu->from_geodetic(d.position) : d.position;
               for (int a = 0; a < 3; ++a) {
                 const double steps = std::nearbyint((p[a] - origin[a]) / scale[a]);
                 if (!(steps >= 0 && steps < double(1u << 31)))
