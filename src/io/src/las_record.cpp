@@ -78,6 +78,11 @@ glm::dvec3 decode_position(const uint8_t* r, const glm::dvec3& scale, const glm:
                     load<int32_t>(r + 8) * scale.z + offset.z);
 }
 
+// The three 16-bit channels at `at` (a record's RGB field).
+glm::u16vec3 decode_rgb(const uint8_t* at) {
+  return {load<uint16_t>(at), load<uint16_t>(at + 2), load<uint16_t>(at + 4)};
+}
+
 // Return number, number of returns and class of one record, shared by decode_records and
 // decode_drawn: the legacy formats pack them in two bytes, formats 6-10 in three.
 struct Returns {
@@ -146,8 +151,7 @@ void decode_records(const uint8_t* records, size_t n, const RecordLayout& l,
     }
     if (gps) gps[i] = load<double>(r + l.gps);
     if (rgb) {
-      rgb[i] = glm::u16vec3(load<uint16_t>(r + l.rgb), load<uint16_t>(r + l.rgb + 2),
-                            load<uint16_t>(r + l.rgb + 4));
+      rgb[i] = decode_rgb(r + l.rgb);
     }
     if (nir) nir[i] = load<uint16_t>(r + l.nir);
     if (wave) {
@@ -177,9 +181,7 @@ void decode_drawn(const uint8_t* records, size_t n, const RecordLayout& l, const
     p.return_number = returns.return_number;
     p.number_of_returns = returns.number_of_returns;
     p.classification = returns.classification;
-    p.rgb = l.rgb >= 0 ? glm::u16vec3(load<uint16_t>(r + l.rgb), load<uint16_t>(r + l.rgb + 2),
-                                      load<uint16_t>(r + l.rgb + 4))
-                       : glm::u16vec3(0);
+    p.rgb = l.rgb >= 0 ? decode_rgb(r + l.rgb) : glm::u16vec3(0);
   }
 }
 
